@@ -1,0 +1,1 @@
+//! firmware-db: placeholder, filled by its issue.

@@ -1,0 +1,1 @@
+//! firmware-mb: placeholder, filled by its issue.

@@ -1,0 +1,1 @@
+//! x10-robots: placeholder, filled by its issue.

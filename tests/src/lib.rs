@@ -1,0 +1,1 @@
+//! x10-tests: placeholder, filled by its issue.

@@ -1,0 +1,1 @@
+//! x10-devices: placeholder, filled by its issue.

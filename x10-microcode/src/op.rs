@@ -1,0 +1,595 @@
+//! Operations: what a request (or one item of a batch) asks a daughterboard to do.
+//!
+//! An operation is encoded in three places: byte 0 (function in the high nibble, operand in the
+//! low nibble), byte 2 (port kind, port index, pin) and the data bytes. [`Op::parse`] and
+//! [`Op::emit_data`] translate between those bytes and [`Op`]; [`crate::Request`] and
+//! [`crate::Batch`] add the framing around them.
+
+use crate::system::EventConfig;
+use crate::types::{Edge, Level, PinRef, Port, PortKind};
+use crate::{Batch, Error, Result, MAX_PAYLOAD, MAX_REQUEST_DATA};
+
+/// Function codes: the high nibble of byte 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Function {
+    /// 0x0, new: ping, identify, heartbeat, failsafe, event enables, diagnostics, PEC.
+    System,
+    /// 0x1, thesis `FN_IO`: digital input, low, high, pulse-in.
+    Io,
+    /// 0x2, thesis `FN_PWM`: duty cycle (and, new, frequency and pulse width).
+    Pwm,
+    /// 0x3, thesis `FN_ANALOG`: analog read of a sensor port.
+    Analog,
+    /// 0x4, thesis `FN_SERIAL` (defined, never implemented there): serial on a port's two pins.
+    Serial,
+    /// 0x5, new: several operations in one transfer.
+    Batch,
+    /// 0x6, new: every sensor port of the board in one reply.
+    Scan,
+    /// Any other code.
+    Unknown(u8),
+}
+
+impl Function {
+    /// Decodes a 4-bit function code.
+    pub const fn from_code(code: u8) -> Function {
+        match code {
+            0 => Function::System,
+            1 => Function::Io,
+            2 => Function::Pwm,
+            3 => Function::Analog,
+            4 => Function::Serial,
+            5 => Function::Batch,
+            6 => Function::Scan,
+            x => Function::Unknown(x),
+        }
+    }
+
+    /// The 4-bit function code.
+    pub const fn code(self) -> u8 {
+        match self {
+            Function::System => 0,
+            Function::Io => 1,
+            Function::Pwm => 2,
+            Function::Analog => 3,
+            Function::Serial => 4,
+            Function::Batch => 5,
+            Function::Scan => 6,
+            Function::Unknown(x) => x,
+        }
+    }
+
+    /// Name used by the `x10` tool and the docs.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Function::System => "system",
+            Function::Io => "io",
+            Function::Pwm => "pwm",
+            Function::Analog => "analog",
+            Function::Serial => "serial",
+            Function::Batch => "batch",
+            Function::Scan => "scan",
+            Function::Unknown(_) => "unknown",
+        }
+    }
+}
+
+/// Operand codes, named as in `docs/protocol.md`. (Used by [`Op::operand`].)
+pub struct Operand;
+
+#[allow(missing_docs)]
+impl Operand {
+    pub const SYS_PING: u8 = 0;
+    pub const SYS_IDENTIFY: u8 = 1;
+    pub const SYS_HEARTBEAT: u8 = 2;
+    pub const SYS_SET_FAILSAFE: u8 = 3;
+    pub const SYS_EVENT_ENABLE: u8 = 4;
+    pub const SYS_READ_DIAGNOSTICS: u8 = 5;
+    pub const SYS_CLEAR_DIAGNOSTICS: u8 = 6;
+    pub const SYS_SET_PEC: u8 = 7;
+    pub const IO_INPUT: u8 = 0;
+    pub const IO_LOW: u8 = 1;
+    pub const IO_HIGH: u8 = 2;
+    pub const IO_PULSE_IN_RISING: u8 = 3;
+    pub const IO_PULSE_IN_FALLING: u8 = 4;
+    pub const PWM_DUTY: u8 = 0;
+    pub const PWM_FREQUENCY: u8 = 1;
+    pub const PWM_PULSE_WIDTH: u8 = 2;
+    pub const ANALOG_READ: u8 = 0;
+    pub const SERIAL_WRITE: u8 = 0;
+    pub const SERIAL_READ: u8 = 1;
+    pub const SERIAL_CONFIG: u8 = 2;
+    pub const BATCH: u8 = 0;
+    pub const SCAN: u8 = 0;
+}
+
+/// One operation on a daughterboard.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Op<'a> {
+    /// System 0, ping: reply with status `ok` and no payload.
+    Ping,
+    /// System 1, identify: reply with an [`crate::Identity`].
+    Identify,
+    /// System 2, heartbeat: keeps the failsafe from tripping. No reply.
+    Heartbeat,
+    /// System 3, failsafe timeout in milliseconds (data: u16 LE; 0 turns the failsafe off).
+    /// No reply.
+    SetFailsafe {
+        /// Milliseconds of MB silence after which every actuator goes to its safe state.
+        timeout_ms: u16,
+    },
+    /// System 4, events for one pin (data: [`EventConfig`], 5 bytes). No reply.
+    EventEnable(PinRef, EventConfig),
+    /// System 5, read the diagnostics counters: reply with [`crate::Diagnostics`].
+    ReadDiagnostics,
+    /// System 6, clear the diagnostics counters. No reply.
+    ClearDiagnostics,
+    /// System 7, PEC on (1) or off (0) from the next frame on (data: 1 byte). No reply.
+    SetPec(bool),
+    /// IO 0, read a digital pin (thesis `digitalIn`): reply payload 1 byte, 0 or 1.
+    DigitalRead(PinRef),
+    /// IO 1 / IO 2, drive a digital pin (thesis `digitalOut`). No reply.
+    DigitalWrite(PinRef, Level),
+    /// IO 3 / IO 4, measure a pulse (data: none, or u16 LE timeout in ms). The reply is
+    /// `pending`; the width in µs (u32 LE) follows in a deferred-reply event.
+    PulseIn {
+        /// Pin to measure.
+        pin: PinRef,
+        /// Edge that starts the pulse.
+        edge: Edge,
+        /// Timeout in ms; `None` is the board's default (and no data bytes on the wire).
+        timeout_ms: Option<u16>,
+    },
+    /// PWM 0, duty cycle 0–255 on a PWM pin of an actuator port (thesis `pwm`). No reply.
+    PwmDuty(PinRef, u8),
+    /// PWM 1, PWM frequency in Hz of both PWM pins of an actuator port (data: u16 LE, > 0).
+    /// No reply.
+    PwmFrequency(Port, u16),
+    /// PWM 2, high time of each period in µs (data: u16 LE), for servos. No reply.
+    PwmPulseWidth(PinRef, u16),
+    /// ANALOG 0, read the analog input of a sensor port (thesis `analog`): reply payload u16 LE.
+    AnalogRead(Port),
+    /// SERIAL 0, send bytes on a port's pins (A = TX, B = RX). No reply.
+    SerialWrite(Port, &'a [u8]),
+    /// SERIAL 1, read up to n received bytes (data: 1 byte, n ≤ 28): reply payload the bytes.
+    SerialRead(Port, u8),
+    /// SERIAL 2, baud rate (data: u32 LE). No reply.
+    SerialConfig(Port, u32),
+    /// BATCH 0: several operations in one transfer; reply payload one result per item.
+    Batch(Batch<'a>),
+    /// SCAN 0: every sensor port at once; reply with a [`crate::ScanResult`].
+    Scan,
+}
+
+fn u16_le(data: &[u8]) -> Result<u16> {
+    match *data {
+        [a, b] => Ok(u16::from_le_bytes([a, b])),
+        _ => Err(Error::BadLength),
+    }
+}
+
+fn u32_le(data: &[u8]) -> Result<u32> {
+    match *data {
+        [a, b, c, d] => Ok(u32::from_le_bytes([a, b, c, d])),
+        _ => Err(Error::BadLength),
+    }
+}
+
+fn no_data(data: &[u8]) -> Result<()> {
+    if data.is_empty() {
+        Ok(())
+    } else {
+        Err(Error::BadLength)
+    }
+}
+
+/// Port byte that must be zero (operations addressed to the board, not a port).
+fn no_port(port: u8) -> Result<()> {
+    if port == 0 {
+        Ok(())
+    } else {
+        Err(Error::BadArgument)
+    }
+}
+
+/// A port operation that takes no pin: bit 0 must be clear.
+fn port_only(port: u8) -> Result<Port> {
+    let p = PinRef::from_byte(port);
+    if port & 1 != 0 {
+        Err(Error::BadArgument)
+    } else {
+        Ok(p.port)
+    }
+}
+
+fn require_kind(port: Port, kind: PortKind) -> Result<()> {
+    if port.kind() == kind {
+        Ok(())
+    } else {
+        Err(Error::WrongPortKind)
+    }
+}
+
+fn copy_into(buf: &mut [u8], bytes: &[u8]) -> Result<usize> {
+    buf.get_mut(..bytes.len())
+        .ok_or(Error::BufferTooShort)?
+        .copy_from_slice(bytes);
+    Ok(bytes.len())
+}
+
+impl<'a> Op<'a> {
+    /// Parses an operation from byte 0, byte 2 and the data bytes of a request (or a batch item).
+    ///
+    /// # Errors
+    /// [`Error::UnknownFunction`], [`Error::UnknownOperand`], [`Error::BadLength`] (wrong data
+    /// length), [`Error::BadArgument`] (reserved bits set, value out of range),
+    /// [`Error::WrongPortKind`], [`Error::TooLong`], or a batch's item errors.
+    pub fn parse(fn_op: u8, port: u8, data: &'a [u8]) -> Result<Op<'a>> {
+        let function = fn_op >> 4;
+        let operand = fn_op & 0x0f;
+        let unknown = Error::UnknownOperand { function, operand };
+        let pin = PinRef::from_byte(port);
+        match Function::from_code(function) {
+            Function::System => {
+                let op = match operand {
+                    Operand::SYS_PING => no_data(data).map(|_| Op::Ping),
+                    Operand::SYS_IDENTIFY => no_data(data).map(|_| Op::Identify),
+                    Operand::SYS_HEARTBEAT => no_data(data).map(|_| Op::Heartbeat),
+                    Operand::SYS_SET_FAILSAFE => {
+                        u16_le(data).map(|timeout_ms| Op::SetFailsafe { timeout_ms })
+                    }
+                    Operand::SYS_EVENT_ENABLE => {
+                        return Ok(Op::EventEnable(pin, EventConfig::parse(data)?))
+                    }
+                    Operand::SYS_READ_DIAGNOSTICS => no_data(data).map(|_| Op::ReadDiagnostics),
+                    Operand::SYS_CLEAR_DIAGNOSTICS => no_data(data).map(|_| Op::ClearDiagnostics),
+                    Operand::SYS_SET_PEC => match *data {
+                        [0] => Ok(Op::SetPec(false)),
+                        [1] => Ok(Op::SetPec(true)),
+                        [_] => Err(Error::BadArgument),
+                        _ => Err(Error::BadLength),
+                    },
+                    _ => Err(unknown),
+                }?;
+                no_port(port)?;
+                Ok(op)
+            }
+            Function::Io => match operand {
+                Operand::IO_INPUT => no_data(data).map(|_| Op::DigitalRead(pin)),
+                Operand::IO_LOW => no_data(data).map(|_| Op::DigitalWrite(pin, Level::Low)),
+                Operand::IO_HIGH => no_data(data).map(|_| Op::DigitalWrite(pin, Level::High)),
+                Operand::IO_PULSE_IN_RISING | Operand::IO_PULSE_IN_FALLING => {
+                    let edge = if operand == Operand::IO_PULSE_IN_RISING {
+                        Edge::Rising
+                    } else {
+                        Edge::Falling
+                    };
+                    let timeout_ms = if data.is_empty() {
+                        None
+                    } else {
+                        Some(u16_le(data)?)
+                    };
+                    Ok(Op::PulseIn {
+                        pin,
+                        edge,
+                        timeout_ms,
+                    })
+                }
+                _ => Err(unknown),
+            },
+            Function::Pwm => {
+                let op = match operand {
+                    Operand::PWM_DUTY => match *data {
+                        [duty] => Ok(Op::PwmDuty(pin, duty)),
+                        _ => Err(Error::BadLength),
+                    },
+                    Operand::PWM_FREQUENCY => {
+                        let hz = u16_le(data)?;
+                        if hz == 0 {
+                            return Err(Error::BadArgument);
+                        }
+                        Ok(Op::PwmFrequency(port_only(port)?, hz))
+                    }
+                    Operand::PWM_PULSE_WIDTH => u16_le(data).map(|us| Op::PwmPulseWidth(pin, us)),
+                    _ => Err(unknown),
+                }?;
+                require_kind(pin.port, PortKind::Actuator)?;
+                Ok(op)
+            }
+            Function::Analog => match operand {
+                Operand::ANALOG_READ => {
+                    no_data(data)?;
+                    let p = port_only(port)?;
+                    require_kind(p, PortKind::Sensor)?;
+                    Ok(Op::AnalogRead(p))
+                }
+                _ => Err(unknown),
+            },
+            Function::Serial => {
+                let op = match operand {
+                    Operand::SERIAL_WRITE => {
+                        if data.is_empty() {
+                            Err(Error::BadLength)
+                        } else {
+                            Ok(Op::SerialWrite(pin.port, data))
+                        }
+                    }
+                    Operand::SERIAL_READ => match *data {
+                        [n] if n as usize <= MAX_PAYLOAD && n > 0 => {
+                            Ok(Op::SerialRead(pin.port, n))
+                        }
+                        [_] => Err(Error::BadArgument),
+                        _ => Err(Error::BadLength),
+                    },
+                    Operand::SERIAL_CONFIG => {
+                        let baud = u32_le(data)?;
+                        if baud == 0 {
+                            return Err(Error::BadArgument);
+                        }
+                        Ok(Op::SerialConfig(pin.port, baud))
+                    }
+                    _ => Err(unknown),
+                }?;
+                port_only(port)?;
+                Ok(op)
+            }
+            Function::Batch => {
+                if operand != Operand::BATCH {
+                    return Err(unknown);
+                }
+                no_port(port)?;
+                Ok(Op::Batch(Batch::new_checked(data)?))
+            }
+            Function::Scan => {
+                if operand != Operand::SCAN {
+                    return Err(unknown);
+                }
+                no_data(data)?;
+                no_port(port)?;
+                Ok(Op::Scan)
+            }
+            Function::Unknown(f) => Err(Error::UnknownFunction(f)),
+        }
+    }
+
+    /// The function of this operation.
+    pub const fn function(&self) -> Function {
+        match self {
+            Op::Ping
+            | Op::Identify
+            | Op::Heartbeat
+            | Op::SetFailsafe { .. }
+            | Op::EventEnable(..)
+            | Op::ReadDiagnostics
+            | Op::ClearDiagnostics
+            | Op::SetPec(_) => Function::System,
+            Op::DigitalRead(_) | Op::DigitalWrite(..) | Op::PulseIn { .. } => Function::Io,
+            Op::PwmDuty(..) | Op::PwmFrequency(..) | Op::PwmPulseWidth(..) => Function::Pwm,
+            Op::AnalogRead(_) => Function::Analog,
+            Op::SerialWrite(..) | Op::SerialRead(..) | Op::SerialConfig(..) => Function::Serial,
+            Op::Batch(_) => Function::Batch,
+            Op::Scan => Function::Scan,
+        }
+    }
+
+    /// The 4-bit operand code.
+    pub const fn operand(&self) -> u8 {
+        match self {
+            Op::Ping => Operand::SYS_PING,
+            Op::Identify => Operand::SYS_IDENTIFY,
+            Op::Heartbeat => Operand::SYS_HEARTBEAT,
+            Op::SetFailsafe { .. } => Operand::SYS_SET_FAILSAFE,
+            Op::EventEnable(..) => Operand::SYS_EVENT_ENABLE,
+            Op::ReadDiagnostics => Operand::SYS_READ_DIAGNOSTICS,
+            Op::ClearDiagnostics => Operand::SYS_CLEAR_DIAGNOSTICS,
+            Op::SetPec(_) => Operand::SYS_SET_PEC,
+            Op::DigitalRead(_) => Operand::IO_INPUT,
+            Op::DigitalWrite(_, Level::Low) => Operand::IO_LOW,
+            Op::DigitalWrite(_, Level::High) => Operand::IO_HIGH,
+            Op::PulseIn {
+                edge: Edge::Rising, ..
+            } => Operand::IO_PULSE_IN_RISING,
+            Op::PulseIn {
+                edge: Edge::Falling,
+                ..
+            } => Operand::IO_PULSE_IN_FALLING,
+            Op::PwmDuty(..) => Operand::PWM_DUTY,
+            Op::PwmFrequency(..) => Operand::PWM_FREQUENCY,
+            Op::PwmPulseWidth(..) => Operand::PWM_PULSE_WIDTH,
+            Op::AnalogRead(_) => Operand::ANALOG_READ,
+            Op::SerialWrite(..) => Operand::SERIAL_WRITE,
+            Op::SerialRead(..) => Operand::SERIAL_READ,
+            Op::SerialConfig(..) => Operand::SERIAL_CONFIG,
+            Op::Batch(_) => Operand::BATCH,
+            Op::Scan => Operand::SCAN,
+        }
+    }
+
+    /// Byte 0: function in the high nibble, operand in the low nibble.
+    pub const fn fn_op_byte(&self) -> u8 {
+        (self.function().code() << 4) | self.operand()
+    }
+
+    /// The pin this operation names, if any (port-only operations give pin A).
+    pub fn pin_ref(&self) -> Option<PinRef> {
+        match *self {
+            Op::EventEnable(p, _)
+            | Op::DigitalRead(p)
+            | Op::DigitalWrite(p, _)
+            | Op::PulseIn { pin: p, .. }
+            | Op::PwmDuty(p, _)
+            | Op::PwmPulseWidth(p, _) => Some(p),
+            Op::PwmFrequency(p, _)
+            | Op::AnalogRead(p)
+            | Op::SerialWrite(p, _)
+            | Op::SerialRead(p, _)
+            | Op::SerialConfig(p, _) => Some(p.into()),
+            Op::Ping
+            | Op::Identify
+            | Op::Heartbeat
+            | Op::SetFailsafe { .. }
+            | Op::ReadDiagnostics
+            | Op::ClearDiagnostics
+            | Op::SetPec(_)
+            | Op::Batch(_)
+            | Op::Scan => None,
+        }
+    }
+
+    /// Byte 2: port kind, port index, pin (0 for operations addressed to the whole board).
+    pub fn port_byte(&self) -> u8 {
+        self.pin_ref().map_or(0, PinRef::to_byte)
+    }
+
+    /// Name of the operation within its function, as the `x10` tool prints it
+    /// (`input`, `low`, `high`, `pulse_in_rising`, `pulse_in_falling`, `duty`, `read`, …).
+    pub const fn name(&self) -> &'static str {
+        match self {
+            Op::Ping => "ping",
+            Op::Identify => "identify",
+            Op::Heartbeat => "heartbeat",
+            Op::SetFailsafe { .. } => "set_failsafe",
+            Op::EventEnable(..) => "event_enable",
+            Op::ReadDiagnostics => "read_diagnostics",
+            Op::ClearDiagnostics => "clear_diagnostics",
+            Op::SetPec(_) => "set_pec",
+            Op::DigitalRead(_) => "input",
+            Op::DigitalWrite(_, Level::Low) => "low",
+            Op::DigitalWrite(_, Level::High) => "high",
+            Op::PulseIn {
+                edge: Edge::Rising, ..
+            } => "pulse_in_rising",
+            Op::PulseIn {
+                edge: Edge::Falling,
+                ..
+            } => "pulse_in_falling",
+            Op::PwmDuty(..) => "duty",
+            Op::PwmFrequency(..) => "frequency",
+            Op::PwmPulseWidth(..) => "pulse_width",
+            Op::AnalogRead(_) => "read",
+            Op::SerialWrite(..) => "write",
+            Op::SerialRead(..) => "read",
+            Op::SerialConfig(..) => "config",
+            Op::Batch(_) => "batch",
+            Op::Scan => "scan",
+        }
+    }
+
+    /// Number of data bytes this operation puts on the wire.
+    pub fn data_len(&self) -> usize {
+        match self {
+            Op::Ping
+            | Op::Identify
+            | Op::Heartbeat
+            | Op::ReadDiagnostics
+            | Op::ClearDiagnostics
+            | Op::DigitalRead(_)
+            | Op::DigitalWrite(..)
+            | Op::AnalogRead(_)
+            | Op::Scan => 0,
+            Op::SetPec(_) | Op::PwmDuty(..) | Op::SerialRead(..) => 1,
+            Op::SetFailsafe { .. } | Op::PwmFrequency(..) | Op::PwmPulseWidth(..) => 2,
+            Op::PulseIn { timeout_ms, .. } => {
+                if timeout_ms.is_some() {
+                    2
+                } else {
+                    0
+                }
+            }
+            Op::SerialConfig(..) => 4,
+            Op::EventEnable(..) => EventConfig::LEN,
+            Op::SerialWrite(_, data) => data.len(),
+            Op::Batch(b) => b.as_bytes().len(),
+        }
+    }
+
+    /// Writes the data bytes into `buf` and returns how many were written.
+    ///
+    /// # Errors
+    /// [`Error::BufferTooShort`] when `buf` is shorter than [`Op::data_len`].
+    pub fn emit_data(&self, buf: &mut [u8]) -> Result<usize> {
+        match *self {
+            Op::Ping
+            | Op::Identify
+            | Op::Heartbeat
+            | Op::ReadDiagnostics
+            | Op::ClearDiagnostics
+            | Op::DigitalRead(_)
+            | Op::DigitalWrite(..)
+            | Op::AnalogRead(_)
+            | Op::Scan
+            | Op::PulseIn {
+                timeout_ms: None, ..
+            } => Ok(0),
+            Op::SetPec(on) => copy_into(buf, &[on as u8]),
+            Op::PwmDuty(_, d) => copy_into(buf, &[d]),
+            Op::SerialRead(_, n) => copy_into(buf, &[n]),
+            Op::SetFailsafe { timeout_ms: v }
+            | Op::PwmFrequency(_, v)
+            | Op::PwmPulseWidth(_, v)
+            | Op::PulseIn {
+                timeout_ms: Some(v),
+                ..
+            } => copy_into(buf, &v.to_le_bytes()),
+            Op::SerialConfig(_, baud) => copy_into(buf, &baud.to_le_bytes()),
+            Op::EventEnable(_, cfg) => copy_into(buf, &cfg.to_bytes()),
+            Op::SerialWrite(_, data) => copy_into(buf, data),
+            Op::Batch(b) => copy_into(buf, b.as_bytes()),
+        }
+    }
+
+    /// Checks what `parse` would check, for an operation built in code: data length within
+    /// [`MAX_REQUEST_DATA`], values in range, port kinds right.
+    ///
+    /// # Errors
+    /// The error `parse` would return for the emitted bytes.
+    pub fn validate(&self) -> Result<()> {
+        if self.data_len() > MAX_REQUEST_DATA {
+            return Err(Error::TooLong);
+        }
+        let mut data = [0u8; MAX_REQUEST_DATA];
+        let n = self.emit_data(&mut data)?;
+        let data = data.get(..n).ok_or(Error::BufferTooShort)?;
+        Op::parse(self.fn_op_byte(), self.port_byte(), data).map(|_| ())
+    }
+
+    /// True when the MB must read a reply (a write-then-read transaction); false for outputs,
+    /// which are a single write.
+    pub const fn expects_reply(&self) -> bool {
+        matches!(
+            self,
+            Op::Ping
+                | Op::Identify
+                | Op::ReadDiagnostics
+                | Op::DigitalRead(_)
+                | Op::PulseIn { .. }
+                | Op::AnalogRead(_)
+                | Op::SerialRead(..)
+                | Op::Batch(_)
+                | Op::Scan
+        )
+    }
+
+    /// Largest payload the reply to this operation can carry: how many bytes the MB reads
+    /// (plus the reply header and PEC).
+    pub fn reply_capacity(&self) -> usize {
+        match self {
+            Op::DigitalRead(_) => 1,
+            Op::AnalogRead(_) => 2,
+            Op::PulseIn { .. } => 0,
+            Op::Identify => crate::Identity::LEN,
+            Op::ReadDiagnostics => crate::Diagnostics::LEN,
+            Op::SerialRead(_, n) => *n as usize,
+            Op::Scan => MAX_PAYLOAD,
+            Op::Batch(b) => b.reply_capacity(),
+            _ => 0,
+        }
+    }
+
+    /// True for long operations whose value arrives later in a deferred-reply event.
+    pub const fn is_deferred(&self) -> bool {
+        matches!(self, Op::PulseIn { .. })
+    }
+}

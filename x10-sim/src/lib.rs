@@ -1,0 +1,1 @@
+//! x10-sim: placeholder, filled by its issue.
