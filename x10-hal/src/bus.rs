@@ -1,0 +1,73 @@
+//! One multi-master I2C port.
+
+/// Why a bus transaction failed. Boards map their driver errors onto these.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BusError {
+    /// The address (or a data byte) was not acknowledged: nobody there, or the node is deaf
+    /// (an RP2040 in its controller window).
+    Nack,
+    /// Another master won arbitration; nothing of ours was delivered. Retry after the bus is
+    /// idle again.
+    ArbitrationLost,
+    /// The bus stayed busy, or a clock-stretching target held SCL, past the port's timeout.
+    Timeout,
+    /// Misplaced START/STOP, stuck line or another bus fault.
+    Bus,
+    /// Data was lost inside the port (overrun/underrun), or a received transfer did not fit the
+    /// buffer.
+    Overrun,
+}
+
+/// What a controller asked of this node while it listened as a target.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Incoming {
+    /// A write of `n` bytes (now in the listen buffer), ended by STOP.
+    Write(usize),
+    /// A read with nothing written first: call [`MultiMaster::respond`].
+    Read,
+    /// A write of `n` bytes followed by a repeated START and a read: call
+    /// [`MultiMaster::respond`] with the reply.
+    WriteRead(usize),
+}
+
+/// One multi-master I2C port: controller transactions and target listening on one bus.
+///
+/// Addresses are 7-bit. A port that cannot be controller and target at once (RP2040) switches
+/// roles inside these calls, only while the bus is idle; a port that can (STM32 I2C v2
+/// `MultiMaster`) just forwards them. Either way the caller sees one port and is the only one
+/// using it.
+#[allow(async_fn_in_trait)]
+pub trait MultiMaster {
+    /// Writes `bytes` to `addr` (START, address+W, bytes, STOP).
+    ///
+    /// # Errors
+    /// [`BusError::Nack`], [`BusError::ArbitrationLost`], [`BusError::Timeout`],
+    /// [`BusError::Bus`].
+    async fn write(&mut self, addr: u8, bytes: &[u8]) -> Result<(), BusError>;
+
+    /// Writes `bytes` to `addr`, then reads `read.len()` bytes after a repeated START.
+    ///
+    /// # Errors
+    /// As [`MultiMaster::write`].
+    async fn write_read(&mut self, addr: u8, bytes: &[u8], read: &mut [u8])
+        -> Result<(), BusError>;
+
+    /// Waits until a controller addresses this node at its own address, and receives what it
+    /// writes into `buf`.
+    ///
+    /// Cancel safety: dropping the future before a transaction addressed to this node has
+    /// started loses nothing; the caller does so to take the controller role.
+    ///
+    /// # Errors
+    /// [`BusError::Overrun`] when a write does not fit `buf`, [`BusError::Bus`].
+    async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError>;
+
+    /// Answers the read part of the last [`Incoming::Read`] or [`Incoming::WriteRead`].
+    /// If the controller reads more bytes than given, the port sends 0xFF.
+    ///
+    /// # Errors
+    /// [`BusError::Bus`], [`BusError::Timeout`].
+    async fn respond(&mut self, bytes: &[u8]) -> Result<(), BusError>;
+}
