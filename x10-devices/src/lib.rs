@@ -6,8 +6,10 @@
 #![no_std]
 
 mod link;
+mod robot;
 
 pub use link::{Link, LinkError, PinEvent};
+pub use robot::Robot;
 pub use x10_microcode::Address;
 
 /// The internal daughterboard on the motherboard itself (thesis `SELF`, address 0).

@@ -1,0 +1,2 @@
+//! The `x10` command-line tool.
+fn main() {}
