@@ -99,8 +99,7 @@ pub trait Ports {
     ///
     /// # Errors
     /// [`PortError::Timeout`], [`PortError::NoSuchPin`], [`PortError::Unsupported`].
-    async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16)
-        -> Result<u32, PortError>;
+    async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError>;
 
     /// The safe state of an actuator port (default: all low).
     fn safe_state(&self, port: Port) -> SafeState {

@@ -24,11 +24,15 @@ type RawItem<'a> = (u8, u8, &'a [u8]);
 
 /// Splits one `head(3) + data(len)` record off `bytes`.
 fn split_record(bytes: &[u8]) -> Result<(RawItem<'_>, &[u8])> {
-    let (head, rest) = bytes.split_at_checked(ITEM_HEADER).ok_or(Error::Truncated)?;
+    let (head, rest) = bytes
+        .split_at_checked(ITEM_HEADER)
+        .ok_or(Error::Truncated)?;
     let [a, b, len] = *head else {
         return Err(Error::Truncated);
     };
-    let (data, rest) = rest.split_at_checked(len as usize).ok_or(Error::Truncated)?;
+    let (data, rest) = rest
+        .split_at_checked(len as usize)
+        .ok_or(Error::Truncated)?;
     Ok(((a, b, data), rest))
 }
 

@@ -83,7 +83,10 @@ impl fmt::Display for Error {
             Error::NestedBatch => f.write_str("batch inside a batch"),
             Error::TooLong => f.write_str("data or payload too long"),
             Error::PecMismatch { received, computed } => {
-                write!(f, "PEC mismatch: received {received:#04x}, computed {computed:#04x}")
+                write!(
+                    f,
+                    "PEC mismatch: received {received:#04x}, computed {computed:#04x}"
+                )
             }
         }
     }

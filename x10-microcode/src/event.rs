@@ -91,7 +91,9 @@ impl EventKind {
 
     /// Inverse of [`EventKind::name`] for the known kinds.
     pub fn from_name(name: &str) -> Option<EventKind> {
-        (1u8..=7).map(EventKind::from_byte).find(|k| k.name() == name)
+        (1u8..=7)
+            .map(EventKind::from_byte)
+            .find(|k| k.name() == name)
     }
 }
 

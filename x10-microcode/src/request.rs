@@ -151,7 +151,10 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> RequestFrame<T> {
 
     /// The data bytes, writable.
     pub fn data_mut(&mut self) -> &mut [u8] {
-        self.buffer.as_mut().get_mut(field::DATA..).unwrap_or(&mut [])
+        self.buffer
+            .as_mut()
+            .get_mut(field::DATA..)
+            .unwrap_or(&mut [])
     }
 }
 
@@ -172,7 +175,9 @@ impl<'a> Request<'a> {
     ///
     /// # Errors
     /// [`Error::BadAddress`] for byte 1, or the operation's parse error ([`Op::parse`]).
-    pub fn parse_frame<T: AsRef<[u8]> + ?Sized>(frame: &RequestFrame<&'a T>) -> Result<Request<'a>> {
+    pub fn parse_frame<T: AsRef<[u8]> + ?Sized>(
+        frame: &RequestFrame<&'a T>,
+    ) -> Result<Request<'a>> {
         frame.check_len()?;
         let bytes: &'a [u8] = frame.buffer.as_ref();
         let data = bytes.get(field::DATA..).unwrap_or(&[]);
@@ -210,7 +215,10 @@ impl<'a> Request<'a> {
     ///
     /// # Errors
     /// [`Error::BufferTooShort`].
-    pub fn emit_frame<T: AsRef<[u8]> + AsMut<[u8]>>(&self, frame: &mut RequestFrame<T>) -> Result<()> {
+    pub fn emit_frame<T: AsRef<[u8]> + AsMut<[u8]>>(
+        &self,
+        frame: &mut RequestFrame<T>,
+    ) -> Result<()> {
         if frame.buffer.as_ref().len() < self.buffer_len() {
             return Err(Error::BufferTooShort);
         }

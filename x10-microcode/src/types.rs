@@ -122,7 +122,10 @@ impl Port {
         if number == 0 || number > Self::MAX_PORTS {
             Err(Error::BadPort(number))
         } else {
-            Ok(Port { kind, index: number - 1 })
+            Ok(Port {
+                kind,
+                index: number - 1,
+            })
         }
     }
 
