@@ -1,0 +1,207 @@
+//! Work a daughterboard does between requests: pulse-in measurements, event sampling and the
+//! failsafe. All timing comes from the [`Clock`] given to [`Daughterboard::run_background`].
+
+use embassy_futures::join::{join, join3};
+use embassy_futures::select::{select, Either};
+use embassy_sync::blocking_mutex::raw::RawMutex;
+use heapless::Vec;
+use x10_hal::time::{Clock, Instant};
+use x10_microcode::{EventConfig, EventKind, Pin, PinRef, Port, Status};
+
+use crate::daughterboard::{bump, port_status, Daughterboard, MAX_EVENT_PINS};
+use crate::event::OutEvent;
+use crate::ports::Ports;
+
+impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
+    /// Runs the board's background work; never returns. Call once, next to the transport.
+    ///
+    /// At start every actuator port goes to its safe state and a `boot` event (payload: the
+    /// board's identity) is queued. Then, concurrently:
+    ///
+    /// * pulse-in measurements accepted with `pending` run ([`crate::DEFERRED_WORKERS`] at a
+    ///   time, on different pins); each result goes out as a `deferred_reply` event with the
+    ///   request's sequence number;
+    /// * every `sample_interval_us` (on a fixed grid from the moment events were enabled) the
+    ///   pins with events enabled are sampled: a digital level that changed in an enabled
+    ///   direction queues a `pin_change` event (payload: new level); an analog value queues an
+    ///   `analog_threshold` event (payload: value u16 LE, then 1 inside / 0 outside the window)
+    ///   at its first sample and whenever it crosses into or out of the window. A port error
+    ///   while sampling skips that sample;
+    /// * the failsafe: when no transaction has been addressed to the board for the failsafe
+    ///   timeout (measured from start, or from the last one), every actuator port goes to
+    ///   [`Ports::safe_state`], `failsafe_trips` is counted and a `failsafe_tripped` event
+    ///   (payload: timeout in ms, u16 LE) is queued, once per silence.
+    pub async fn run_background<C: Clock>(&self, clock: C) -> ! {
+        self.apply_safe_state().await;
+        let id = self.identity().to_bytes();
+        self.push_event(EventKind::Boot, PinRef::from_byte(0), None, Status::Ok, &id);
+        let (never, _, _) = join3(
+            self.failsafe_loop(&clock),
+            self.sample_loop(&clock),
+            join(self.pulse_worker(), self.pulse_worker()),
+        )
+        .await;
+        never
+    }
+
+    /// Puts every actuator port into its safe state: PWM duty of pins A and B, then the
+    /// levels of digital pins A and B. Port errors are skipped so one bad pin does not keep
+    /// the others from their safe state.
+    pub async fn apply_safe_state(&self) {
+        let n = self.ports().actuator_ports().min(Port::MAX_PORTS);
+        for number in 1..=n {
+            let Ok(port) = Port::actuator(number) else {
+                continue;
+            };
+            let safe = self.ports().safe_state(port);
+            for (pin, duty) in [(Pin::A, safe.pwm[0]), (Pin::B, safe.pwm[1])] {
+                let _ = self.ports().pwm_duty(port.pin(pin), duty).await;
+            }
+            for (pin, level) in [(Pin::A, safe.digital[0]), (Pin::B, safe.digital[1])] {
+                let _ = self.ports().digital_write(port.pin(pin), level).await;
+            }
+        }
+    }
+
+    async fn failsafe_loop<C: Clock>(&self, clock: &C) -> ! {
+        let mut last = clock.now();
+        let mut tripped = false;
+        loop {
+            let timeout_ms = self.failsafe_timeout_ms();
+            if timeout_ms == 0 || tripped {
+                self.heard.wait().await;
+                last = clock.now();
+                tripped = false;
+                continue;
+            }
+            let deadline = last.plus_ms(u64::from(timeout_ms));
+            match select(self.heard.wait(), clock.sleep_until(deadline)).await {
+                Either::First(()) => {
+                    last = clock.now();
+                    tripped = false;
+                }
+                Either::Second(()) => {
+                    tripped = true;
+                    self.trip(timeout_ms).await;
+                }
+            }
+        }
+    }
+
+    async fn trip(&self, timeout_ms: u16) {
+        self.apply_safe_state().await;
+        self.with(|s| bump(&mut s.diag.failsafe_trips));
+        self.push_event(
+            EventKind::FailsafeTripped,
+            PinRef::from_byte(0),
+            None,
+            Status::Ok,
+            &timeout_ms.to_le_bytes(),
+        );
+    }
+
+    async fn sample_loop<C: Clock>(&self, clock: &C) -> ! {
+        let interval = u64::from(self.config().sample_interval_us.max(1));
+        let mut next: Option<Instant> = None;
+        loop {
+            if self.with(|s| s.watches.is_empty()) {
+                next = None;
+                self.watch_changed.wait().await;
+                continue;
+            }
+            let at = match next {
+                Some(t) => t,
+                None => clock.now().plus_us(interval),
+            };
+            clock.sleep_until(at).await;
+            next = Some(at.plus_us(interval));
+            let watches: Vec<(PinRef, EventConfig, u16), MAX_EVENT_PINS> = self.with(|s| {
+                s.watches
+                    .iter()
+                    .map(|w| (w.pin, w.cfg, w.generation))
+                    .collect()
+            });
+            for (pin, cfg, generation) in watches {
+                if cfg.rising || cfg.falling {
+                    if let Ok(level) = self.ports().digital_read(pin).await {
+                        self.sampled_level(pin, generation, level.is_high());
+                    }
+                }
+                if cfg.analog_window {
+                    if let Ok(v) = self.ports().analog_read(pin.port).await {
+                        self.sampled_analog(pin, generation, v);
+                    }
+                }
+            }
+        }
+    }
+
+    fn sampled_level(&self, pin: PinRef, generation: u16, high: bool) {
+        let fire = self.with(|s| {
+            let w = s
+                .watches
+                .iter_mut()
+                .find(|w| w.pin == pin && w.generation == generation)?;
+            let prev = w.level.replace(high);
+            let edge = match prev {
+                Some(false) if high => w.cfg.rising,
+                Some(true) if !high => w.cfg.falling,
+                _ => false,
+            };
+            edge.then_some(())
+        });
+        if fire.is_some() {
+            self.push_event(EventKind::PinChange, pin, None, Status::Ok, &[high as u8]);
+        }
+    }
+
+    fn sampled_analog(&self, pin: PinRef, generation: u16, v: u16) {
+        let fire = self.with(|s| {
+            let w = s
+                .watches
+                .iter_mut()
+                .find(|w| w.pin == pin && w.generation == generation)?;
+            let inside = (w.cfg.low..=w.cfg.high).contains(&v);
+            let prev = w.inside.replace(inside);
+            (prev != Some(inside)).then_some(inside)
+        });
+        if let Some(inside) = fire {
+            let [a, b] = v.to_le_bytes();
+            self.push_event(
+                EventKind::AnalogThreshold,
+                pin,
+                None,
+                Status::Ok,
+                &[a, b, inside as u8],
+            );
+        }
+    }
+
+    async fn pulse_worker(&self) -> ! {
+        loop {
+            let job = self.jobs.receive().await;
+            let r = self
+                .ports()
+                .pulse_in(job.pin, job.edge, job.timeout_ms)
+                .await;
+            self.with(|s| s.pulse_pins.retain(|p| *p != job.pin));
+            let ev = match r {
+                Ok(us) => OutEvent::new(
+                    EventKind::DeferredReply,
+                    job.pin,
+                    job.seq,
+                    Status::Ok,
+                    &us.to_le_bytes(),
+                ),
+                Err(e) => OutEvent::new(
+                    EventKind::DeferredReply,
+                    job.pin,
+                    job.seq,
+                    port_status(e),
+                    &[],
+                ),
+            };
+            self.send_event(ev).await;
+        }
+    }
+}

@@ -1,0 +1,90 @@
+//! Configuration of a daughterboard: who it is and how its background work is timed.
+
+use x10_hal::retry::RetryPolicy;
+use x10_microcode::{Address, BoardKind, Capabilities};
+
+/// Parses one decimal component of the crate version at compile time (0 if it does not fit).
+const fn version_part(s: &str) -> u8 {
+    match u8::from_str_radix(s, 10) {
+        Ok(v) => v,
+        Err(_) => 0,
+    }
+}
+
+/// Firmware version reported by `identify`: this crate's `CARGO_PKG_VERSION`, major.minor.patch.
+pub const FIRMWARE_VERSION: [u8; 3] = [
+    version_part(env!("CARGO_PKG_VERSION_MAJOR")),
+    version_part(env!("CARGO_PKG_VERSION_MINOR")),
+    version_part(env!("CARGO_PKG_VERSION_PATCH")),
+];
+
+/// Everything this runtime implements. `Capabilities::SERIAL` is absent: [`crate::Ports`] has
+/// no serial methods, so serial requests are answered `unsupported`.
+pub const ALL_CAPABILITIES: Capabilities = Capabilities(
+    Capabilities::PULSE_IN
+        | Capabilities::EVENTS
+        | Capabilities::PEC
+        | Capabilities::FAILSAFE
+        | Capabilities::BATCH
+        | Capabilities::SCAN
+        | Capabilities::PWM_FREQUENCY
+        | Capabilities::PWM_PULSE_WIDTH,
+);
+
+/// How one daughterboard behaves. Build it with [`DbConfig::new`] and change fields as needed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DbConfig {
+    /// The board's own address: byte 1 of every request must equal it (0 for the internal
+    /// daughterboard of a motherboard).
+    pub address: Address,
+    /// Board kind reported by `identify`.
+    pub board: BoardKind,
+    /// Capability bits reported by `identify`. A request whose capability bit is clear is
+    /// answered `unsupported` (pulse-in, event enables, PEC on, failsafe, batch, scan, PWM
+    /// frequency, PWM pulse width). `SERIAL` is never reported.
+    pub capabilities: Capabilities,
+    /// Interval between two samples of the pins that have events enabled, in µs (at least 1).
+    pub sample_interval_us: u32,
+    /// Pulse-in timeout when a request gives none, in ms.
+    pub default_pulse_timeout_ms: u16,
+    /// Failsafe timeout in effect at boot, in ms (0: off until the MB sets one).
+    pub failsafe_timeout_ms: u16,
+}
+
+impl DbConfig {
+    /// A configuration with every capability, events sampled every 10 ms, a 1 s default
+    /// pulse-in timeout and the failsafe off.
+    pub const fn new(address: Address, board: BoardKind) -> DbConfig {
+        DbConfig {
+            address,
+            board,
+            capabilities: ALL_CAPABILITIES,
+            sample_interval_us: 10_000,
+            default_pulse_timeout_ms: 1_000,
+            failsafe_timeout_ms: 0,
+        }
+    }
+}
+
+/// How a daughterboard on the bus delivers its events (see [`crate::run_target`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TargetConfig {
+    /// The motherboard's own 7-bit address: events are written there.
+    pub mb_address: Address,
+    /// Retry policy for one event (NACK, arbitration lost, bus timeout). When the attempts
+    /// are used up the event is dropped, counted in `events_dropped` and reported in an
+    /// overflow event.
+    pub retry: RetryPolicy,
+}
+
+impl TargetConfig {
+    /// Events to `mb_address` with [`RetryPolicy::DEFAULT`].
+    pub const fn new(mb_address: Address) -> TargetConfig {
+        TargetConfig {
+            mb_address,
+            retry: RetryPolicy::DEFAULT,
+        }
+    }
+}

@@ -1,0 +1,689 @@
+//! The daughterboard core: validation and execution of microcode on a board's [`Ports`], the
+//! held reply, the event queue and the shared state of the background work.
+
+use core::cell::RefCell;
+
+use embassy_sync::blocking_mutex::raw::RawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
+use heapless::Vec;
+use x10_microcode::{
+    pec, Address, Batch, BatchResults, Capabilities, Diagnostics, Edge, EventConfig, EventKind,
+    Identity, Op, PinRef, Port, PortKind, Reply, RequestFrame, ScanResult, Status, MAX_PAYLOAD,
+    MAX_REPLY_LEN, PROTOCOL_VERSION,
+};
+
+use crate::config::{DbConfig, FIRMWARE_VERSION};
+use crate::event::OutEvent;
+use crate::ports::{PortError, Ports};
+
+/// Events the queue holds before it overflows.
+pub const EVENT_QUEUE_LEN: usize = 16;
+/// Pulse-in measurements accepted but not yet finished (queued or running).
+pub const DEFERRED_QUEUE_LEN: usize = 4;
+/// Pulse-in measurements that run at the same time (on different pins).
+pub const DEFERRED_WORKERS: usize = 2;
+/// Pins that can have events enabled at the same time.
+pub const MAX_EVENT_PINS: usize = 16;
+/// Size of a reply frame buffer: the largest reply and its PEC byte.
+pub const REPLY_BUF_LEN: usize = MAX_REPLY_LEN + 1;
+
+/// The value of a request (reply payload).
+type Value = Vec<u8, MAX_PAYLOAD>;
+
+/// Status and value of one executed request or batch item.
+struct Done {
+    status: Status,
+    value: Value,
+}
+
+impl Done {
+    fn status(status: Status) -> Done {
+        Done {
+            status,
+            value: Value::new(),
+        }
+    }
+
+    fn ok() -> Done {
+        Done::status(Status::Ok)
+    }
+
+    fn value(bytes: &[u8]) -> Done {
+        let mut value = Value::new();
+        match value.extend_from_slice(bytes) {
+            Ok(()) => Done {
+                status: Status::Ok,
+                value,
+            },
+            Err(_) => Done::status(Status::BadLength),
+        }
+    }
+
+    fn from_port<T>(r: Result<T, PortError>, encode: impl FnOnce(T) -> Done) -> Done {
+        match r {
+            Ok(v) => encode(v),
+            Err(e) => Done::status(port_status(e)),
+        }
+    }
+}
+
+/// The status a port error is answered with.
+pub(crate) const fn port_status(e: PortError) -> Status {
+    match e {
+        PortError::NoSuchPin => Status::PortOutOfRange,
+        PortError::Unsupported => Status::Unsupported,
+        PortError::Busy => Status::Busy,
+        PortError::Timeout => Status::Timeout,
+    }
+}
+
+/// Adds one to a counter, stopping at its maximum.
+pub(crate) fn bump(c: &mut u16) {
+    *c = c.saturating_add(1);
+}
+
+/// Counts the outcome of one request (or batch item) in the diagnostics.
+fn count_status(d: &mut Diagnostics, s: Status) {
+    let c = match s {
+        Status::Ok | Status::Pending => &mut d.frames_ok,
+        Status::BadLength => &mut d.bad_length,
+        Status::UnknownFunction => &mut d.unknown_function,
+        Status::UnknownOperand => &mut d.unknown_operand,
+        Status::PortOutOfRange | Status::WrongPortKind => &mut d.port_errors,
+        Status::WrongAddress => &mut d.wrong_address,
+        Status::PecMismatch => &mut d.pec_errors,
+        Status::BadArgument
+        | Status::Unsupported
+        | Status::Busy
+        | Status::Timeout
+        | Status::NoRequest
+        | Status::Unknown(_) => &mut d.other_errors,
+    };
+    bump(c);
+}
+
+/// One pin with events enabled, and what its last sample saw.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Watch {
+    pub(crate) pin: PinRef,
+    pub(crate) cfg: EventConfig,
+    /// Bumped at every (re)configuration so that a sample taken under an old configuration is
+    /// not applied to a new one.
+    pub(crate) generation: u16,
+    pub(crate) level: Option<bool>,
+    pub(crate) inside: Option<bool>,
+}
+
+/// A pulse-in accepted with `pending`, waiting for a worker.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PulseJob {
+    pub(crate) seq: u8,
+    pub(crate) pin: PinRef,
+    pub(crate) edge: Edge,
+    pub(crate) timeout_ms: u16,
+}
+
+pub(crate) struct State {
+    pub(crate) pec: bool,
+    pub(crate) diag: Diagnostics,
+    reply: Option<Vec<u8, REPLY_BUF_LEN>>,
+    pub(crate) failsafe_ms: u16,
+    event_seq: u8,
+    /// Events dropped since the last overflow event went into the queue.
+    overflow_pending: u16,
+    pub(crate) watches: Vec<Watch, MAX_EVENT_PINS>,
+    watch_generation: u16,
+    /// Pins with a pulse-in queued or running.
+    pub(crate) pulse_pins: Vec<PinRef, DEFERRED_QUEUE_LEN>,
+}
+
+/// What the header of a request says, as far as it could be read.
+struct Head {
+    seq: u8,
+    port: u8,
+    expects_reply: bool,
+}
+
+/// A daughterboard: the microcode interpreter on a board's [`Ports`].
+///
+/// The same core serves a daughterboard on the bus ([`crate::run_target`] feeds it from
+/// `MultiMaster::listen`) and the internal daughterboard of a motherboard (address 0, fed by
+/// direct calls). Three things drive it:
+///
+/// * the transport calls [`Daughterboard::handle_write`] for every write addressed to the
+///   board and [`Daughterboard::take_reply`] for every read;
+/// * [`Daughterboard::run_background`] runs pulse-in measurements, samples pins with events
+///   enabled and watches the failsafe timeout;
+/// * the transport drains [`Daughterboard::next_event`] and delivers each event to the MB.
+///
+/// `M` is the raw mutex guarding the shared state (`CriticalSectionRawMutex` on boards,
+/// `NoopRawMutex` on a single-threaded executor). Nothing here blocks or panics on bus input.
+pub struct Daughterboard<M: RawMutex, P: Ports> {
+    ports: P,
+    config: DbConfig,
+    state: Mutex<M, RefCell<State>>,
+    events: Channel<M, OutEvent, EVENT_QUEUE_LEN>,
+    pub(crate) jobs: Channel<M, PulseJob, DEFERRED_QUEUE_LEN>,
+    /// Signalled after every transaction addressed to the board (failsafe).
+    pub(crate) heard: Signal<M, ()>,
+    /// Signalled when event enables change (sampler).
+    pub(crate) watch_changed: Signal<M, ()>,
+}
+
+impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
+    /// A daughterboard on `ports`. Nothing runs until the transport and
+    /// [`Daughterboard::run_background`] are polled.
+    pub fn new(ports: P, config: DbConfig) -> Self {
+        Daughterboard {
+            ports,
+            config,
+            state: Mutex::new(RefCell::new(State {
+                pec: false,
+                diag: Diagnostics::default(),
+                reply: None,
+                failsafe_ms: config.failsafe_timeout_ms,
+                event_seq: 0,
+                overflow_pending: 0,
+                watches: Vec::new(),
+                watch_generation: 0,
+                pulse_pins: Vec::new(),
+            })),
+            events: Channel::new(),
+            jobs: Channel::new(),
+            heard: Signal::new(),
+            watch_changed: Signal::new(),
+        }
+    }
+
+    pub(crate) fn with<R>(&self, f: impl FnOnce(&mut State) -> R) -> R {
+        self.state.lock(|s| f(&mut s.borrow_mut()))
+    }
+
+    /// The board's ports.
+    pub fn ports(&self) -> &P {
+        &self.ports
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &DbConfig {
+        &self.config
+    }
+
+    /// The board's own address.
+    pub fn address(&self) -> Address {
+        self.config.address
+    }
+
+    /// What `identify` answers.
+    pub fn identity(&self) -> Identity {
+        Identity {
+            protocol_version: PROTOCOL_VERSION,
+            firmware: FIRMWARE_VERSION,
+            board: self.config.board,
+            sensor_ports: self.ports.sensor_ports().min(Port::MAX_PORTS),
+            actuator_ports: self.ports.actuator_ports().min(Port::MAX_PORTS),
+            capabilities: Capabilities(self.config.capabilities.0 & !Capabilities::SERIAL),
+            adc_bits: self.ports.adc_bits(),
+        }
+    }
+
+    /// A copy of the diagnostics counters.
+    pub fn diagnostics(&self) -> Diagnostics {
+        self.with(|s| s.diag)
+    }
+
+    /// True when PEC is negotiated (every request, reply and event carries one more byte).
+    pub fn pec_enabled(&self) -> bool {
+        self.with(|s| s.pec)
+    }
+
+    /// The failsafe timeout in ms (0: off).
+    pub fn failsafe_timeout_ms(&self) -> u16 {
+        self.with(|s| s.failsafe_ms)
+    }
+
+    /// Events waiting in the queue.
+    pub fn events_queued(&self) -> usize {
+        self.events.len()
+    }
+
+    /// Executes one write addressed to this board (`bytes` as received, PEC byte included
+    /// when PEC is on). `read_follows` is true when the transaction continues with a read
+    /// after a repeated START (`Incoming::WriteRead`).
+    ///
+    /// Afterwards a reply is held for the next read when the request expects one, or when
+    /// `read_follows` (so every read gets a reply, also for an output or a refused frame).
+    /// A refused request that nobody will read (an output, or a frame too broken to tell) is
+    /// reported by a `rejected` event instead. Every outcome is counted in the diagnostics.
+    ///
+    /// Calls must not overlap: the transport serves one transaction at a time (the
+    /// motherboard holds a lock around the internal board).
+    pub async fn handle_write(&self, bytes: &[u8], read_follows: bool) {
+        let pec_on = self.pec_enabled();
+        let (head, done) = self.execute_frame(bytes, pec_on).await;
+        self.with(|s| count_status(&mut s.diag, done.status));
+        if head.expects_reply || read_follows {
+            self.store_reply(head.seq, done.status, &done.value, pec_on);
+        } else if !matches!(done.status, Status::Ok | Status::Pending) {
+            self.push_event(
+                EventKind::Rejected,
+                PinRef::from_byte(head.port),
+                Some(head.seq),
+                done.status,
+                &[],
+            );
+        }
+        self.heard.signal(());
+    }
+
+    /// Answers a read: copies the held reply into `buf` (as much as fits) and returns its
+    /// length. With no reply held the answer is status `no_request` with sequence number 0
+    /// (counted in `no_request_reads`). The reply is given once.
+    pub fn take_reply(&self, buf: &mut [u8]) -> usize {
+        let stored = self.with(|s| s.reply.take());
+        let frame = match stored {
+            Some(f) => f,
+            None => {
+                let pec_on = self.with(|s| {
+                    bump(&mut s.diag.no_request_reads);
+                    s.pec
+                });
+                self.encode_reply(0, Status::NoRequest, &[], pec_on)
+            }
+        };
+        self.heard.signal(());
+        let n = frame.len().min(buf.len());
+        if let (Some(dst), Some(src)) = (buf.get_mut(..n), frame.get(..n)) {
+            dst.copy_from_slice(src);
+        }
+        n
+    }
+
+    /// Waits for the next event to deliver. Once one is taken out (so there is room), a
+    /// pending overflow report goes into the queue.
+    pub async fn next_event(&self) -> OutEvent {
+        let ev = self.events.receive().await;
+        self.report_overflow();
+        ev
+    }
+
+    /// The next event, if one is queued (see [`Daughterboard::next_event`]).
+    pub fn try_next_event(&self) -> Option<OutEvent> {
+        let ev = self.events.try_receive().ok()?;
+        self.report_overflow();
+        Some(ev)
+    }
+
+    /// Encodes `ev` as sent by this board to the motherboard at `mb` (with its PEC byte when
+    /// PEC is on) into `buf`; returns the length, 0 if `buf` is too short.
+    pub fn encode_event(&self, ev: &OutEvent, mb: Address, buf: &mut [u8]) -> usize {
+        let e = ev.as_event(self.config.address);
+        let r = if self.pec_enabled() {
+            e.emit_with_pec(mb, buf)
+        } else {
+            e.emit(buf)
+        };
+        r.unwrap_or(0)
+    }
+
+    fn encode_reply(
+        &self,
+        seq: u8,
+        status: Status,
+        value: &[u8],
+        pec_on: bool,
+    ) -> Vec<u8, REPLY_BUF_LEN> {
+        let mut buf = [0u8; REPLY_BUF_LEN];
+        let reply = Reply {
+            seq,
+            status,
+            payload: value,
+        };
+        let emitted = if pec_on {
+            reply.emit_with_pec(self.config.address, &mut buf)
+        } else {
+            reply.emit(&mut buf)
+        };
+        let len = match emitted {
+            Ok(n) => n,
+            // A value never exceeds MAX_PAYLOAD (it is a Vec of that capacity), so this is
+            // unreachable; answer bad_length rather than nothing.
+            Err(_) => {
+                let r = Reply::status_only(seq, Status::BadLength);
+                let e = if pec_on {
+                    r.emit_with_pec(self.config.address, &mut buf)
+                } else {
+                    r.emit(&mut buf)
+                };
+                e.unwrap_or(0)
+            }
+        };
+        let mut out = Vec::new();
+        let _ = out.extend_from_slice(buf.get(..len).unwrap_or(&[]));
+        out
+    }
+
+    fn store_reply(&self, seq: u8, status: Status, value: &[u8], pec_on: bool) {
+        let frame = self.encode_reply(seq, status, value, pec_on);
+        self.with(|s| s.reply = Some(frame));
+    }
+
+    /// Puts an event into the queue. `seq: None` numbers it with the board's event counter.
+    /// A full queue drops it, counts it in `events_dropped`, and remembers to report it in an
+    /// overflow event as soon as there is room; while such a report is waiting, a new event
+    /// goes in only if the report fits in front of it.
+    pub(crate) fn push_event(
+        &self,
+        kind: EventKind,
+        pin: PinRef,
+        seq: Option<u8>,
+        status: Status,
+        payload: &[u8],
+    ) {
+        self.with(|s| {
+            if s.overflow_pending > 0 {
+                if self.events.free_capacity() >= 2 {
+                    self.queue_overflow(s);
+                } else {
+                    let _ = seq.unwrap_or_else(|| next_seq(s));
+                    s.overflow_pending = s.overflow_pending.saturating_add(1);
+                    bump(&mut s.diag.events_dropped);
+                    return;
+                }
+            }
+            let seq = seq.unwrap_or_else(|| next_seq(s));
+            let ev = OutEvent::new(kind, pin, seq, status, payload);
+            if self.events.try_send(ev).is_err() {
+                s.overflow_pending = s.overflow_pending.saturating_add(1);
+                bump(&mut s.diag.events_dropped);
+            }
+        })
+    }
+
+    /// Queues an event that must not be lost (a deferred reply): waits for room.
+    pub(crate) async fn send_event(&self, ev: OutEvent) {
+        self.events.send(ev).await;
+    }
+
+    /// Counts an event that could not be delivered (retries used up) as dropped, to be
+    /// reported in an overflow event.
+    pub(crate) fn event_lost(&self) {
+        self.with(|s| {
+            s.overflow_pending = s.overflow_pending.saturating_add(1);
+            bump(&mut s.diag.events_dropped);
+        });
+        self.report_overflow();
+    }
+
+    fn report_overflow(&self) {
+        self.with(|s| {
+            if s.overflow_pending > 0 && self.events.free_capacity() >= 1 {
+                self.queue_overflow(s);
+            }
+        })
+    }
+
+    fn queue_overflow(&self, s: &mut State) {
+        let seq = next_seq(s);
+        let ev = OutEvent::new(
+            EventKind::Overflow,
+            PinRef::from_byte(0),
+            seq,
+            Status::Ok,
+            &s.overflow_pending.to_le_bytes(),
+        );
+        if self.events.try_send(ev).is_ok() {
+            s.overflow_pending = 0;
+        }
+    }
+
+    /// Validates and executes one frame.
+    async fn execute_frame(&self, bytes: &[u8], pec_on: bool) -> (Head, Done) {
+        let mut head = Head {
+            seq: bytes.get(3).copied().unwrap_or(0),
+            port: bytes.get(2).copied().unwrap_or(0),
+            expects_reply: false,
+        };
+        let body = if pec_on {
+            match pec::strip(self.config.address.addr_byte(false), bytes) {
+                Ok(b) => b,
+                Err(e) => return (head, Done::status(e.status())),
+            }
+        } else {
+            bytes
+        };
+        let frame = match RequestFrame::new_checked(body) {
+            Ok(f) => f,
+            Err(e) => return (head, Done::status(e.status())),
+        };
+        if frame.db() != self.config.address.get() {
+            return (head, Done::status(Status::WrongAddress));
+        }
+        let op = match Op::parse(frame.fn_op(), frame.port_byte(), frame.data()) {
+            Ok(op) => op,
+            Err(e) => return (head, Done::status(e.status())),
+        };
+        head.expects_reply = op.expects_reply();
+        let done = match op {
+            Op::Batch(b) => self.execute_batch(head.seq, b).await,
+            op => self.execute_op(head.seq, &op).await,
+        };
+        (head, done)
+    }
+
+    fn has(&self, bits: u16) -> bool {
+        self.config.capabilities.has(bits)
+    }
+
+    /// The capability an operation needs, if any.
+    fn required_capability(op: &Op<'_>) -> Option<u16> {
+        match op {
+            Op::PulseIn { .. } => Some(Capabilities::PULSE_IN),
+            Op::EventEnable(..) => Some(Capabilities::EVENTS),
+            Op::SetPec(true) => Some(Capabilities::PEC),
+            Op::SetFailsafe { .. } => Some(Capabilities::FAILSAFE),
+            Op::Batch(_) => Some(Capabilities::BATCH),
+            Op::Scan => Some(Capabilities::SCAN),
+            Op::PwmFrequency(..) => Some(Capabilities::PWM_FREQUENCY),
+            Op::PwmPulseWidth(..) => Some(Capabilities::PWM_PULSE_WIDTH),
+            _ => None,
+        }
+    }
+
+    /// Port range check: the port must exist on this board for its kind.
+    fn check_port(&self, port: Port) -> Result<(), Status> {
+        let count = match port.kind() {
+            PortKind::Sensor => self.ports.sensor_ports(),
+            PortKind::Actuator => self.ports.actuator_ports(),
+        };
+        if port.index() < count {
+            Ok(())
+        } else {
+            Err(Status::PortOutOfRange)
+        }
+    }
+
+    async fn execute_batch(&self, seq: u8, batch: Batch<'_>) -> Done {
+        if !self.has(Capabilities::BATCH) {
+            return Done::status(Status::Unsupported);
+        }
+        let mut buf = [0u8; MAX_PAYLOAD];
+        let mut used = 0usize;
+        for op in batch.iter() {
+            let item = self.execute_op(seq, &op).await;
+            if !item.status.is_ok() {
+                self.with(|s| count_status(&mut s.diag, item.status));
+            }
+            let Some(rest) = buf.get_mut(used..) else {
+                return Done::status(Status::BadArgument);
+            };
+            match BatchResults::emit(rest, item.status, &item.value) {
+                Ok(n) => used += n,
+                // `Batch::new_checked` made sure every result fits one reply.
+                Err(_) => return Done::status(Status::BadArgument),
+            }
+        }
+        Done::value(buf.get(..used).unwrap_or(&[]))
+    }
+
+    /// Executes one operation (a request's, or one item of a batch).
+    async fn execute_op(&self, seq: u8, op: &Op<'_>) -> Done {
+        if let Some(bits) = Self::required_capability(op) {
+            if !self.has(bits) {
+                return Done::status(Status::Unsupported);
+            }
+        }
+        if let Some(pin) = op.pin_ref() {
+            if let Err(s) = self.check_port(pin.port) {
+                return Done::status(s);
+            }
+        }
+        let p = &self.ports;
+        match *op {
+            Op::Ping | Op::Heartbeat => Done::ok(),
+            Op::Identify => Done::value(&self.identity().to_bytes()),
+            Op::SetFailsafe { timeout_ms } => {
+                self.with(|s| s.failsafe_ms = timeout_ms);
+                Done::ok()
+            }
+            Op::EventEnable(pin, cfg) => self.enable_events(pin, cfg),
+            Op::ReadDiagnostics => Done::value(&self.diagnostics().to_bytes()),
+            Op::ClearDiagnostics => {
+                self.with(|s| s.diag = Diagnostics::default());
+                Done::ok()
+            }
+            Op::SetPec(on) => {
+                self.with(|s| s.pec = on);
+                Done::ok()
+            }
+            Op::DigitalRead(pin) => Done::from_port(p.digital_read(pin).await, |l| {
+                Done::value(&[l.is_high() as u8])
+            }),
+            Op::DigitalWrite(pin, level) => {
+                Done::from_port(p.digital_write(pin, level).await, |_| Done::ok())
+            }
+            Op::PulseIn {
+                pin,
+                edge,
+                timeout_ms,
+            } => self.start_pulse(seq, pin, edge, timeout_ms),
+            Op::PwmDuty(pin, duty) => Done::from_port(p.pwm_duty(pin, duty).await, |_| Done::ok()),
+            Op::PwmFrequency(port, hz) => {
+                Done::from_port(p.pwm_frequency(port, hz).await, |_| Done::ok())
+            }
+            Op::PwmPulseWidth(pin, us) => {
+                Done::from_port(p.pwm_pulse_width(pin, us).await, |_| Done::ok())
+            }
+            Op::AnalogRead(port) => {
+                Done::from_port(p.analog_read(port).await, |v| Done::value(&v.to_le_bytes()))
+            }
+            Op::SerialWrite(..) | Op::SerialRead(..) | Op::SerialConfig(..) => {
+                Done::status(Status::Unsupported)
+            }
+            // A batch cannot hold a batch (the parser refuses it).
+            Op::Batch(_) => Done::status(Status::BadArgument),
+            Op::Scan => self.scan().await,
+        }
+    }
+
+    fn enable_events(&self, pin: PinRef, cfg: EventConfig) -> Done {
+        if cfg.analog_window && pin.port.kind() != PortKind::Sensor {
+            return Done::status(Status::WrongPortKind);
+        }
+        let off = !(cfg.rising || cfg.falling || cfg.analog_window);
+        let status = self.with(|s| {
+            s.watch_generation = s.watch_generation.wrapping_add(1);
+            let generation = s.watch_generation;
+            let fresh = Watch {
+                pin,
+                cfg,
+                generation,
+                level: None,
+                inside: None,
+            };
+            match s.watches.iter().position(|w| w.pin == pin) {
+                Some(i) if off => {
+                    s.watches.swap_remove(i);
+                    Status::Ok
+                }
+                Some(i) => {
+                    if let Some(w) = s.watches.get_mut(i) {
+                        *w = fresh;
+                    }
+                    Status::Ok
+                }
+                None if off => Status::Ok,
+                None => match s.watches.push(fresh) {
+                    Ok(()) => Status::Ok,
+                    Err(_) => Status::Busy,
+                },
+            }
+        });
+        self.watch_changed.signal(());
+        Done::status(status)
+    }
+
+    fn start_pulse(&self, seq: u8, pin: PinRef, edge: Edge, timeout_ms: Option<u16>) -> Done {
+        let job = PulseJob {
+            seq,
+            pin,
+            edge,
+            timeout_ms: timeout_ms.unwrap_or(self.config.default_pulse_timeout_ms),
+        };
+        let status = self.with(|s| {
+            if s.pulse_pins.contains(&pin) || s.pulse_pins.push(pin).is_err() {
+                return Status::Busy;
+            }
+            if self.jobs.try_send(job).is_err() {
+                s.pulse_pins.retain(|p| *p != pin);
+                return Status::Busy;
+            }
+            Status::Pending
+        });
+        Done::status(status)
+    }
+
+    async fn scan(&self) -> Done {
+        let n = self.ports.sensor_ports().min(ScanResult::MAX_PORTS as u8);
+        let mut r = ScanResult {
+            ports: n,
+            ..ScanResult::default()
+        };
+        for i in 0..n {
+            let Ok(port) = Port::sensor(i + 1) else {
+                return Done::status(Status::PortOutOfRange);
+            };
+            for (bit, pin) in [(0, x10_microcode::Pin::A), (1, x10_microcode::Pin::B)] {
+                match self.ports.digital_read(port.pin(pin)).await {
+                    Ok(level) => {
+                        if level.is_high() {
+                            r.digital |= 1 << (2 * u32::from(i) + bit);
+                        }
+                    }
+                    Err(e) => return Done::status(port_status(e)),
+                }
+            }
+            match self.ports.analog_read(port).await {
+                Ok(v) => {
+                    if let Some(slot) = r.analog.get_mut(usize::from(i)) {
+                        *slot = v;
+                    }
+                }
+                Err(e) => return Done::status(port_status(e)),
+            }
+        }
+        let mut buf = [0u8; MAX_PAYLOAD];
+        match r.emit(&mut buf) {
+            Ok(len) => Done::value(buf.get(..len).unwrap_or(&[])),
+            Err(_) => Done::status(Status::BadLength),
+        }
+    }
+}
+
+fn next_seq(s: &mut State) -> u8 {
+    let seq = s.event_seq;
+    s.event_seq = seq.wrapping_add(1);
+    seq
+}

@@ -1,0 +1,140 @@
+//! A daughterboard on a scripted bus: the listener and the event sender with retry/backoff.
+
+mod common;
+
+use common::{run_until, BusOp, FakeBus, FakePorts, TestClock, Txn};
+use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+use firmware_db::{run, Daughterboard, DbConfig, TargetConfig};
+use x10_hal::bus::BusError;
+use x10_hal::retry::RetryPolicy;
+use x10_microcode::{pec, Address, BoardKind, Diagnostics};
+
+type Db = Daughterboard<NoopRawMutex, FakePorts>;
+
+const MB: u8 = 0x08;
+
+fn setup() -> (TestClock, Db, FakeBus, TargetConfig) {
+    let clock = TestClock::new();
+    let cfg = DbConfig::new(Address::external(9).unwrap(), BoardKind::SIMULATED);
+    let db = Daughterboard::new(FakePorts::new(clock.clone(), 2, 2), cfg);
+    let bus = FakeBus::new(clock.clone());
+    let mut tcfg = TargetConfig::new(Address::external(MB).unwrap());
+    tcfg.retry = RetryPolicy {
+        attempts: 3,
+        base_us: 100,
+        max_us: 1_000,
+    };
+    (clock, db, bus, tcfg)
+}
+
+fn boot_frame(db: &Db) -> Vec<u8> {
+    let mut f = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
+    f.extend_from_slice(&db.identity().to_bytes());
+    f
+}
+
+#[test]
+fn boot_event_is_written_to_the_mb_then_requests_are_served() {
+    let (clock, db, bus, tcfg) = setup();
+    let fut = run(&db, bus.clone(), &clock, tcfg);
+    let mut fut = core::pin::pin!(fut);
+    run_until(&clock, 10, fut.as_mut());
+    assert_eq!(bus.take_ops(), [(0, BusOp::Write(MB, boot_frame(&db)))]);
+    bus.push(Txn::WriteRead(vec![0x00, 0x09, 0x00, 0x05]));
+    bus.push(Txn::Write(vec![0x12, 0x09, 0x00, 0x06]));
+    bus.push(Txn::Write(vec![0x10, 0x09, 0x80, 0x07]));
+    bus.push(Txn::Read);
+    bus.push(Txn::Read);
+    run_until(&clock, 20, fut.as_mut());
+    assert_eq!(
+        bus.take_ops(),
+        [
+            (10, BusOp::Respond(vec![0x05, 0x00, 0x00])),
+            (10, BusOp::Respond(vec![0x07, 0x00, 0x01, 0x00])),
+            (10, BusOp::Respond(vec![0x00, 0x0D, 0x00])),
+        ]
+    );
+    let d = db.diagnostics();
+    assert_eq!((d.frames_ok, d.events_sent, d.no_request_reads), (3, 1, 1));
+}
+
+#[test]
+fn events_are_retried_with_backoff_while_listening() {
+    let (clock, db, bus, tcfg) = setup();
+    // boot event: NACK, arbitration lost, then delivered
+    bus.script_writes(&[Err(BusError::Nack), Err(BusError::ArbitrationLost)]);
+    let fut = run(&db, bus.clone(), &clock, tcfg);
+    let mut fut = core::pin::pin!(fut);
+    run_until(&clock, 0, fut.as_mut());
+    // during the first backoff the MB talks to us: we answer
+    bus.push(Txn::WriteRead(vec![0x00, 0x09, 0x00, 0x01]));
+    run_until(&clock, 10_000, fut.as_mut());
+    let ops = bus.take_ops();
+    let frame = boot_frame(&db);
+    assert_eq!(ops.len(), 4, "{ops:?}");
+    assert_eq!(ops[0], (0, BusOp::Write(MB, frame.clone())));
+    assert_eq!(ops[1], (0, BusOp::Respond(vec![0x01, 0x00, 0x00])));
+    assert_eq!(ops[2].1, BusOp::Write(MB, frame.clone()));
+    assert_eq!(ops[3].1, BusOp::Write(MB, frame));
+    // backoff: first delay in 100..150 µs, second in 200..300 µs after the first retry
+    let (t1, t2) = (ops[2].0, ops[3].0);
+    assert!((100..150).contains(&t1), "{t1}");
+    assert!((200..300).contains(&(t2 - t1)), "{}", t2 - t1);
+    let d = db.diagnostics();
+    assert_eq!(
+        (d.events_sent, d.event_retries, d.arbitration_lost),
+        (1, 2, 1)
+    );
+    assert_eq!(d.events_dropped, 0);
+}
+
+#[test]
+fn an_undeliverable_event_is_dropped_counted_and_reported() {
+    let (clock, db, bus, tcfg) = setup();
+    bus.script_writes(&[Err(BusError::Nack); 3]);
+    let fut = run(&db, bus.clone(), &clock, tcfg);
+    let mut fut = core::pin::pin!(fut);
+    run_until(&clock, 10_000, fut.as_mut());
+    let ops = bus.take_ops();
+    assert_eq!(ops.len(), 4, "{ops:?}");
+    // three attempts at the boot event, then the overflow report (counter 1, one dropped)
+    assert_eq!(
+        ops[3].1,
+        BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00])
+    );
+    let d = db.diagnostics();
+    assert_eq!(
+        (d.events_sent, d.event_retries, d.events_dropped),
+        (1, 2, 1)
+    );
+}
+
+#[test]
+fn events_carry_pec_when_negotiated_and_overruns_count_as_bad_length() {
+    let (clock, db, bus, tcfg) = setup();
+    let fut = run(&db, bus.clone(), &clock, tcfg);
+    let mut fut = core::pin::pin!(fut);
+    run_until(&clock, 0, fut.as_mut());
+    bus.take_ops();
+    bus.push(Txn::Write(vec![0x07, 0x09, 0x00, 0x01, 0x01])); // PEC on
+                                                              // a refused output (actuator port 5 of 2), with PEC: a rejected event goes out with PEC
+    let frame = [0x12, 0x09, 0x08, 0x02];
+    let mut req = frame.to_vec();
+    req.push(pec::compute(0x12, &frame));
+    bus.push(Txn::Write(req));
+    bus.push(Txn::Overrun);
+    run_until(&clock, 100, fut.as_mut());
+    let ev = [0x09, 0x05, 0x08, 0x02, 0x05, 0x00];
+    let mut with_pec = ev.to_vec();
+    with_pec.push(pec::compute(MB << 1, &ev));
+    assert_eq!(bus.take_ops(), [(0, BusOp::Write(MB, with_pec))]);
+    let d = db.diagnostics();
+    let expect = Diagnostics {
+        frames_ok: 1,
+        port_errors: 1,
+        bad_length: 1,
+        events_sent: 2,
+        ..Diagnostics::default()
+    };
+    assert_eq!(d, expect);
+}

@@ -1,0 +1,67 @@
+//! Counters of the motherboard runtime.
+
+/// What the motherboard runtime counted since start (each saturating at `u32::MAX`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MbDiagnostics {
+    /// Requests accepted by `call` (valid operation, a free pending slot).
+    pub requests: u32,
+    /// Requests that ended with a value.
+    pub completed: u32,
+    /// Requests that ended in `LinkError::Timeout`.
+    pub timeouts: u32,
+    /// Requests that ended in `LinkError::Nack` (after every retry).
+    pub nacks: u32,
+    /// Requests that ended in `LinkError::ArbitrationLost` (after every retry).
+    pub arbitration_failures: u32,
+    /// Requests that ended in `LinkError::Bus`.
+    pub bus_errors: u32,
+    /// Requests that ended in `LinkError::BadReply` (unparsable reply or wrong PEC).
+    pub bad_replies: u32,
+    /// Requests that ended in `LinkError::Status` (the board refused them).
+    pub status_errors: u32,
+    /// Requests refused with `LinkError::Busy` (no free pending slot or sequence number).
+    pub busy: u32,
+    /// Bus transactions lost in arbitration (each attempt).
+    pub arbitration_lost: u32,
+    /// Bus transactions NACKed (each attempt).
+    pub nacked: u32,
+    /// Bus transactions retried.
+    pub retries: u32,
+    /// Requests whose caller went away (its future was dropped) before they ended.
+    pub cancelled: u32,
+    /// Jobs dropped by the dispatcher because their caller had already given up.
+    pub abandoned: u32,
+    /// Replies or deferred replies for a request that had already timed out or been dropped.
+    pub late_replies: u32,
+    /// Replies or deferred replies for a request that had already completed.
+    pub duplicate_replies: u32,
+    /// Replies or deferred replies matching no recent request.
+    pub unknown_replies: u32,
+    /// Events received (bus and internal board).
+    pub events: u32,
+    /// Writes to the motherboard that were not a valid event (length, PEC, source).
+    pub bad_events: u32,
+    /// Pin events that no task claimed and that were pushed out of the unclaimed queue.
+    pub events_dropped: u32,
+    /// `rejected` events (a board refused an output).
+    pub rejected: u32,
+    /// `failsafe_tripped` events.
+    pub failsafe_trips: u32,
+    /// `boot` events (a board started or restarted).
+    pub boots: u32,
+    /// `overflow` events (a board dropped events).
+    pub overflows: u32,
+    /// Times the PEC setting of a board was corrected from its replies (it answered
+    /// `pec_mismatch` to a frame without PEC, or `bad_length` without PEC to one with PEC).
+    pub pec_resyncs: u32,
+    /// Reads addressed to the motherboard (answered with nothing).
+    pub unexpected_reads: u32,
+    /// Listener errors.
+    pub listener_errors: u32,
+}
+
+/// Adds one, stopping at the maximum.
+pub(crate) fn bump(c: &mut u32) {
+    *c = c.saturating_add(1);
+}

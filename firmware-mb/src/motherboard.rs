@@ -1,0 +1,579 @@
+//! The motherboard: request/response over the pending table, the internal daughterboard,
+//! event routing.
+
+use core::cell::RefCell;
+
+use embassy_futures::join::join3;
+use embassy_futures::select::{select, Either};
+use embassy_sync::blocking_mutex::raw::RawMutex;
+use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::mutex::Mutex;
+use embassy_sync::signal::Signal;
+use firmware_db::{Daughterboard, Ports, REPLY_BUF_LEN};
+use heapless::Vec;
+use x10_devices::{LinkError, PinEvent};
+use x10_hal::bus::{BusError, MultiMaster};
+use x10_hal::time::Clock;
+use x10_microcode::{
+    Address, Event, EventFrame, EventKind, Op, Payload, PinRef, Reply, Request, Status,
+    MAX_FRAME_LEN, REPLY_HEADER_LEN,
+};
+
+use crate::config::MbConfig;
+use crate::diag::{bump, MbDiagnostics};
+use crate::table::{Ended, SlotState, Table, Ticket, WaiterTicket, MAX_EVENT_WAITERS, MAX_PENDING};
+
+/// Requests waiting for the dispatcher.
+pub const REQUEST_QUEUE_LEN: usize = 8;
+
+/// What the dispatcher needs to know about a request besides its bytes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct JobMeta {
+    pub(crate) ticket: Ticket,
+    pub(crate) db: Address,
+    pub(crate) seq: u8,
+    /// PEC state the frame was built with (the reply is checked the same way).
+    pub(crate) pec: bool,
+    /// Bytes to read after a repeated START (0: the request is a single write).
+    pub(crate) read_len: usize,
+}
+
+/// A request for the dispatcher: its frame, ready to go on the bus.
+pub(crate) struct Job {
+    pub(crate) meta: JobMeta,
+    pub(crate) frame: Vec<u8, MAX_FRAME_LEN>,
+}
+
+/// The motherboard runtime: everything the dispatcher, the internal daughterboard and the
+/// robot tasks share. Generic over the raw mutex `M`, the internal board's ports `P` and the
+/// clock `C`; it names no chip.
+///
+/// Give it a `'static` home on a board (a `StaticCell`) or keep it on the stack of the
+/// simulator's executor, run [`Motherboard::run`] once, and hand [`Motherboard::handle`] (or
+/// `&Motherboard`, which implements [`x10_devices::Link`] too) to any number of robot tasks.
+pub struct Motherboard<M: RawMutex, P: Ports, C: Clock> {
+    pub(crate) config: MbConfig,
+    pub(crate) clock: C,
+    internal: Daughterboard<M, P>,
+    internal_lock: Mutex<M, ()>,
+    pub(crate) requests: Channel<M, Job, REQUEST_QUEUE_LEN>,
+    table: BlockingMutex<M, RefCell<Table>>,
+    done: [Signal<M, Result<Payload, LinkError>>; MAX_PENDING],
+    waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
+}
+
+/// Frees a request's slot when the caller's future is dropped before it ended.
+struct SlotGuard<'a, M: RawMutex, P: Ports, C: Clock> {
+    mb: &'a Motherboard<M, P, C>,
+    ticket: Ticket,
+    armed: bool,
+}
+
+impl<M: RawMutex, P: Ports, C: Clock> SlotGuard<'_, M, P, C> {
+    fn release(mut self, ended: Ended) {
+        self.armed = false;
+        self.mb.with(|t| t.release(self.ticket, ended));
+    }
+
+    /// The deadline passed: the request times out, unless it ended just now.
+    fn expire(mut self) -> Result<Payload, LinkError> {
+        self.armed = false;
+        let mb = self.mb;
+        let ticket = self.ticket;
+        mb.with(|t| {
+            let taken = if t.state(ticket) == SlotState::Done {
+                mb.done.get(ticket.index).and_then(Signal::try_take)
+            } else {
+                None
+            };
+            match taken {
+                Some(r) => {
+                    t.release(ticket, Ended::Completed);
+                    r
+                }
+                None => {
+                    bump(&mut t.diag.timeouts);
+                    t.release(ticket, Ended::GaveUp);
+                    Err(LinkError::Timeout)
+                }
+            }
+        })
+    }
+}
+
+impl<M: RawMutex, P: Ports, C: Clock> Drop for SlotGuard<'_, M, P, C> {
+    fn drop(&mut self) {
+        if self.armed {
+            let ticket = self.ticket;
+            self.mb.with(|t| {
+                bump(&mut t.diag.cancelled);
+                t.release(ticket, Ended::GaveUp);
+            });
+        }
+    }
+}
+
+/// Unregisters an event waiter whose future is dropped; an event already delivered to it goes
+/// back to the front of the unclaimed queue.
+struct WaiterGuard<'a, M: RawMutex, P: Ports, C: Clock> {
+    mb: &'a Motherboard<M, P, C>,
+    ticket: WaiterTicket,
+    armed: bool,
+}
+
+impl<M: RawMutex, P: Ports, C: Clock> Drop for WaiterGuard<'_, M, P, C> {
+    fn drop(&mut self) {
+        if !self.armed {
+            return;
+        }
+        let (mb, ticket) = (self.mb, self.ticket);
+        mb.with(|t| {
+            if t.unwait(ticket) {
+                if let Some(ev) = mb.waiters.get(ticket.index).and_then(Signal::try_take) {
+                    t.keep_unclaimed(ev, true);
+                }
+            }
+        });
+    }
+}
+
+/// The last `set_pec` of an operation (or of a batch's items).
+fn pec_change(op: &Op<'_>) -> Option<bool> {
+    match op {
+        Op::SetPec(on) => Some(*on),
+        Op::Batch(b) => b.iter().fold(None, |acc, item| match item {
+            Op::SetPec(on) => Some(on),
+            _ => acc,
+        }),
+        _ => None,
+    }
+}
+
+fn link_error(e: BusError) -> LinkError {
+    match e {
+        BusError::Nack => LinkError::Nack,
+        BusError::ArbitrationLost => LinkError::ArbitrationLost,
+        BusError::Timeout => LinkError::Timeout,
+        BusError::Bus | BusError::Overrun => LinkError::Bus,
+    }
+}
+
+/// What a finished transfer means for its request.
+enum Outcome {
+    Complete(Result<Payload, LinkError>),
+    Defer,
+}
+
+impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
+    /// A motherboard with its internal daughterboard on `internal_ports`.
+    /// The internal board always has address 0, whatever `config.internal.address` says.
+    pub fn new(config: MbConfig, clock: C, internal_ports: P) -> Self {
+        let mut internal = config.internal;
+        internal.address = Address::INTERNAL;
+        Motherboard {
+            config,
+            clock,
+            internal: Daughterboard::new(internal_ports, internal),
+            internal_lock: Mutex::new(()),
+            requests: Channel::new(),
+            table: BlockingMutex::new(RefCell::new(Table::new())),
+            done: [const { Signal::new() }; MAX_PENDING],
+            waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
+        }
+    }
+
+    pub(crate) fn with<R>(&self, f: impl FnOnce(&mut Table) -> R) -> R {
+        self.table.lock(|t| f(&mut t.borrow_mut()))
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MbConfig {
+        &self.config
+    }
+
+    /// The clock.
+    pub fn clock(&self) -> &C {
+        &self.clock
+    }
+
+    /// The internal daughterboard (address 0).
+    pub fn internal(&self) -> &Daughterboard<M, P> {
+        &self.internal
+    }
+
+    /// A copy of the counters.
+    pub fn diagnostics(&self) -> MbDiagnostics {
+        self.with(|t| t.diag)
+    }
+
+    /// True when PEC is negotiated with `db` (set by a successful `set_pec`, cleared by the
+    /// board's `boot` event).
+    pub fn pec_enabled(&self, db: Address) -> bool {
+        self.with(|t| t.pec(db))
+    }
+
+    /// A cloneable handle for robot tasks; implements [`x10_devices::Link`].
+    pub fn handle(&self) -> crate::MbHandle<'_, M, P, C> {
+        crate::MbHandle::new(self)
+    }
+
+    /// Runs the motherboard; never returns: the dispatcher with its DB-interrupt listener on
+    /// `bus`, the internal daughterboard's background work, and the routing of its events.
+    pub async fn run<B: MultiMaster>(&self, bus: B) -> ! {
+        let (never, _, _) = join3(
+            self.run_dispatcher(bus),
+            self.internal.run_background(&self.clock),
+            self.run_internal_events(),
+        )
+        .await;
+        never
+    }
+
+    /// Routes the internal daughterboard's events (deferred replies, pin events, rejections)
+    /// exactly as events that arrive over the bus. Never returns. Part of
+    /// [`Motherboard::run`].
+    pub async fn run_internal_events(&self) -> ! {
+        loop {
+            let ev = self.internal.next_event().await;
+            self.route_event(&ev.as_event(Address::INTERNAL));
+        }
+    }
+
+    /// The time a request may take: the configured request timeout, plus the pulse-in
+    /// timeout for a deferred operation.
+    pub fn timeout_us(&self, op: &Op<'_>) -> u64 {
+        let extra_ms = match op {
+            Op::PulseIn { timeout_ms, .. } => {
+                u64::from(timeout_ms.unwrap_or(self.config.default_pulse_timeout_ms))
+            }
+            _ => 0,
+        };
+        self.config
+            .request_timeout_us
+            .saturating_add(extra_ms.saturating_mul(1000))
+    }
+
+    /// Sends `op` to board `db` and waits for its outcome, with the default timeout
+    /// ([`Motherboard::timeout_us`]). See [`Motherboard::call_with_timeout`].
+    ///
+    /// # Errors
+    /// As [`Motherboard::call_with_timeout`].
+    pub async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
+        self.call_with_timeout(db, op, self.timeout_us(&op)).await
+    }
+
+    /// Sends `op` to board `db` (0: the internal daughterboard, without the bus) and waits at
+    /// most `timeout_us` for its outcome. Ends exactly once:
+    ///
+    /// * outputs: `Ok` with an empty payload once the board acknowledged the write (a refusal
+    ///   comes later as a `rejected` event, counted in [`MbDiagnostics::rejected`]);
+    /// * reads: `Ok(payload)` for status `ok`;
+    /// * deferred operations (`pending`): `Ok(payload)` of the deferred reply.
+    ///
+    /// Dropping the future gives the request up: its slot is freed and a reply that still
+    /// comes is counted as late and dropped.
+    ///
+    /// # Errors
+    /// [`LinkError::Invalid`] (nothing sent: the operation does not encode, or `db` is the
+    /// motherboard's own address), [`LinkError::Busy`] (no free slot or sequence
+    /// number), [`LinkError::Timeout`], [`LinkError::Nack`] and
+    /// [`LinkError::ArbitrationLost`] (after every retry), [`LinkError::Bus`],
+    /// [`LinkError::BadReply`] (unparsable, wrong PEC or wrong sequence number),
+    /// [`LinkError::Status`] (the board refused it).
+    pub async fn call_with_timeout(
+        &self,
+        db: Address,
+        op: Op<'_>,
+        timeout_us: u64,
+    ) -> Result<Payload, LinkError> {
+        op.validate()?;
+        if db == self.config.address {
+            return Err(LinkError::Invalid(x10_microcode::Error::BadAddress(
+                db.get(),
+            )));
+        }
+        let deadline = self.clock.now().plus_us(timeout_us);
+        let (ticket, seq, pec_on) = self.with(|t| {
+            let (ticket, seq) = t.alloc(db, pec_change(&op))?;
+            if let Some(s) = self.done.get(ticket.index) {
+                s.reset();
+            }
+            Ok::<_, LinkError>((ticket, seq, t.pec(db)))
+        })?;
+        let guard = SlotGuard {
+            mb: self,
+            ticket,
+            armed: true,
+        };
+        let mut buf = [0u8; MAX_FRAME_LEN];
+        let req = Request { db, seq, op };
+        let emitted = if pec_on {
+            req.emit_with_pec(&mut buf)
+        } else {
+            req.emit(&mut buf)
+        };
+        let len = match emitted {
+            Ok(n) => n,
+            Err(e) => {
+                guard.release(Ended::GaveUp);
+                return Err(LinkError::Invalid(e));
+            }
+        };
+        let bytes = buf.get(..len).unwrap_or(&[]);
+        let meta = JobMeta {
+            ticket,
+            db,
+            seq,
+            pec: pec_on,
+            read_len: if op.expects_reply() {
+                REPLY_HEADER_LEN + op.reply_capacity() + usize::from(pec_on)
+            } else {
+                0
+            },
+        };
+        let send = async {
+            if db.is_internal() {
+                self.call_internal(&meta, bytes).await;
+            } else {
+                let mut frame = Vec::new();
+                // `bytes` is at most MAX_FRAME_LEN long.
+                let _ = frame.extend_from_slice(bytes);
+                self.requests.send(Job { meta, frame }).await;
+            }
+        };
+        if let Either::Second(()) = select(send, self.clock.sleep_until(deadline)).await {
+            return guard.expire();
+        }
+        let Some(signal) = self.done.get(ticket.index) else {
+            return guard.expire();
+        };
+        match select(signal.wait(), self.clock.sleep_until(deadline)).await {
+            Either::First(r) => {
+                guard.release(Ended::Completed);
+                r
+            }
+            Either::Second(()) => guard.expire(),
+        }
+    }
+
+    /// The internal daughterboard, reached by direct calls under a lock: the same bytes as
+    /// on the bus, the same reply parsing.
+    async fn call_internal(&self, meta: &JobMeta, bytes: &[u8]) {
+        let _lock = self.internal_lock.lock().await;
+        let read = meta.read_len > 0;
+        self.internal.handle_write(bytes, read).await;
+        if read {
+            let mut reply = [0u8; REPLY_BUF_LEN];
+            let n = self.internal.take_reply(&mut reply);
+            self.finish_transfer(meta, Ok(reply.get(..n)));
+        } else {
+            self.finish_transfer(meta, Ok(None));
+        }
+    }
+
+    /// True while the request is waiting for the dispatcher.
+    pub(crate) fn is_queued(&self, t: Ticket) -> bool {
+        self.with(|tb| tb.state(t) == SlotState::Queued)
+    }
+
+    /// Ends a transfer: `Ok(None)` a write acknowledged, `Ok(Some(bytes))` the bytes read, or
+    /// the bus error after every retry.
+    pub(crate) fn finish_transfer(&self, meta: &JobMeta, r: Result<Option<&[u8]>, BusError>) {
+        let replied = matches!(r, Ok(Some(_)));
+        let outcome = match r {
+            Ok(None) => Outcome::Complete(Ok(Payload::new())),
+            Ok(Some(read)) => match Reply::parse_read(meta.db, meta.pec, read) {
+                Err(_) => {
+                    self.resync_pec_off(meta, read);
+                    Outcome::Complete(Err(LinkError::BadReply))
+                }
+                Ok(reply) if reply.seq != meta.seq => {
+                    warn!(
+                        "reply from {} has seq {} for request {}",
+                        meta.db.get(),
+                        reply.seq,
+                        meta.seq
+                    );
+                    self.with(|t| t.stray(meta.db, reply.seq));
+                    Outcome::Complete(Err(LinkError::BadReply))
+                }
+                Ok(reply) => match reply.status {
+                    Status::Ok => match Payload::from_slice(reply.payload) {
+                        Ok(p) => Outcome::Complete(Ok(p)),
+                        Err(_) => Outcome::Complete(Err(LinkError::BadReply)),
+                    },
+                    Status::Pending => Outcome::Defer,
+                    Status::PecMismatch if !meta.pec => {
+                        // Only a board that checks PEC answers this: it has PEC on (its
+                        // boot event was older than our set_pec, or ours was lost).
+                        warn!("board {} checks PEC: PEC on", meta.db.get());
+                        self.with(|t| {
+                            bump(&mut t.diag.pec_resyncs);
+                            t.set_pec(meta.db, true);
+                        });
+                        Outcome::Complete(Err(LinkError::Status(Status::PecMismatch)))
+                    }
+                    s => Outcome::Complete(Err(LinkError::Status(s))),
+                },
+            },
+            Err(e) => Outcome::Complete(Err(link_error(e))),
+        };
+        self.with(|t| match outcome {
+            Outcome::Defer => {
+                if !t.defer(meta.ticket) {
+                    bump(&mut t.diag.late_replies);
+                }
+            }
+            Outcome::Complete(r) => {
+                if t.complete(meta.ticket, &r) {
+                    if let Some(s) = self.done.get(meta.ticket.index) {
+                        s.signal(r);
+                    }
+                } else if replied {
+                    // The caller gave up while the transfer was on the bus.
+                    bump(&mut t.diag.late_replies);
+                }
+            }
+        });
+    }
+
+    /// A reply that failed its PEC check but reads, without PEC, as `bad_length`: the board
+    /// took our PEC byte for data, so it has PEC off (it restarted and its boot event was
+    /// lost). Follow it.
+    fn resync_pec_off(&self, meta: &JobMeta, read: &[u8]) {
+        if !meta.pec {
+            return;
+        }
+        if let Ok(reply) = Reply::parse_read(meta.db, false, read) {
+            if reply.seq == meta.seq && reply.status == Status::BadLength {
+                warn!("board {} has PEC off", meta.db.get());
+                self.with(|t| {
+                    bump(&mut t.diag.pec_resyncs);
+                    t.set_pec(meta.db, false);
+                });
+            }
+        }
+    }
+
+    /// Parses a write to the motherboard's own address as an event (with a PEC byte if it is
+    /// one byte longer than the frame) and routes it. Anything else is counted in
+    /// `bad_events` and dropped.
+    pub(crate) fn route_event_bytes(&self, bytes: &[u8]) {
+        let parsed = EventFrame::new_checked(bytes).and_then(|f| {
+            if f.frame_len() == bytes.len() {
+                Event::parse(bytes)
+            } else {
+                Event::parse_with_pec(self.config.address, bytes)
+            }
+        });
+        match parsed {
+            Ok(ev) if !ev.source.is_internal() => self.route_event(&ev),
+            _ => {
+                warn!("bad event ({} bytes)", bytes.len());
+                self.with(|t| bump(&mut t.diag.bad_events));
+            }
+        }
+    }
+
+    /// Routes one event: a deferred reply to its waiting request, a pin event to its waiters
+    /// (or the unclaimed queue), the rest to the counters and the log.
+    pub(crate) fn route_event(&self, ev: &Event<'_>) {
+        self.with(|t| bump(&mut t.diag.events));
+        match ev.kind {
+            EventKind::DeferredReply => self.with(|t| {
+                let Some(ticket) = t.find_deferred(ev.source, ev.seq) else {
+                    t.stray(ev.source, ev.seq);
+                    return;
+                };
+                let r = match ev.status {
+                    Status::Ok => Payload::from_slice(ev.payload).map_err(|_| LinkError::BadReply),
+                    s => Err(LinkError::Status(s)),
+                };
+                if t.complete(ticket, &r) {
+                    if let Some(s) = self.done.get(ticket.index) {
+                        s.signal(r);
+                    }
+                }
+            }),
+            EventKind::PinChange | EventKind::AnalogThreshold => {
+                let Ok(value) = Payload::from_slice(ev.payload) else {
+                    return;
+                };
+                let pe = PinEvent {
+                    source: ev.source,
+                    kind: ev.kind,
+                    pin: ev.pin,
+                    value,
+                };
+                self.with(|t| {
+                    t.deliver(&pe, |i| {
+                        if let Some(s) = self.waiters.get(i) {
+                            s.signal(pe.clone());
+                        }
+                    })
+                });
+            }
+            EventKind::Rejected => {
+                warn!(
+                    "board {} rejected request {}: {}",
+                    ev.source.get(),
+                    ev.seq,
+                    ev.status.name()
+                );
+                self.with(|t| bump(&mut t.diag.rejected));
+            }
+            EventKind::FailsafeTripped => {
+                warn!("board {} failsafe tripped", ev.source.get());
+                self.with(|t| bump(&mut t.diag.failsafe_trips));
+            }
+            EventKind::Overflow => {
+                warn!("board {} dropped events", ev.source.get());
+                self.with(|t| bump(&mut t.diag.overflows));
+            }
+            EventKind::Boot => {
+                info!("board {} booted", ev.source.get());
+                self.with(|t| {
+                    bump(&mut t.diag.boots);
+                    t.set_pec(ev.source, false);
+                });
+            }
+            EventKind::Unknown(_) => self.with(|t| bump(&mut t.diag.bad_events)),
+        }
+    }
+
+    /// Waits for the next pin-change or analog-threshold event from `pin` on board `db`. An
+    /// event that arrived while no task waited for it is kept (up to
+    /// [`crate::UNCLAIMED_EVENTS`], oldest dropped first and counted) and returned at once.
+    /// Every task waiting for the same pin gets the event.
+    ///
+    /// # Errors
+    /// [`LinkError::Busy`] when [`crate::MAX_EVENT_WAITERS`] tasks already wait.
+    pub async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
+        let registered = self.with(|t| {
+            let r = t.wait_for(db, pin);
+            if let Ok(Err(ticket)) = r {
+                if let Some(s) = self.waiters.get(ticket.index) {
+                    s.reset();
+                }
+            }
+            r
+        })?;
+        let ticket = match registered {
+            Ok(ev) => return Ok(ev),
+            Err(ticket) => ticket,
+        };
+        let Some(signal) = self.waiters.get(ticket.index) else {
+            return Err(LinkError::Busy);
+        };
+        let mut guard = WaiterGuard {
+            mb: self,
+            ticket,
+            armed: true,
+        };
+        let ev = signal.wait().await;
+        guard.armed = false;
+        self.with(|t| t.unwait(ticket));
+        Ok(ev)
+    }
+}

@@ -1,0 +1,777 @@
+//! The motherboard runtime on a loopback bus with scripted daughterboards.
+
+mod common;
+
+use std::cell::{Cell, RefCell};
+use std::rc::Rc;
+
+use common::{
+    db, mb_address, sim, Db, FakePorts, Fault, LoopBus, Node, PortOp, Seen, TestClock,
+    BUS_TIMEOUT_US, TRANSFER_US,
+};
+use embassy_futures::join::{join, join_array};
+use embassy_futures::select::{select, Either};
+use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+use firmware_mb::{run_robot_with, MbConfig, Motherboard, RobotPhase, MAX_PENDING};
+use x10_devices::{Link, LinkError, Robot};
+use x10_hal::bus::BusError;
+use x10_hal::time::{Clock, Instant};
+use x10_microcode::{pec, Address, Edge, EventConfig, EventKind, Level, Op, Pin, Port, Status};
+
+type Mb = Motherboard<NoopRawMutex, FakePorts, TestClock>;
+
+struct World {
+    clock: TestClock,
+    mb: Mb,
+    bus: LoopBus,
+    db9: Rc<Db>,
+    db17: Rc<Db>,
+}
+
+fn world() -> World {
+    let clock = TestClock::new();
+    let mb = Motherboard::new(
+        MbConfig::new(mb_address()),
+        clock.clone(),
+        FakePorts::new(clock.clone(), 2, 2),
+    );
+    let bus = LoopBus::new(&clock);
+    let db9 = Rc::new(db(&clock, 9));
+    let db17 = Rc::new(db(&clock, 17));
+    bus.attach(9, Node::Db(db9.clone()));
+    bus.attach(17, Node::Db(db17.clone()));
+    World {
+        clock,
+        mb,
+        bus,
+        db9,
+        db17,
+    }
+}
+
+impl World {
+    fn sim<T>(&self, body: impl std::future::Future<Output = T>) -> T {
+        sim(
+            &self.clock,
+            join(self.mb.run(self.bus.clone()), self.bus.run_dbs()),
+            body,
+        )
+    }
+}
+
+fn addr(a: u8) -> Address {
+    Address::new(a).unwrap()
+}
+
+fn s(n: u8) -> Port {
+    Port::sensor(n).unwrap()
+}
+
+fn a(n: u8) -> Port {
+    Port::actuator(n).unwrap()
+}
+
+/// The transactions to `node` (retries included).
+fn to(bus: &LoopBus, node: u8) -> Vec<(u64, Seen)> {
+    bus.seen()
+        .into_iter()
+        .filter(|(_, s)| matches!(s, Seen::Write(n, _) | Seen::WriteRead(n, _, _) if *n == node))
+        .collect()
+}
+
+#[test]
+fn outputs_are_one_write_and_inputs_one_write_read() {
+    let w = world();
+    w.db9.ports().analog.borrow_mut().insert(1, 0x0321);
+    let (out, inp) = w.sim(async {
+        let out =
+            w.mb.call(addr(9), Op::DigitalWrite(a(1).pin(Pin::B), Level::High))
+                .await;
+        let inp = w.mb.call(addr(9), Op::AnalogRead(s(1))).await;
+        (out, inp)
+    });
+    assert_eq!(out.unwrap().len(), 0);
+    assert_eq!(inp.unwrap()[..], [0x21, 0x03]);
+    assert_eq!(
+        to(&w.bus, 9),
+        [
+            (0, Seen::Write(9, vec![0x12, 0x09, 0x01, 0x00])),
+            (
+                TRANSFER_US,
+                Seen::WriteRead(9, vec![0x30, 0x09, 0x80, 0x01], 5)
+            ),
+        ]
+    );
+    assert!(w
+        .db9
+        .ports()
+        .log
+        .borrow()
+        .contains(&PortOp::DigitalWrite(a(1).pin(Pin::B), Level::High)));
+}
+
+#[test]
+fn many_concurrent_callers_each_get_their_own_reply() {
+    let w = world();
+    for p in 1..=3u8 {
+        w.db9
+            .ports()
+            .analog
+            .borrow_mut()
+            .insert(p, 900 + u16::from(p));
+        w.db17
+            .ports()
+            .analog
+            .borrow_mut()
+            .insert(p, 1700 + u16::from(p));
+    }
+    for p in 1..=2u8 {
+        w.mb.internal()
+            .ports()
+            .analog
+            .borrow_mut()
+            .insert(p, u16::from(p));
+    }
+    let link = w.mb.handle();
+    let results = w.sim(join_array(core::array::from_fn::<_, 12, _>(
+        |i| async move {
+            let board = [9u8, 17, 0][i % 3];
+            let port = (i / 3 % 2) as u8 + 1;
+            let mut got = Vec::new();
+            for _ in 0..5 {
+                let v = link
+                    .call(addr(board), Op::AnalogRead(s(port)))
+                    .await
+                    .unwrap();
+                got.push(u16::from_le_bytes([v[0], v[1]]));
+            }
+            (board, port, got)
+        },
+    )));
+    for (board, port, got) in results {
+        let expect = match board {
+            9 => 900,
+            17 => 1700,
+            _ => 0,
+        } + u16::from(port);
+        assert_eq!(got, vec![expect; 5], "board {board} port {port}");
+    }
+    let d = w.mb.diagnostics();
+    assert_eq!((d.requests, d.completed), (60, 60));
+    assert_eq!(
+        (d.late_replies, d.duplicate_replies, d.unknown_replies),
+        (0, 0, 0)
+    );
+    // sequence numbers are per board: 20 requests each to 9 and 17, numbered 0..20
+    let mut seqs: Vec<u8> = to(&w.bus, 9)
+        .iter()
+        .map(|(_, s)| match s {
+            Seen::WriteRead(_, b, _) => b[3],
+            _ => panic!(),
+        })
+        .collect();
+    seqs.sort();
+    assert_eq!(seqs, (0..20).collect::<Vec<u8>>());
+}
+
+#[test]
+fn sequence_numbers_wrap_without_reusing_one_still_pending() {
+    let w = world();
+    // a pulse-in on DB 9 that takes 2 s stays pending with seq 0
+    w.db9
+        .ports()
+        .pulses
+        .borrow_mut()
+        .push_back((2_000_000, Ok(4_321)));
+    let (pulse, pings) = w.sim(async {
+        let pulse = w.mb.call(
+            addr(9),
+            Op::PulseIn {
+                pin: s(1).pin(Pin::A),
+                edge: Edge::Rising,
+                timeout_ms: Some(3_000),
+            },
+        );
+        let pings = async {
+            let mut n = 0;
+            for _ in 0..300 {
+                w.mb.call(addr(9), Op::Ping).await.unwrap();
+                n += 1;
+            }
+            n
+        };
+        join(pulse, pings).await
+    });
+    assert_eq!(pulse.unwrap()[..], 4_321u32.to_le_bytes());
+    assert_eq!(pings, 300);
+    let seqs: Vec<u8> = to(&w.bus, 9)
+        .iter()
+        .map(|(_, s)| match s {
+            Seen::WriteRead(_, b, _) => b[3],
+            _ => panic!(),
+        })
+        .collect();
+    assert_eq!(seqs.len(), 301);
+    assert_eq!(seqs[0], 0, "the pulse-in");
+    // pings 1..=255, then 0 is skipped (still pending): 1, 2, ...
+    assert_eq!(seqs[1..256], (1..=255).collect::<Vec<u8>>()[..]);
+    assert_eq!(seqs[256..259], [1, 2, 3]);
+    assert!(seqs[1..].iter().all(|&s| s != 0));
+    let d = w.mb.diagnostics();
+    assert_eq!(
+        (d.completed, d.unknown_replies, d.late_replies),
+        (301, 0, 0)
+    );
+}
+
+#[test]
+fn a_silent_board_times_out_and_the_dispatcher_goes_on() {
+    let w = world();
+    w.bus.attach(0x20, Node::Silent);
+    let (r, t, after) = w.sim(async {
+        let r =
+            w.mb.call(addr(0x20), Op::DigitalRead(s(1).pin(Pin::A)))
+                .await;
+        let t = w.clock.now();
+        let after = w.mb.call(addr(9), Op::Ping).await;
+        (r, t, after)
+    });
+    assert_eq!(r, Err(LinkError::Timeout));
+    assert_eq!(t, Instant(TRANSFER_US + BUS_TIMEOUT_US));
+    assert!(after.is_ok());
+    // the caller's own deadline ends it sooner when shorter than the port's timeout
+    let (r, t) = w.sim(async {
+        let start = w.clock.now();
+        let r = w.mb.call_with_timeout(addr(0x20), Op::Ping, 5_000).await;
+        (r, w.clock.now().since(start))
+    });
+    assert_eq!((r, t), (Err(LinkError::Timeout), 5_000));
+    let d = w.mb.diagnostics();
+    assert_eq!(d.timeouts, 2);
+    assert_eq!(d.late_replies, 0, "a bus timeout is no reply");
+}
+
+#[test]
+fn a_late_reply_is_dropped_counted_and_never_given_to_the_next_caller() {
+    let w = world();
+    let delays = Rc::new(RefCell::new(vec![150_000u64, 0]));
+    let d2 = delays.clone();
+    w.bus.attach(
+        0x21,
+        Node::Script(Box::new(move |req| {
+            let delay = d2.borrow_mut().remove(0);
+            (delay, vec![req[3], 0x00, 0x01, req[3] + 0x40])
+        })),
+    );
+    let (first, second) = w.sim(async {
+        let first =
+            w.mb.call(addr(0x21), Op::DigitalRead(s(1).pin(Pin::A)))
+                .await;
+        let second =
+            w.mb.call(addr(0x21), Op::DigitalRead(s(1).pin(Pin::A)))
+                .await;
+        (first, second)
+    });
+    assert_eq!(first, Err(LinkError::Timeout));
+    assert_eq!(
+        second.unwrap()[..],
+        [0x41],
+        "the second request's own reply (seq 1)"
+    );
+    let d = w.mb.diagnostics();
+    assert_eq!((d.timeouts, d.late_replies, d.completed), (1, 1, 1));
+}
+
+#[test]
+fn a_late_deferred_reply_is_dropped_and_counted() {
+    let w = world();
+    w.db9
+        .ports()
+        .pulses
+        .borrow_mut()
+        .push_back((500_000, Ok(77)));
+    let r = w.sim(async {
+        let op = Op::PulseIn {
+            pin: s(2).pin(Pin::B),
+            edge: Edge::Falling,
+            timeout_ms: Some(50),
+        };
+        assert_eq!(w.mb.timeout_us(&op), 150_000);
+        let r = w.mb.call(addr(9), op).await;
+        // wait past the deferred reply
+        w.clock.sleep_until(Instant(600_000)).await;
+        r
+    });
+    assert_eq!(r, Err(LinkError::Timeout));
+    let d = w.mb.diagnostics();
+    assert_eq!((d.timeouts, d.late_replies), (1, 1));
+}
+
+#[test]
+fn replies_with_the_wrong_sequence_number_are_bad_replies_and_counted() {
+    let w = world();
+    w.bus.attach(
+        0x22,
+        Node::Script(Box::new(|req| {
+            (0, vec![req[3].wrapping_add(7), 0x00, 0x00])
+        })),
+    );
+    w.bus.attach(
+        0x23,
+        Node::Script(Box::new(|_| (0, vec![0x00, 0x00, 0x1F]))),
+    );
+    let (a, b) = w.sim(async {
+        (
+            w.mb.call(addr(0x22), Op::Ping).await,
+            w.mb.call(addr(0x23), Op::Ping).await,
+        )
+    });
+    assert_eq!((a, b), (Err(LinkError::BadReply), Err(LinkError::BadReply)));
+    let d = w.mb.diagnostics();
+    assert_eq!((d.unknown_replies, d.bad_replies), (1, 2));
+}
+
+#[test]
+fn an_absent_board_is_nacked_after_every_retry() {
+    let w = world();
+    let r = w.sim(w.mb.call(addr(0x30), Op::DigitalWrite(a(1).pin(Pin::A), Level::High)));
+    assert_eq!(r, Err(LinkError::Nack));
+    let tries = to(&w.bus, 0x30);
+    assert_eq!(tries.len(), 5);
+    // backoff between attempts: 100·2^n µs plus up to half again, after each 100 µs transfer
+    for (n, pair) in tries.windows(2).enumerate() {
+        let gap = pair[1].0 - pair[0].0 - TRANSFER_US;
+        let base = 100u64 << n;
+        assert!((base..base + base / 2).contains(&gap), "gap {n}: {gap}");
+    }
+    let d = w.mb.diagnostics();
+    assert_eq!((d.nacked, d.retries, d.nacks), (5, 4, 1));
+}
+
+#[test]
+fn arbitration_loss_is_retried_then_succeeds_or_ends_typed() {
+    let w = world();
+    w.db9.ports().analog.borrow_mut().insert(3, 7);
+    w.bus.fault(
+        9,
+        Fault {
+            error: BusError::ArbitrationLost,
+            event: None,
+        },
+    );
+    let r = w.sim(w.mb.call(addr(9), Op::AnalogRead(s(3))));
+    assert_eq!(r.unwrap()[..], [7, 0]);
+    let d = w.mb.diagnostics();
+    assert_eq!(
+        (d.arbitration_lost, d.retries, d.arbitration_failures),
+        (1, 1, 0)
+    );
+    for _ in 0..5 {
+        w.bus.fault(
+            9,
+            Fault {
+                error: BusError::ArbitrationLost,
+                event: None,
+            },
+        );
+    }
+    let r = w.sim(w.mb.call(addr(9), Op::AnalogRead(s(3))));
+    assert_eq!(r, Err(LinkError::ArbitrationLost));
+    assert_eq!(w.mb.diagnostics().arbitration_failures, 1);
+}
+
+#[test]
+fn an_event_arriving_while_dispatching_is_routed_and_nothing_is_lost() {
+    let w = world();
+    let s1a = s(1).pin(Pin::A);
+    // DB 17 wins arbitration against our request to DB 9 and writes a pin-change event
+    let event = vec![17, 0x01, s1a.to_byte(), 5, 0x00, 0x01, 0x01];
+    w.bus.fault(
+        9,
+        Fault {
+            error: BusError::ArbitrationLost,
+            event: Some(event),
+        },
+    );
+    let got_at = Cell::new(0u64);
+    let (ev, r) = w.sim(async {
+        let waiter = async {
+            let ev = w.mb.wait_event(addr(17), s1a).await;
+            got_at.set(w.clock.now_us());
+            ev
+        };
+        join(
+            waiter,
+            w.mb.call(addr(9), Op::DigitalWrite(a(2).pin(Pin::A), Level::High)),
+        )
+        .await
+    });
+    let ev = ev.unwrap();
+    assert_eq!(
+        (ev.source, ev.kind, ev.pin, &ev.value[..]),
+        (addr(17), EventKind::PinChange, s1a, &[1u8][..])
+    );
+    assert!(r.is_ok());
+    let writes = to(&w.bus, 9);
+    assert_eq!(writes.len(), 2);
+    assert!(
+        got_at.get() < writes[1].0,
+        "event routed during the backoff, before the retry"
+    );
+}
+
+#[test]
+fn pin_events_are_enabled_on_a_real_board_and_queued_until_claimed() {
+    let w = world();
+    let s2b = s(2).pin(Pin::B);
+    let cfg = EventConfig {
+        rising: true,
+        falling: true,
+        ..EventConfig::OFF
+    };
+    let evs = w.sim(async {
+        w.mb.call(addr(17), Op::EventEnable(s2b, cfg))
+            .await
+            .unwrap();
+        // the board samples every 10 ms; two edges happen before anyone waits
+        w.clock.sleep_until(Instant(15_000)).await;
+        w.db17.ports().set_level(s2b, true);
+        w.clock.sleep_until(Instant(25_000)).await;
+        w.db17.ports().set_level(s2b, false);
+        w.clock.sleep_until(Instant(50_000)).await;
+        let a = w.mb.wait_event(addr(17), s2b).await.unwrap();
+        let b = w.mb.wait_event(addr(17), s2b).await.unwrap();
+        (a.value.to_vec(), b.value.to_vec())
+    });
+    assert_eq!(evs, (vec![1], vec![0]));
+}
+
+#[test]
+fn pec_is_negotiated_per_board_and_reset_by_its_boot_event() {
+    let w = world();
+    w.db9.ports().analog.borrow_mut().insert(1, 0x0102);
+    let r = w.sim(async {
+        // the boards' boot events come first
+        w.clock.sleep_until(Instant(1_000)).await;
+        w.mb.call(addr(9), Op::SetPec(true)).await.unwrap();
+        w.mb.call(addr(9), Op::AnalogRead(s(1))).await
+    });
+    assert_eq!(r.unwrap()[..], [0x02, 0x01]);
+    assert!(w.mb.pec_enabled(addr(9)) && w.db9.pec_enabled());
+    assert!(!w.mb.pec_enabled(addr(17)));
+    let seen = to(&w.bus, 9);
+    let frame = [0x30, 0x09, 0x80, 0x01];
+    let mut with_pec = frame.to_vec();
+    with_pec.push(pec::compute(0x12, &frame));
+    assert_eq!(seen[1].1, Seen::WriteRead(9, with_pec, 6));
+    // the board restarts: its boot event turns PEC off on the MB side
+    let mut boot = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
+    boot.extend_from_slice(&w.db9.identity().to_bytes());
+    w.bus.to_mb(boot);
+    w.sim(w.clock.sleep_until(Instant(w.clock.now_us() + 1)));
+    assert!(!w.mb.pec_enabled(addr(9)));
+}
+
+#[test]
+fn a_stale_pec_setting_is_corrected_from_the_boards_replies() {
+    let w = world();
+    w.db9.ports().analog.borrow_mut().insert(1, 0x0102);
+    let (first, second) = w.sim(async {
+        w.clock.sleep_until(Instant(1_000)).await;
+        w.mb.call(addr(9), Op::SetPec(true)).await.unwrap();
+        // a boot event older than our set_pec arrives late: the MB turns PEC off, the board
+        // still checks it
+        let mut boot = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
+        boot.extend_from_slice(&w.db9.identity().to_bytes());
+        w.bus.to_mb(boot);
+        w.clock.sleep_until(Instant(2_000)).await;
+        let first = w.mb.call(addr(9), Op::AnalogRead(s(1))).await;
+        let second = w.mb.call(addr(9), Op::AnalogRead(s(1))).await;
+        (first, second)
+    });
+    assert_eq!(first, Err(LinkError::Status(Status::PecMismatch)));
+    assert_eq!(second.unwrap()[..], [0x02, 0x01]);
+    // the other way round: the board restarted (PEC off) and its boot event was lost
+    let (first, second) = w.sim(async {
+        w.db9
+            .handle_write(
+                &[
+                    0x07,
+                    0x09,
+                    0x00,
+                    0x77,
+                    0x00,
+                    pec::compute(0x12, &[0x07, 0x09, 0x00, 0x77, 0x00]),
+                ],
+                false,
+            )
+            .await;
+        let first = w.mb.call(addr(9), Op::AnalogRead(s(1))).await;
+        let second = w.mb.call(addr(9), Op::AnalogRead(s(1))).await;
+        (first, second)
+    });
+    assert!(!w.db9.pec_enabled());
+    assert_eq!(first, Err(LinkError::BadReply));
+    assert_eq!(second.unwrap()[..], [0x02, 0x01]);
+    assert_eq!(w.mb.diagnostics().pec_resyncs, 2);
+}
+
+#[test]
+fn a_refused_request_ends_in_its_status_and_refused_outputs_are_counted() {
+    let w = world();
+    let (read, out) = w.sim(async {
+        let read = w.mb.call(addr(9), Op::AnalogRead(s(9))).await;
+        let out =
+            w.mb.call(addr(9), Op::DigitalWrite(a(7).pin(Pin::A), Level::High))
+                .await;
+        w.clock.sleep_until(Instant(w.clock.now_us() + 1_000)).await;
+        (read, out)
+    });
+    assert_eq!(read, Err(LinkError::Status(Status::PortOutOfRange)));
+    assert!(
+        out.is_ok(),
+        "an output completes once the board acknowledged it"
+    );
+    assert_eq!(
+        w.mb.diagnostics().rejected,
+        1,
+        "its refusal arrives as a rejected event"
+    );
+}
+
+#[test]
+fn invalid_operations_are_refused_before_anything_is_sent() {
+    let w = world();
+    let r = w.sim(w.mb.call(addr(9), Op::PwmDuty(s(1).pin(Pin::A), 10)));
+    assert!(matches!(r, Err(LinkError::Invalid(_))));
+    let r = w.sim(w.mb.call(addr(common::MB), Op::Ping));
+    assert_eq!(
+        r,
+        Err(LinkError::Invalid(x10_microcode::Error::BadAddress(
+            common::MB
+        )))
+    );
+    assert!(w.bus.seen().is_empty());
+    assert_eq!(w.mb.diagnostics().requests, 0);
+}
+
+#[test]
+fn the_internal_board_is_reached_without_the_bus() {
+    let w = world();
+    let ports = w.mb.internal().ports();
+    ports.set_level(s(2).pin(Pin::A), true);
+    ports.pulses.borrow_mut().push_back((3_000, Ok(1_500)));
+    let (read, write, pulse, rejected) = w.sim(async {
+        let read =
+            w.mb.call(Address::INTERNAL, Op::DigitalRead(s(2).pin(Pin::A)))
+                .await;
+        let write =
+            w.mb.call(Address::INTERNAL, Op::PwmDuty(a(1).pin(Pin::B), 128))
+                .await;
+        let pulse =
+            w.mb.call(
+                Address::INTERNAL,
+                Op::PulseIn {
+                    pin: s(1).pin(Pin::B),
+                    edge: Edge::Rising,
+                    timeout_ms: None,
+                },
+            )
+            .await;
+        let rejected =
+            w.mb.call(
+                Address::INTERNAL,
+                Op::DigitalWrite(a(3).pin(Pin::A), Level::Low),
+            )
+            .await;
+        w.clock.sleep_until(Instant(w.clock.now_us() + 10)).await;
+        (read, write, pulse, rejected)
+    });
+    assert_eq!(read.unwrap()[..], [1]);
+    assert!(write.is_ok());
+    assert_eq!(pulse.unwrap()[..], 1_500u32.to_le_bytes());
+    assert!(rejected.is_ok());
+    assert!(ports
+        .log
+        .borrow()
+        .contains(&PortOp::PwmDuty(a(1).pin(Pin::B), 128)));
+    assert!(w
+        .bus
+        .seen()
+        .iter()
+        .all(|(_, s)| !matches!(s, Seen::Write(0, _) | Seen::WriteRead(0, _, _))));
+    let d = w.mb.diagnostics();
+    assert_eq!((d.rejected, d.completed), (1, 4));
+    // the internal board's boot event was routed too (and DB 9's and 17's over the bus)
+    assert_eq!(d.boots, 3);
+}
+
+#[test]
+fn a_full_pending_table_answers_busy() {
+    let w = world();
+    w.bus.attach(
+        0x24,
+        Node::Script(Box::new(|req| (50_000, vec![req[3], 0x00, 0x00]))),
+    );
+    let results = w.sim(join_array(
+        core::array::from_fn::<_, { MAX_PENDING + 1 }, _>(|_| {
+            w.mb.call_with_timeout(addr(0x24), Op::Ping, 10_000_000)
+        }),
+    ));
+    let busy = results
+        .iter()
+        .filter(|r| **r == Err(LinkError::Busy))
+        .count();
+    let ok = results.iter().filter(|r| r.is_ok()).count();
+    assert_eq!((ok, busy), (MAX_PENDING, 1));
+}
+
+#[test]
+fn a_dropped_caller_frees_its_slot_and_its_job_is_not_sent() {
+    let w = world();
+    w.bus.attach(
+        0x25,
+        Node::Script(Box::new(|req| (1_000, vec![req[3], 0x00, 0x00]))),
+    );
+    let r = w.sim(async {
+        // the first call occupies the dispatcher for 1.1 ms; the second is dropped while queued
+        let first = w.mb.call(addr(0x25), Op::Ping);
+        let second = async {
+            match select(
+                w.mb.call(addr(0x25), Op::Ping),
+                w.clock.sleep_until(Instant(500)),
+            )
+            .await
+            {
+                Either::First(_) => panic!("should still be queued"),
+                Either::Second(()) => {}
+            }
+        };
+        let (r, ()) = join(first, second).await;
+        w.clock.sleep_until(Instant(10_000)).await;
+        r
+    });
+    assert!(r.is_ok());
+    let d = w.mb.diagnostics();
+    assert_eq!((d.cancelled, d.abandoned), (1, 1));
+    assert_eq!(to(&w.bus, 0x25).len(), 1);
+}
+
+#[test]
+fn bad_event_frames_and_reads_of_the_mb_are_counted() {
+    let w = world();
+    w.bus.to_mb(vec![0x09, 0x01]); // truncated
+    w.bus.to_mb(vec![0x00, 0x01, 0x80, 0x00, 0x00, 0x01, 0x01]); // claims to be the internal board
+    let mut ev = vec![0x09, 0x06, 0x00, 0x03, 0x00, 0x02, 0x05, 0x00]; // overflow, with PEC
+    ev.push(pec::compute(MB_ADDR_BYTE, &ev));
+    w.bus.to_mb(ev.clone());
+    ev[8] ^= 0xFF; // wrong PEC
+    w.bus.to_mb(ev);
+    w.sim(w.clock.sleep_until(Instant(1)));
+    let d = w.mb.diagnostics();
+    assert_eq!((d.bad_events, d.overflows), (3, 1));
+}
+
+const MB_ADDR_BYTE: u8 = common::MB << 1;
+
+struct Blinker {
+    steps: Rc<Cell<u32>>,
+    link: firmware_mb::MbHandle<'static, NoopRawMutex, FakePorts, TestClock>,
+}
+
+impl Robot for Blinker {
+    async fn setup(&mut self) -> Result<(), LinkError> {
+        self.link.call(addr(0x31), Op::Ping).await.map(|_| ())
+    }
+
+    async fn step(&mut self) -> Result<(), LinkError> {
+        let n = self.steps.get();
+        self.steps.set(n + 1);
+        let level = if n.is_multiple_of(2) {
+            Level::High
+        } else {
+            Level::Low
+        };
+        self.link
+            .call(Address::INTERNAL, Op::DigitalWrite(a(1).pin(Pin::A), level))
+            .await?;
+        if n % 3 == 2 {
+            self.link
+                .call(Address::INTERNAL, Op::AnalogRead(s(5)))
+                .await?;
+        }
+        Ok(())
+    }
+}
+
+#[test]
+fn the_robot_runner_steps_at_its_period_and_goes_on_after_errors() {
+    let w = Box::leak(Box::new(world()));
+    let steps = Rc::new(Cell::new(0));
+    let errors = RefCell::new(Vec::new());
+    let robot = Blinker {
+        steps: steps.clone(),
+        link: w.mb.handle(),
+    };
+    w.sim(async {
+        let runner = run_robot_with(robot, w.clock.clone(), 10_000, |phase, e| {
+            errors.borrow_mut().push((w.clock.now_us(), phase, e));
+        });
+        let _ = select(runner, w.clock.sleep_until(Instant(100_000))).await;
+    });
+    // setup NACKed (no board 0x31) after ~1.6 ms of retries, then steps every 10 ms from there
+    let errors = errors.into_inner();
+    assert_eq!(errors[0].1, RobotPhase::Setup);
+    assert_eq!(errors[0].2, LinkError::Nack);
+    assert_eq!(steps.get(), 10);
+    let step_errors: Vec<_> = errors[1..].iter().map(|e| (e.1, e.2)).collect();
+    assert_eq!(
+        step_errors,
+        vec![(RobotPhase::Step, LinkError::Status(Status::PortOutOfRange)); 3]
+    );
+    let writes =
+        w.mb.internal()
+            .ports()
+            .log
+            .borrow()
+            .iter()
+            .filter(|o| matches!(o, PortOp::DigitalWrite(p, _) if *p == a(1).pin(Pin::A)))
+            .count();
+    assert_eq!(writes, 10 + 1, "10 steps, plus the safe state at boot");
+}
+
+#[test]
+fn the_same_scenario_gives_the_same_bus_log_byte_for_byte() {
+    let scenario = || {
+        let w = world();
+        w.bus.fault(
+            9,
+            Fault {
+                error: BusError::ArbitrationLost,
+                event: None,
+            },
+        );
+        w.bus.fault(
+            17,
+            Fault {
+                error: BusError::Nack,
+                event: None,
+            },
+        );
+        let link = w.mb.handle();
+        let _ = w.sim(join_array(core::array::from_fn::<_, 6, _>(
+            |i| async move {
+                let board = [9u8, 17, 0x30][i % 3];
+                for _ in 0..3 {
+                    let _ = link.call(addr(board), Op::AnalogRead(s(1))).await;
+                }
+            },
+        )));
+        (w.bus.seen(), w.mb.diagnostics())
+    };
+    let (a, da) = scenario();
+    let (b, db) = scenario();
+    assert!(a.len() > 18);
+    assert_eq!(a, b);
+    assert_eq!(da, db);
+}
