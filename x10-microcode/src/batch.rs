@@ -5,7 +5,7 @@
 //! item, in order: `status, len, value[len]`. Batches cannot nest and cannot hold deferred
 //! operations (pulse-in): every item's result is in the one reply.
 
-use crate::{Error, Op, Result, Status, MAX_PAYLOAD, MAX_REQUEST_DATA};
+use crate::{Error, Function, Op, Result, Status, MAX_PAYLOAD, MAX_REQUEST_DATA};
 
 /// Item header: `fn_op`, `port`, `len`.
 const ITEM_HEADER: usize = 3;
@@ -51,11 +51,15 @@ impl<'a> Batch<'a> {
         let mut reply = 0usize;
         while !rest.is_empty() {
             let ((fn_op, port, data), tail) = split_record(rest)?;
+            // Checked on the function code before parsing the item, so that a nested batch is
+            // reported as such whatever its own contents (an empty one would otherwise be
+            // `BadLength`).
+            if Function::from_code(fn_op >> 4) == Function::Batch {
+                return Err(Error::NestedBatch);
+            }
             let op = Op::parse(fn_op, port, data)?;
-            match op {
-                Op::Batch(_) => return Err(Error::NestedBatch),
-                op if op.is_deferred() => return Err(Error::BadArgument),
-                _ => {}
+            if op.is_deferred() {
+                return Err(Error::BadArgument);
             }
             reply += RESULT_HEADER + op.reply_capacity();
             rest = tail;

@@ -214,11 +214,15 @@ impl<'a> Request<'a> {
     /// Writes the request into a view over at least [`Request::buffer_len`] bytes.
     ///
     /// # Errors
-    /// [`Error::BufferTooShort`].
+    /// [`Error::TooLong`] when the data exceeds [`crate::MAX_REQUEST_DATA`] (no board would
+    /// accept the frame), [`Error::BufferTooShort`].
     pub fn emit_frame<T: AsRef<[u8]> + AsMut<[u8]>>(
         &self,
         frame: &mut RequestFrame<T>,
     ) -> Result<()> {
+        if self.buffer_len() > MAX_REQUEST_LEN {
+            return Err(Error::TooLong);
+        }
         if frame.buffer.as_ref().len() < self.buffer_len() {
             return Err(Error::BufferTooShort);
         }
@@ -233,9 +237,12 @@ impl<'a> Request<'a> {
     /// Writes the request at the start of `buf` and returns its length.
     ///
     /// # Errors
-    /// [`Error::BufferTooShort`].
+    /// As [`Request::emit_frame`].
     pub fn emit(&self, buf: &mut [u8]) -> Result<usize> {
         let len = self.buffer_len();
+        if len > MAX_REQUEST_LEN {
+            return Err(Error::TooLong);
+        }
         let out = buf.get_mut(..len).ok_or(Error::BufferTooShort)?;
         self.emit_frame(&mut RequestFrame::new_unchecked(out))?;
         Ok(len)
@@ -244,7 +251,7 @@ impl<'a> Request<'a> {
     /// Writes the request and its PEC byte; returns the total length.
     ///
     /// # Errors
-    /// [`Error::BufferTooShort`].
+    /// As [`Request::emit_frame`].
     pub fn emit_with_pec(&self, buf: &mut [u8]) -> Result<usize> {
         let len = self.emit(buf)?;
         pec::append(self.db.addr_byte(false), buf, len)
