@@ -241,7 +241,12 @@ impl<'a> Op<'a> {
                         u16_le(data).map(|timeout_ms| Op::SetFailsafe { timeout_ms })
                     }
                     Operand::SYS_EVENT_ENABLE => {
-                        return Ok(Op::EventEnable(pin, EventConfig::parse(data)?))
+                        let cfg = EventConfig::parse(data)?;
+                        if cfg.analog_window {
+                            // Only sensor ports have an analog input.
+                            require_kind(pin.port, PortKind::Sensor)?;
+                        }
+                        return Ok(Op::EventEnable(pin, cfg));
                     }
                     Operand::SYS_READ_DIAGNOSTICS => no_data(data).map(|_| Op::ReadDiagnostics),
                     Operand::SYS_CLEAR_DIAGNOSTICS => no_data(data).map(|_| Op::ClearDiagnostics),
@@ -582,7 +587,7 @@ impl<'a> Op<'a> {
             Op::Identify => crate::Identity::LEN,
             Op::ReadDiagnostics => crate::Diagnostics::LEN,
             Op::SerialRead(_, n) => *n as usize,
-            Op::Scan => MAX_PAYLOAD,
+            Op::Scan => crate::ScanResult::MAX_LEN,
             Op::Batch(b) => b.reply_capacity(),
             _ => 0,
         }

@@ -299,6 +299,8 @@ pub struct ScanResult {
 impl ScanResult {
     /// Most sensor ports one scan reports.
     pub const MAX_PORTS: usize = 8;
+    /// Longest scan payload: 3 + 2 × [`ScanResult::MAX_PORTS`] = 19 bytes.
+    pub const MAX_LEN: usize = 3 + 2 * Self::MAX_PORTS;
 
     /// Encoded length for this number of ports.
     pub const fn len(&self) -> usize {

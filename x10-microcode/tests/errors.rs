@@ -341,6 +341,16 @@ fn deferred_operation_in_batch() {
 }
 
 #[test]
+fn analog_window_events_only_on_sensor_ports() {
+    // event_enable with the analog window on actuator port 1: no analog input there.
+    let e = parse_err(&[0x04, 0x09, 0x00, 0x05, 0x04, 0x64, 0x00, 0x84, 0x03]);
+    assert_eq!(e, Error::WrongPortKind);
+    assert_eq!(e.status(), Status::WrongPortKind);
+    // Edges only on the same actuator pin are fine.
+    Request::parse(&[0x04, 0x09, 0x00, 0x05, 0x03, 0x00, 0x00, 0x00, 0x00]).unwrap();
+}
+
+#[test]
 fn batch_reply_too_long() {
     // Three identify items: 3 × (2 + 10) = 36 result bytes > 28.
     let e = parse_err(&[
@@ -352,9 +362,17 @@ fn batch_reply_too_long() {
     let two =
         Request::parse(&[0x50, 0x09, 0x00, 0x01, 0x01, 0x00, 0x00, 0x01, 0x00, 0x00]).unwrap();
     assert_eq!(two.op.reply_capacity(), 24);
-    // Diagnostics (28 bytes) and scan (up to 28) never fit beside their result header.
+    // Diagnostics (28 bytes) never fits beside its result header; a scan (19) does, and so
+    // does a scan beside an analog read (2 + 19 + 2 + 2 = 25), but not beside an identify.
     assert_eq!(Batch::new_checked(&[0x05, 0x00, 0x00]), Err(Error::TooLong));
-    assert_eq!(Batch::new_checked(&[0x60, 0x00, 0x00]), Err(Error::TooLong));
+    let scan = Batch::new_checked(&[0x60, 0x00, 0x00]).unwrap();
+    assert_eq!(scan.reply_capacity(), 21);
+    let scan_analog = Batch::new_checked(&[0x60, 0x00, 0x00, 0x30, 0x80, 0x00]).unwrap();
+    assert_eq!(scan_analog.reply_capacity(), 25);
+    assert_eq!(
+        Batch::new_checked(&[0x60, 0x00, 0x00, 0x01, 0x00, 0x00]),
+        Err(Error::TooLong)
+    );
     // The writer accepts the items one by one and refuses at finish.
     let mut buf = [0u8; MAX_REQUEST_DATA];
     let mut w = BatchWriter::new(&mut buf);

@@ -81,7 +81,13 @@ fn plain_op() -> impl Strategy<Value = Op<'static>> {
         Just(Op::Identify),
         Just(Op::Heartbeat),
         any::<u16>().prop_map(|timeout_ms| Op::SetFailsafe { timeout_ms }),
-        (any_pin(), event_config()).prop_map(|(p, c)| Op::EventEnable(p, c)),
+        // The analog window exists only on sensor ports (actuator ports have no analog input).
+        (any_pin(), event_config()).prop_map(|(p, mut c)| {
+            if p.port.kind() == PortKind::Actuator {
+                c.analog_window = false;
+            }
+            Op::EventEnable(p, c)
+        }),
         Just(Op::ReadDiagnostics),
         Just(Op::ClearDiagnostics),
         any::<bool>().prop_map(Op::SetPec),

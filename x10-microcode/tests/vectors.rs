@@ -507,7 +507,8 @@ fn request_vectors() -> Vec<RequestVector> {
             data: &[],
             op_name: "scan",
             expects_reply: true,
-            reply_capacity: 28,
+            // 3 + 2 × 8 ports
+            reply_capacity: 19,
             ok_prefixes: &[],
             repr: |_| req(0x09, 0x13, Op::Scan),
         },
