@@ -10,7 +10,7 @@ use x10_microcode::{EventConfig, EventKind, Pin, PinRef, Port, Status};
 
 use crate::daughterboard::{bump, port_status, Daughterboard, MAX_EVENT_PINS};
 use crate::event::OutEvent;
-use crate::ports::Ports;
+use x10_hal::ports::Ports;
 
 impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// Runs the board's background work; never returns. Call once, next to the transport.

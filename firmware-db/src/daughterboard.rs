@@ -16,7 +16,7 @@ use x10_microcode::{
 
 use crate::config::{DbConfig, FIRMWARE_VERSION};
 use crate::event::OutEvent;
-use crate::ports::{PortError, Ports};
+use x10_hal::ports::{PortError, Ports};
 
 /// Events the queue holds before it overflows.
 pub const EVENT_QUEUE_LEN: usize = 16;

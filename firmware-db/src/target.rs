@@ -12,7 +12,7 @@ use x10_microcode::MAX_FRAME_LEN;
 use crate::config::TargetConfig;
 use crate::daughterboard::{bump, Daughterboard};
 use crate::event::OutEvent;
-use crate::ports::Ports;
+use x10_hal::ports::Ports;
 
 /// Serves the bus for `db`; never returns.
 ///

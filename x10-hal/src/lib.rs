@@ -1,6 +1,8 @@
 //! # x10-hal: what the X10 runtimes need from a board, and nothing more
 //!
 //! * [`bus::MultiMaster`]: one multi-master I2C port, controller and target.
+//! * [`ports::Ports`]: a board's sensor and actuator ports, on which a daughterboard executes
+//!   microcode.
 //! * [`time::Clock`]: a monotonic microsecond clock with async sleeps.
 //! * [`retry::Backoff`]: the retry and backoff policy both runtimes use when the bus is busy.
 //!
@@ -10,5 +12,6 @@
 #![no_std]
 
 pub mod bus;
+pub mod ports;
 pub mod retry;
 pub mod time;

@@ -1,4 +1,5 @@
-//! What a board supplies to the daughterboard runtime: its sensor and actuator ports.
+//! What a board supplies to the daughterboard runtime (and to the MB's internal daughterboard):
+//! its sensor and actuator ports.
 //!
 //! Port numbers here are the wire's 0-based indices inside [`PinRef`]/[`Port`]; the runtime has
 //! already checked them against [`Ports::sensor_ports`] and [`Ports::actuator_ports`] and the
