@@ -1,1 +1,32 @@
-//! x10-sim: placeholder, filled by its issue.
+//! # x10-sim: X10 on a laptop
+//!
+//! A deterministic simulator that runs the real motherboard and daughterboard runtimes
+//! (`firmware-mb`, `firmware-db`) against one simulated multi-master I2C bus and simulated
+//! ports, in virtual time, and the `x10` command-line tool.
+//!
+//! * [`exec`]: the single-threaded executor with virtual time, its [`exec::SimClock`] and a
+//!   seeded generator.
+//! * [`timing`]: I2C bit and condition times at 100 kHz, 400 kHz and 1 MHz.
+//! * [`bus`]: the bus (arbitration, NACK, stretching, faults) and each node's
+//!   [`x10_hal::bus::MultiMaster`] port.
+//! * [`ports`]: simulated sensor and actuator ports with scripted signals, recording every
+//!   actuator change.
+//! * [`board`]: a daughterboard running the real `firmware-db`, restarted on reset.
+//! * [`sim`]: the simulation builder ([`sim::Sim`]) running the real motherboard runtime,
+//!   daughterboards, robot programs and test tasks; [`scenario`]: the thesis programs' boards
+//!   and scripted signals.
+//! * [`trace`] and [`vcd`]: the readable trace and the SDA/SCL waveform.
+//! * [`report`]: the latency table and the end-of-run summary; [`cli_sim`]: the `x10 sim` and
+//!   `x10 report` subcommands.
+pub mod board;
+pub mod bus;
+pub mod cli_sim;
+pub mod codec;
+pub mod exec;
+pub mod ports;
+pub mod report;
+pub mod scenario;
+pub mod sim;
+pub mod timing;
+pub mod trace;
+pub mod vcd;

@@ -1,2 +1,288 @@
-//! The `x10` command-line tool.
-fn main() {}
+//! `x10`: the X10 command-line tool.
+//!
+//! * `x10 decode HEX…` prints bus frames in words, or as JSON with `--json`;
+//! * `x10 encode --json OBJECT…` turns such JSON back into frame bytes.
+//!
+//! Each subcommand is one variant of [`Command`] and one arm in [`main`]. Every error is one
+//! line on standard error and a non-zero exit status; nothing a user types can panic the tool.
+
+use std::collections::HashMap;
+use std::io::{self, BufRead, Write};
+use std::process::ExitCode;
+
+use clap::{Args, Parser, Subcommand};
+use x10_microcode::Address;
+use x10_sim::codec::{self, Answers, DecodeOptions, FrameKind};
+
+#[derive(Parser)]
+#[command(
+    name = "x10",
+    version,
+    about = "X10 modular robots: tools for the microcode wire protocol (docs/protocol.md)"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Decode frames captured from the bus, in words or as JSON.
+    Decode(DecodeArgs),
+    /// Encode frames from JSON (what `decode --json` prints) into hex.
+    Encode(EncodeArgs),
+    /// Run a robot program against simulated boards and print the trace.
+    Sim(x10_sim::cli_sim::SimArgs),
+    /// Print the latency table: simulated, wire minimum and the thesis's figures.
+    Report(x10_sim::cli_sim::ReportArgs),
+}
+
+const DECODE_HELP: &str = "\
+FRAMES
+  One argument per frame, in hex: 12090102, \"12 09 01 02\", 12:09:01:02 or 0x12,0x09,0x01,0x02.
+  Quote a frame that contains spaces. Frames are requests unless --reply or --event says
+  otherwise; a prefix on one frame overrides that: reply:010000, \"event:09 01 80 07 00 01 01\",
+  request:12090102. With no FRAMES, frames are read from standard input, one per line
+  (blank lines and lines starting with # are skipped).
+
+REPLIES
+  A reply does not say which request it answers. When a request with the same sequence number
+  was decoded earlier in the same run, or --answers names the operation, the payload is decoded
+  too (level, value, identity, diagnostics, scan, batch results).
+
+EXAMPLES
+  x10 decode \"12 09 01 02\"
+  x10 decode --json 30098004 reply:04000200 02
+  x10 decode --pec 0x09 \"12 09 01 02 9c\"
+  x10 decode --event --pec 0x10 \"09 01 80 07 00 01 01 95\"";
+
+#[derive(Args)]
+#[command(after_help = DECODE_HELP)]
+struct DecodeArgs {
+    /// Frames in hex, one per argument (see FRAMES below).
+    frames: Vec<String>,
+    /// Print one JSON object per frame instead of words.
+    #[arg(long)]
+    json: bool,
+    /// Frames are replies (DB → MB, the read half of a transaction).
+    #[arg(long, conflicts_with = "event")]
+    reply: bool,
+    /// Frames are events (DB → MB, written by a DB acting as master).
+    #[arg(long)]
+    event: bool,
+    /// Frames end with an SMBus PEC byte covering ADDR: the DB's address for requests and
+    /// replies, the MB's address for events (decimal or 0x hex).
+    #[arg(long, value_name = "ADDR", value_parser = address)]
+    pec: Option<Address>,
+    /// Decode reply payloads as the answer to this operation: function.operation, e.g.
+    /// io.input, analog.read, system.identify, system.read_diagnostics, scan.scan, batch.batch.
+    #[arg(long, value_name = "OP", value_parser = answers)]
+    answers: Option<Answers>,
+}
+
+const ENCODE_HELP: &str = "\
+OBJECTS
+  One JSON object per argument, with the keys `x10 decode --json` prints; `data` (requests) and
+  `payload` (replies, events) may be left out and are then built from the decoded fields, e.g.
+  {\"function\":\"pwm\",\"operation\":\"duty\",\"db\":9,\"port_kind\":\"actuator\",\"port\":1,\"pin\":\"B\",\"seq\":3,\"duty\":128}.
+  `kind` defaults to request. With `pec_addr` the PEC byte is appended. With no OBJECTS, objects
+  are read from standard input, one per line, so `x10 decode --json … | x10 encode --json`
+  gives back the frames.
+
+OUTPUT
+  One frame per line in lowercase hex, bytes separated by spaces (what `x10 decode` reads).";
+
+#[derive(Args)]
+#[command(after_help = ENCODE_HELP)]
+struct EncodeArgs {
+    /// Read JSON objects (the input format; required).
+    #[arg(long, required = true)]
+    json: bool,
+    /// JSON objects, one per argument (see OBJECTS below).
+    objects: Vec<String>,
+}
+
+fn address(s: &str) -> Result<Address, String> {
+    codec::parse_address(s).map_err(|e| e.to_string())
+}
+
+fn answers(s: &str) -> Result<Answers, String> {
+    Answers::parse(s).map_err(|e| e.to_string())
+}
+
+/// Where a command's output stopped.
+enum Stop {
+    /// The reader of standard output went away (`x10 decode … | head`): stop quietly.
+    Closed,
+    /// Writing failed otherwise.
+    Failed(io::Error),
+}
+
+fn emit(out: &mut impl Write, line: &str) -> Result<(), Stop> {
+    writeln!(out, "{line}").map_err(|e| {
+        if e.kind() == io::ErrorKind::BrokenPipe {
+            Stop::Closed
+        } else {
+            Stop::Failed(e)
+        }
+    })
+}
+
+/// The inputs of a command: its arguments, or the lines of standard input when there are none.
+fn inputs(args: Vec<String>) -> Result<Vec<String>, io::Error> {
+    if !args.is_empty() {
+        return Ok(args);
+    }
+    let mut lines = Vec::new();
+    for line in io::stdin().lock().lines() {
+        let line = line?;
+        let t = line.trim();
+        if !t.is_empty() && !t.starts_with('#') {
+            lines.push(t.to_string());
+        }
+    }
+    Ok(lines)
+}
+
+fn decode(args: DecodeArgs) -> ExitCode {
+    let default_kind = if args.reply {
+        FrameKind::Reply
+    } else if args.event {
+        FrameKind::Event
+    } else {
+        FrameKind::Request
+    };
+    let frames = match inputs(args.frames) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("x10 decode: cannot read standard input: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    // What each sequence number's reply answers, from requests decoded earlier in this run.
+    let mut pending: HashMap<u8, Answers> = HashMap::new();
+    let mut failed = false;
+    let mut out = io::stdout().lock();
+    for (i, frame) in frames.iter().enumerate() {
+        let (prefix, hex) = codec::split_prefix(frame);
+        let kind = prefix.unwrap_or(default_kind);
+        let decoded = codec::parse_hex(hex).and_then(|bytes| {
+            let mut opts = DecodeOptions::new(kind);
+            opts.pec = args.pec;
+            if kind == FrameKind::Reply {
+                let seq = bytes.first().copied().unwrap_or(0);
+                opts.answers = args.answers.clone().or_else(|| pending.remove(&seq));
+            }
+            codec::decode(&bytes, &opts)
+        });
+        let line = match decoded {
+            Ok(v) => {
+                if let (Some(a), Some(seq)) = (
+                    Answers::of_request(&v),
+                    v.get("seq").and_then(|s| s.as_u64()),
+                ) {
+                    pending.insert(u8::try_from(seq).unwrap_or(0), a);
+                }
+                if args.json {
+                    v.to_string()
+                } else {
+                    codec::describe(&v)
+                }
+            }
+            Err(e) => {
+                eprintln!("x10 decode: frame {} `{}`: {e}", i + 1, frame.trim());
+                failed = true;
+                continue;
+            }
+        };
+        match emit(&mut out, &line) {
+            Ok(()) => {}
+            Err(Stop::Closed) => return ExitCode::SUCCESS,
+            Err(Stop::Failed(e)) => {
+                eprintln!("x10 decode: cannot write: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    if failed {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    }
+}
+
+fn encode(args: EncodeArgs) -> ExitCode {
+    // `--json` is required by clap; it names the only input format there is so far.
+    let _ = args.json;
+    let objects = match inputs(args.objects) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("x10 encode: cannot read standard input: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let mut failed = false;
+    let mut out = io::stdout().lock();
+    for (i, text) in objects.iter().enumerate() {
+        let encoded = serde_json::from_str::<serde_json::Value>(text)
+            .map_err(|e| format!("not JSON: {e}"))
+            .and_then(|v| codec::encode(&v).map_err(|e| e.to_string()));
+        match encoded {
+            Ok(bytes) => match emit(&mut out, &codec::to_hex(&bytes)) {
+                Ok(()) => {}
+                Err(Stop::Closed) => return ExitCode::SUCCESS,
+                Err(Stop::Failed(e)) => {
+                    eprintln!("x10 encode: cannot write: {e}");
+                    return ExitCode::FAILURE;
+                }
+            },
+            Err(e) => {
+                eprintln!("x10 encode: object {}: {e}", i + 1);
+                failed = true;
+            }
+        }
+    }
+    if failed {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(
+                e.kind(),
+                ErrorKind::DisplayHelp
+                    | ErrorKind::DisplayVersion
+                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+            ) {
+                // Help and version text are meant to be long.
+                let _ = e.print();
+                return ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2));
+            }
+            // Usage errors in one line, like every other error of the tool.
+            // clap's message is its first paragraph (the usage hint follows a blank line).
+            let text = e.render().to_string();
+            let message: Vec<&str> = text
+                .lines()
+                .map(str::trim)
+                .skip_while(|l| l.is_empty())
+                .take_while(|l| !l.is_empty())
+                .collect();
+            let message = message.join(" ");
+            let message = message.strip_prefix("error: ").unwrap_or(&message);
+            eprintln!("x10: {message} (see x10 --help)");
+            return ExitCode::from(2);
+        }
+    };
+    match cli.command {
+        Command::Decode(args) => decode(args),
+        Command::Encode(args) => encode(args),
+        Command::Sim(args) => x10_sim::cli_sim::sim_main(args),
+        Command::Report(args) => x10_sim::cli_sim::report_main(args),
+    }
+}

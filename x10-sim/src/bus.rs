@@ -1,0 +1,1544 @@
+//! One simulated multi-master I2C bus with many nodes.
+//!
+//! Every node gets a [`SimPort`], which implements [`x10_hal::bus::MultiMaster`]. A bus
+//! *engine* task ([`SimBus::engine`], spawned on the [`crate::exec::Executor`]) plays the wire:
+//!
+//! * **Timing**: each transaction takes the time of [`crate::timing`] at the configured clock:
+//!   START, 9 bits per byte, repeated START, STOP, then `t_BUF` before the next START, plus any
+//!   clock stretching.
+//! * **Arbitration**: every master that wants the bus when it becomes free (or in the same
+//!   virtual instant while it is free) starts together. Their address and data bits are compared
+//!   bit by bit as a wired-AND bus does: at the first bit where they differ the masters sending 1
+//!   lose and get [`BusError::ArbitrationLost`] at the end of that bit. Two masters sending the
+//!   same bits to the end of the shorter one are a case the I2C spec leaves undefined: the lower
+//!   node index wins and the others lose at the first bit past the common part.
+//! * **Acknowledge**: the address is NACKed when no node has it, when the node is resetting, and
+//!   when the node is [`Role::SingleRole`] (RP2040-like) and inside its controller window: from
+//!   the START of its own transaction (it switches roles only once the bus is idle, as
+//!   `PLATFORM-FACTS.md` prescribes) until its call returned plus the role-switch time.
+//! * **Stretching**: an addressed target that has no `listen` waiting holds SCL low until one is,
+//!   and a target asked for a read holds SCL low until it calls `respond`; past the configured
+//!   stretch timeout the controller gets [`BusError::Timeout`]. While a node is stretched
+//!   like this, its own controller calls waiting for the bus fail at once with
+//!   [`BusError::ArbitrationLost`] (counted in [`BusStats::yielded`]): a port that sees its
+//!   address-match flag while it waits to start (STM32 `ADDR`, RP2040 `slv_activity`) must
+//!   give up rather than wait for a bus it holds itself, so the caller serves its listener
+//!   and retries.
+//! * **Faults**: a seeded [`FaultConfig`] injects NACKs, corrupted bytes, node resets and stuck
+//!   lines, as smoltcp's `phy::FaultInjector` does for packets.
+//!
+//! Every transaction is recorded as a [`BusRecord`] (time, master, address, bytes, outcome and
+//! the wire symbols), from which the trace and the VCD waveform are made.
+
+use std::cell::RefCell;
+use std::collections::{BTreeMap, VecDeque};
+use std::future::{poll_fn, Future};
+use std::pin::Pin;
+use std::rc::Rc;
+use std::task::{Context, Poll, Waker};
+
+use embassy_futures::select::select;
+use x10_hal::bus::{BusError, Incoming, MultiMaster};
+
+use crate::exec::{Nanos, Rng, SimClock};
+use crate::timing::{Speed, Timing};
+
+/// Index of a node on the bus, in the order nodes were added.
+pub type NodeId = usize;
+
+/// How a node's I2C peripheral handles the two roles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// Controller or target, one at a time (RP2040): deaf to its own address from the START
+    /// of its own transaction until `switch_ns` after its call returned.
+    SingleRole {
+        /// Time to tear down the controller and re-arm the target, in ns.
+        switch_ns: Nanos,
+    },
+    /// Both at once (STM32 I2C v2 `MultiMaster`): always answers its address.
+    DualRole,
+}
+
+/// One node of the bus.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct NodeConfig {
+    /// Name used in traces (`mb`, `db09`, …).
+    pub name: String,
+    /// Own 7-bit target address, if the node listens at all.
+    pub address: Option<u8>,
+    /// Role handling.
+    pub role: Role,
+    /// True when the fault injector may reset this node.
+    pub resettable: bool,
+}
+
+impl NodeConfig {
+    /// A dual-role node at `address`.
+    pub fn new(name: impl Into<String>, address: Option<u8>) -> NodeConfig {
+        NodeConfig {
+            name: name.into(),
+            address,
+            role: Role::DualRole,
+            resettable: false,
+        }
+    }
+
+    /// This node with role handling `role`.
+    pub fn with_role(mut self, role: Role) -> NodeConfig {
+        self.role = role;
+        self
+    }
+
+    /// This node, which the fault injector may reset.
+    pub fn resettable(mut self) -> NodeConfig {
+        self.resettable = true;
+        self
+    }
+}
+
+/// Seeded fault injection, per transaction (probabilities in parts per million).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FaultConfig {
+    /// A NACK on the address or one data byte.
+    pub nack_ppm: u32,
+    /// One bit of one byte flipped on the wire (the receiver sees it, the sender does not).
+    pub corrupt_ppm: u32,
+    /// A resettable node restarts (NACKs for `reset_ns`, loses what it had received).
+    pub reset_ppm: u32,
+    /// SDA stuck low for `stuck_ns`: the transaction ends in [`BusError::Bus`].
+    pub stuck_ppm: u32,
+    /// How long a reset node stays deaf.
+    pub reset_ns: Nanos,
+    /// How long a stuck line stays stuck.
+    pub stuck_ns: Nanos,
+}
+
+impl FaultConfig {
+    /// No faults.
+    pub const NONE: FaultConfig = FaultConfig {
+        nack_ppm: 0,
+        corrupt_ppm: 0,
+        reset_ppm: 0,
+        stuck_ppm: 0,
+        reset_ns: 0,
+        stuck_ns: 0,
+    };
+}
+
+/// Bus configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BusConfig {
+    /// Bus clock.
+    pub speed: Speed,
+    /// Longest a target may stretch SCL before the controller gives up.
+    pub stretch_timeout_ns: Nanos,
+    /// Longest a controller waits for a busy bus before it gives up.
+    pub busy_timeout_ns: Nanos,
+    /// Fault injection.
+    pub faults: FaultConfig,
+    /// Seed of the fault injector.
+    pub seed: u64,
+    /// Keep each transaction's wire symbols ([`BusRecord::wire`], for the waveform); long
+    /// runs without a waveform can save the memory.
+    pub record_wire: bool,
+}
+
+impl BusConfig {
+    /// No faults, SMBus-like 25 ms stretch timeout, 50 ms busy timeout, wire symbols kept.
+    pub fn new(speed: Speed) -> BusConfig {
+        BusConfig {
+            speed,
+            stretch_timeout_ns: 25_000_000,
+            busy_timeout_ns: 50_000_000,
+            faults: FaultConfig::NONE,
+            seed: 0,
+            record_wire: true,
+        }
+    }
+}
+
+/// A symbol on the wire, for the waveform. Each starts with SCL low, except START.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WireSym {
+    /// START: SDA falls with SCL high, then SCL falls after `t_HD;STA`.
+    Start,
+    /// One bit: SCL low, SDA set, SCL high, SCL low again. A gap before a symbol is SCL held
+    /// low by a stretching target.
+    Bit {
+        /// SDA level (an ACK is 0, a NACK 1).
+        value: bool,
+    },
+    /// Repeated START.
+    RepeatedStart,
+    /// STOP.
+    Stop,
+    /// SDA held low (stuck line) until the given time.
+    Stuck {
+        /// When SDA is released.
+        until: Nanos,
+    },
+}
+
+/// What happened to the transaction, from the winning master's side.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Outcome {
+    /// Delivered (and read back).
+    Ok,
+    /// NACK on byte `byte` (0 = the address byte, 1 = first data byte, …).
+    Nack {
+        /// Which byte was not acknowledged.
+        byte: usize,
+    },
+    /// A stretching target did not release SCL in time.
+    Timeout,
+    /// Bus fault (stuck line).
+    Bus,
+}
+
+/// One master that lost arbitration in a transaction.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Loser {
+    /// The node.
+    pub node: NodeId,
+    /// Address it wanted.
+    pub addr: u8,
+    /// Bytes it wanted to write.
+    pub write: Vec<u8>,
+    /// Bit index (0 = MSB of the address byte, 8 = MSB of the first data byte, …) where it lost.
+    pub bit: usize,
+}
+
+/// One transaction on the bus, as recorded.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct BusRecord {
+    /// Sequence number of the transaction.
+    pub txn: u64,
+    /// START (ns).
+    pub start_ns: Nanos,
+    /// End of STOP (ns).
+    pub end_ns: Nanos,
+    /// Master that won the bus.
+    pub master: NodeId,
+    /// Target address.
+    pub addr: u8,
+    /// Target node, if any node has that address.
+    pub target: Option<NodeId>,
+    /// Bytes the master sent.
+    pub written: Vec<u8>,
+    /// Bytes the target received (differs from `written` when a byte was corrupted or cut).
+    pub received: Vec<u8>,
+    /// True for write-then-read.
+    pub is_read: bool,
+    /// Bytes the master read.
+    pub read: Vec<u8>,
+    /// Outcome for the winner.
+    pub outcome: Outcome,
+    /// Masters that lost arbitration to this one.
+    pub losers: Vec<Loser>,
+    /// Time SCL was stretched by the target, in all (ns).
+    pub stretch_ns: Nanos,
+    /// Faults injected into this transaction, described.
+    pub faults: Vec<String>,
+    /// Wire symbols with their start times (ns), for the waveform.
+    pub wire: Vec<(Nanos, WireSym)>,
+}
+
+impl BusRecord {
+    /// Duration START to end of STOP (ns).
+    pub fn duration_ns(&self) -> Nanos {
+        self.end_ns.saturating_sub(self.start_ns)
+    }
+}
+
+/// A controller call given up because its node was being addressed (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Yield {
+    /// When (ns).
+    pub t_ns: Nanos,
+    /// The node that gave up.
+    pub node: NodeId,
+    /// The address it wanted.
+    pub addr: u8,
+}
+
+/// Counters of the bus.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct BusStats {
+    /// Transactions started (winners only).
+    pub transactions: u64,
+    /// Arbitration losses.
+    pub arbitration_lost: u64,
+    /// NACKs (address or data).
+    pub nacks: u64,
+    /// Stretch or busy timeouts.
+    pub timeouts: u64,
+    /// Bus faults.
+    pub bus_faults: u64,
+    /// Faults injected.
+    pub injected: u64,
+    /// Node resets.
+    pub resets: u64,
+    /// Controller calls given up at once (as `ArbitrationLost`) because the node was being
+    /// addressed by another master at the time.
+    pub yielded: u64,
+}
+
+#[derive(Debug)]
+enum ReqState {
+    Waiting,
+    InFlight,
+    Done {
+        result: Result<Vec<u8>, BusError>,
+        at: Nanos,
+    },
+}
+
+#[derive(Debug)]
+struct Request {
+    node: NodeId,
+    addr: u8,
+    write: Vec<u8>,
+    read_len: Option<usize>,
+    registered: Nanos,
+    state: ReqState,
+    waker: Option<Waker>,
+}
+
+#[derive(Debug)]
+enum DeliveryKind {
+    Write,
+    WriteRead,
+    Read,
+    Overrun,
+}
+
+#[derive(Debug)]
+struct Delivery {
+    kind: DeliveryKind,
+    bytes: Vec<u8>,
+    ready_at: Nanos,
+}
+
+#[derive(Debug, Clone)]
+enum RespondState {
+    Idle,
+    Awaiting { txn: u64 },
+    Given { txn: u64, bytes: Vec<u8> },
+    Done { txn: u64, at: Nanos },
+    Expired { txn: u64 },
+}
+
+#[derive(Debug)]
+struct Node {
+    cfg: NodeConfig,
+    /// Its controller transaction is on the wire (from START until its call returns).
+    controller_active: bool,
+    deaf_until: Nanos,
+    alive_from: Nanos,
+    generation: u64,
+    listen_cap: Option<usize>,
+    waiters: Vec<Waker>,
+    inbox: VecDeque<Delivery>,
+    respond: RespondState,
+}
+
+impl Node {
+    fn wake(&mut self) {
+        for w in self.waiters.drain(..) {
+            w.wake();
+        }
+    }
+}
+
+struct BusInner {
+    cfg: BusConfig,
+    timing: Timing,
+    nodes: Vec<Node>,
+    requests: BTreeMap<u64, Request>,
+    next_req: u64,
+    next_txn: u64,
+    free_at: Nanos,
+    engine_waker: Option<Waker>,
+    rng: Rng,
+    records: Vec<BusRecord>,
+    yields: Vec<Yield>,
+    stats: BusStats,
+}
+
+impl BusInner {
+    fn wake_engine(&mut self) {
+        if let Some(w) = self.engine_waker.take() {
+            w.wake();
+        }
+    }
+
+    fn finish(&mut self, id: u64, result: Result<Vec<u8>, BusError>, at: Nanos) {
+        if let Some(r) = self.requests.get_mut(&id) {
+            r.state = ReqState::Done { result, at };
+            if let Some(w) = r.waker.take() {
+                w.wake();
+            }
+        }
+    }
+
+    /// Fails, as `ArbitrationLost`, every controller request of `node` still waiting for the
+    /// bus: the node is being addressed, and a port that sees its address-match flag set
+    /// while it waits to start (STM32 `ADDR`, RP2040 `slv_activity`) gives up rather than
+    /// wait for a bus it holds itself.
+    fn yield_requests_of(&mut self, node: NodeId, now: Nanos) {
+        let ids: Vec<(u64, u8)> = self
+            .requests
+            .iter()
+            .filter(|(_, r)| r.node == node && matches!(r.state, ReqState::Waiting))
+            .map(|(&id, r)| (id, r.addr))
+            .collect();
+        for (id, addr) in ids {
+            self.stats.yielded += 1;
+            self.yields.push(Yield {
+                t_ns: now,
+                node,
+                addr,
+            });
+            self.finish(id, Err(BusError::ArbitrationLost), now);
+        }
+    }
+
+    fn push_record(&mut self, mut rec: BusRecord) {
+        if !self.cfg.record_wire {
+            rec.wire = Vec::new();
+        }
+        self.records.push(rec);
+    }
+
+    fn has_waiting(&self) -> bool {
+        self.requests
+            .values()
+            .any(|r| matches!(r.state, ReqState::Waiting))
+    }
+
+    fn node_by_addr(&self, addr: u8) -> Option<NodeId> {
+        self.nodes.iter().position(|n| n.cfg.address == Some(addr))
+    }
+
+    fn is_deaf(&self, node: NodeId, now: Nanos) -> bool {
+        let Some(n) = self.nodes.get(node) else {
+            return true;
+        };
+        if now < n.alive_from {
+            return true;
+        }
+        match n.cfg.role {
+            Role::DualRole => false,
+            Role::SingleRole { .. } => n.controller_active || now < n.deaf_until,
+        }
+    }
+
+    fn reset(&mut self, node: NodeId, now: Nanos, down_ns: Nanos) {
+        if let Some(n) = self.nodes.get_mut(node) {
+            n.alive_from = now.saturating_add(down_ns);
+            n.generation += 1;
+            n.inbox.clear();
+            n.respond = match n.respond {
+                RespondState::Awaiting { txn } | RespondState::Given { txn, .. } => {
+                    RespondState::Expired { txn }
+                }
+                _ => RespondState::Idle,
+            };
+            n.wake();
+            self.stats.resets += 1;
+        }
+        self.wake_engine();
+    }
+}
+
+/// The simulated bus. Cloning gives another handle to the same bus.
+#[derive(Clone)]
+pub struct SimBus {
+    inner: Rc<RefCell<BusInner>>,
+    clock: SimClock,
+}
+
+impl SimBus {
+    /// A bus without nodes.
+    pub fn new(clock: SimClock, cfg: BusConfig) -> SimBus {
+        SimBus {
+            inner: Rc::new(RefCell::new(BusInner {
+                cfg,
+                timing: cfg.speed.timing(),
+                nodes: Vec::new(),
+                requests: BTreeMap::new(),
+                next_req: 0,
+                next_txn: 0,
+                free_at: 0,
+                engine_waker: None,
+                rng: Rng::new(cfg.seed ^ 0x05ee_db05),
+                records: Vec::new(),
+                yields: Vec::new(),
+                stats: BusStats::default(),
+            })),
+            clock,
+        }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> BusConfig {
+        self.inner.borrow().cfg
+    }
+
+    /// The clock the bus runs on.
+    pub fn clock(&self) -> &SimClock {
+        &self.clock
+    }
+
+    /// Adds a node and returns its id.
+    pub fn add_node(&self, cfg: NodeConfig) -> NodeId {
+        let mut b = self.inner.borrow_mut();
+        b.nodes.push(Node {
+            cfg,
+            controller_active: false,
+            deaf_until: 0,
+            alive_from: 0,
+            generation: 0,
+            listen_cap: None,
+            waiters: Vec::new(),
+            inbox: VecDeque::new(),
+            respond: RespondState::Idle,
+        });
+        b.nodes.len() - 1
+    }
+
+    /// The node's configuration.
+    pub fn node_config(&self, node: NodeId) -> Option<NodeConfig> {
+        self.inner.borrow().nodes.get(node).map(|n| n.cfg.clone())
+    }
+
+    /// Name of a node (`?` for an unknown id).
+    pub fn node_name(&self, node: NodeId) -> String {
+        self.node_config(node)
+            .map_or_else(|| "?".to_string(), |c| c.name)
+    }
+
+    /// The node's port: its handle to the bus as controller and target.
+    pub fn port(&self, node: NodeId) -> SimPort {
+        SimPort {
+            bus: self.clone(),
+            node,
+        }
+    }
+
+    /// Transactions so far.
+    pub fn records(&self) -> Vec<BusRecord> {
+        self.inner.borrow().records.clone()
+    }
+
+    /// Number of transactions recorded so far.
+    pub fn record_count(&self) -> usize {
+        self.inner.borrow().records.len()
+    }
+
+    /// Transactions from index `from` on.
+    pub fn records_from(&self, from: usize) -> Vec<BusRecord> {
+        self.inner
+            .borrow()
+            .records
+            .get(from..)
+            .map(<[BusRecord]>::to_vec)
+            .unwrap_or_default()
+    }
+
+    /// Controller calls given up so far because their node was being addressed.
+    pub fn yields(&self) -> Vec<Yield> {
+        self.inner.borrow().yields.clone()
+    }
+
+    /// Counters.
+    pub fn stats(&self) -> BusStats {
+        self.inner.borrow().stats
+    }
+
+    /// Resets `node` now: it NACKs everything for `down_ns`, loses its inbox, and every
+    /// [`SimBus::wait_reset`] on it completes (the simulator restarts its firmware there).
+    pub fn reset_node(&self, node: NodeId, down_ns: Nanos) {
+        let now = self.clock.now_ns();
+        self.inner.borrow_mut().reset(node, now, down_ns);
+    }
+
+    /// How many times `node` was reset.
+    pub fn reset_generation(&self, node: NodeId) -> u64 {
+        self.inner
+            .borrow()
+            .nodes
+            .get(node)
+            .map_or(0, |n| n.generation)
+    }
+
+    /// Time from which a reset node answers again (ns).
+    pub fn alive_from(&self, node: NodeId) -> Nanos {
+        self.inner
+            .borrow()
+            .nodes
+            .get(node)
+            .map_or(0, |n| n.alive_from)
+    }
+
+    /// Completes once `node` has been reset more than `generation` times.
+    pub async fn wait_reset(&self, node: NodeId, generation: u64) {
+        poll_fn(|cx| {
+            let mut b = self.inner.borrow_mut();
+            match b.nodes.get_mut(node) {
+                Some(n) if n.generation > generation => Poll::Ready(()),
+                Some(n) => {
+                    register(&mut n.waiters, cx.waker());
+                    Poll::Pending
+                }
+                None => Poll::Pending,
+            }
+        })
+        .await
+    }
+
+    /// The engine: plays every transaction on the wire. Spawn it once, before the nodes' tasks.
+    pub fn engine(&self) -> impl Future<Output = ()> + 'static {
+        let bus = self.clone();
+        async move { bus.run_engine().await }
+    }
+
+    /// Waits until `cond` holds (true) or `deadline` passes (false); the engine's only wait.
+    async fn wait_until(
+        &self,
+        deadline: Nanos,
+        mut cond: impl FnMut(&mut BusInner) -> bool,
+    ) -> bool {
+        loop {
+            if cond(&mut self.inner.borrow_mut()) {
+                return true;
+            }
+            if self.clock.now_ns() >= deadline {
+                return false;
+            }
+            let notified = Notified {
+                inner: &self.inner,
+                armed: false,
+            };
+            if deadline == Nanos::MAX {
+                notified.await;
+            } else {
+                select(self.clock.sleep_until_ns(deadline), notified).await;
+            }
+        }
+    }
+
+    async fn run_engine(&self) {
+        loop {
+            self.wait_until(Nanos::MAX, |b| b.has_waiting()).await;
+            if !self.wait_bus_free().await {
+                continue;
+            }
+            self.transaction().await;
+        }
+    }
+
+    /// Waits for the bus to be free with requests still waiting; times out requests that
+    /// waited too long. False when no request is left.
+    async fn wait_bus_free(&self) -> bool {
+        loop {
+            let now = self.clock.now_ns();
+            let wake_at = {
+                let mut b = self.inner.borrow_mut();
+                let busy_timeout = b.cfg.busy_timeout_ns;
+                let free_at = b.free_at;
+                if now >= free_at {
+                    return b.has_waiting();
+                }
+                let expired: Vec<u64> = b
+                    .requests
+                    .iter()
+                    .filter(|(_, r)| {
+                        matches!(r.state, ReqState::Waiting)
+                            && r.registered.saturating_add(busy_timeout) <= now
+                    })
+                    .map(|(&id, _)| id)
+                    .collect();
+                for id in expired {
+                    b.stats.timeouts += 1;
+                    b.finish(id, Err(BusError::Timeout), now);
+                }
+                let earliest = b
+                    .requests
+                    .values()
+                    .filter(|r| matches!(r.state, ReqState::Waiting))
+                    .map(|r| r.registered.saturating_add(busy_timeout))
+                    .min();
+                match earliest {
+                    None => return false,
+                    Some(e) => e.min(free_at),
+                }
+            };
+            self.clock.sleep_until_ns(wake_at).await;
+        }
+    }
+
+    /// Ends the transaction: STOP at `stop_at`, the winner's result, losers still in the
+    /// race get `others`, the record is stored. Returns the end of STOP.
+    fn close(
+        &self,
+        mut rec: BusRecord,
+        stop_at: Nanos,
+        win: (u64, Result<Vec<u8>, BusError>),
+        others: &[(u64, usize)],
+        others_result: BusError,
+    ) -> Nanos {
+        let t = self.inner.borrow().timing;
+        rec.wire.push((stop_at, WireSym::Stop));
+        let end = stop_at + t.stop_ns();
+        rec.end_ns = end;
+        let mut b = self.inner.borrow_mut();
+        match &win.1 {
+            Err(BusError::Nack) => b.stats.nacks += 1,
+            Err(BusError::Timeout) => b.stats.timeouts += 1,
+            Err(BusError::Bus) => b.stats.bus_faults += 1,
+            _ => {}
+        }
+        b.finish(win.0, win.1, end);
+        for &(id, _) in others {
+            match others_result {
+                BusError::Nack => b.stats.nacks += 1,
+                BusError::Timeout => b.stats.timeouts += 1,
+                _ => {}
+            }
+            b.finish(id, Err(others_result), end);
+        }
+        b.free_at = end + t.buf_ns;
+        b.stats.transactions += 1;
+        b.push_record(rec);
+        end
+    }
+
+    fn deliver(&self, node: NodeId, kind: DeliveryKind, bytes: Vec<u8>, ready_at: Nanos) {
+        let mut b = self.inner.borrow_mut();
+        if let Some(n) = b.nodes.get_mut(node) {
+            n.inbox.push_back(Delivery {
+                kind,
+                bytes,
+                ready_at,
+            });
+            n.wake();
+        }
+    }
+
+    fn note_fault(&self, rec: &mut BusRecord, what: String) {
+        rec.faults.push(what);
+        self.inner.borrow_mut().stats.injected += 1;
+    }
+
+    #[allow(clippy::too_many_lines)]
+    async fn transaction(&self) {
+        let t0 = self.clock.now_ns();
+        // Contenders: every waiting request, in node order.
+        let (t, faults, contenders, txn) = {
+            let mut b = self.inner.borrow_mut();
+            let mut c: Vec<Contender> = b
+                .requests
+                .iter()
+                .filter(|(_, r)| matches!(r.state, ReqState::Waiting))
+                .map(|(&id, r)| Contender {
+                    id,
+                    node: r.node,
+                    addr: r.addr,
+                    write: r.write.clone(),
+                    read_len: r.read_len,
+                })
+                .collect();
+            c.sort_by_key(|c| (c.node, c.id));
+            for c in &c {
+                if let Some(r) = b.requests.get_mut(&c.id) {
+                    r.state = ReqState::InFlight;
+                }
+                if let Some(n) = b.nodes.get_mut(c.node) {
+                    n.controller_active = true;
+                }
+            }
+            let txn = b.next_txn;
+            b.next_txn += 1;
+            (b.timing, b.cfg.faults, c, txn)
+        };
+        let Some(first) = contenders.first() else {
+            return;
+        };
+        let mut rec = BusRecord {
+            txn,
+            start_ns: t0,
+            end_ns: t0,
+            master: first.node,
+            addr: first.addr,
+            target: None,
+            written: first.write.clone(),
+            received: Vec::new(),
+            is_read: first.read_len.is_some(),
+            read: Vec::new(),
+            outcome: Outcome::Ok,
+            losers: Vec::new(),
+            stretch_ns: 0,
+            faults: Vec::new(),
+            wire: vec![(t0, WireSym::Start)],
+        };
+
+        // Faults rolled at START, in a fixed order.
+        let (stuck, reset, nack_roll, corrupt_roll) = {
+            let mut b = self.inner.borrow_mut();
+            let stuck = b.rng.chance_ppm(faults.stuck_ppm);
+            let reset = if b.rng.chance_ppm(faults.reset_ppm) {
+                let eligible: Vec<NodeId> = (0..b.nodes.len())
+                    .filter(|&i| b.nodes.get(i).is_some_and(|n| n.cfg.resettable))
+                    .collect();
+                let k = b.rng.below(eligible.len() as u64) as usize;
+                eligible.get(k).copied()
+            } else {
+                None
+            };
+            let nack = b.rng.chance_ppm(faults.nack_ppm).then(|| b.rng.next_u64());
+            let corrupt = b
+                .rng
+                .chance_ppm(faults.corrupt_ppm)
+                .then(|| b.rng.next_u64());
+            (stuck, reset, nack, corrupt)
+        };
+        if let Some(node) = reset {
+            let name = self.node_name(node);
+            self.note_fault(&mut rec, format!("reset {name}"));
+            self.inner.borrow_mut().reset(node, t0, faults.reset_ns);
+        }
+        if stuck {
+            let until = t0 + faults.stuck_ns.max(t.bit_ns);
+            self.note_fault(
+                &mut rec,
+                format!("SDA stuck low {} us", faults.stuck_ns / 1000),
+            );
+            rec.wire = vec![(t0, WireSym::Stuck { until })];
+            rec.outcome = Outcome::Bus;
+            rec.end_ns = until;
+            let at = t0 + t.start_ns();
+            let mut b = self.inner.borrow_mut();
+            b.stats.bus_faults += contenders.len() as u64;
+            for c in &contenders {
+                b.finish(c.id, Err(BusError::Bus), at);
+            }
+            b.free_at = until + t.buf_ns;
+            b.stats.transactions += 1;
+            b.push_record(rec);
+            return;
+        }
+
+        // Arbitration, bit by bit over address and data.
+        let (win_idx, lost_at) = arbitrate(&contenders);
+        let Some(winner) = contenders.get(win_idx).cloned() else {
+            return;
+        };
+        rec.master = winner.node;
+        rec.addr = winner.addr;
+        rec.written = winner.write.clone();
+        rec.is_read = winner.read_len.is_some();
+        let mut losers: Vec<(u64, usize)> = Vec::new();
+        for (c, lost) in contenders.iter().zip(&lost_at) {
+            if let Some(bit) = *lost {
+                rec.losers.push(Loser {
+                    node: c.node,
+                    addr: c.addr,
+                    write: c.write.clone(),
+                    bit,
+                });
+                losers.push((c.id, bit));
+            }
+        }
+        let first_bit_at = t0 + t.start_ns();
+        // A loser ends at the end of the bit it lost on.
+        let loser_end = |bit: usize, data_start: Nanos| -> Nanos {
+            if bit < 8 {
+                first_bit_at + (bit as Nanos + 1) * t.bit_ns
+            } else {
+                let k = bit - 8;
+                data_start + ((k / 8) * 9 + k % 8 + 1) as Nanos * t.bit_ns
+            }
+        };
+        {
+            let mut b = self.inner.borrow_mut();
+            for &(id, bit) in &losers {
+                if bit < 8 {
+                    b.stats.arbitration_lost += 1;
+                    b.finish(id, Err(BusError::ArbitrationLost), loser_end(bit, 0));
+                }
+            }
+        }
+        let mut racing: Vec<(u64, usize)> =
+            losers.iter().copied().filter(|&(_, b)| b >= 8).collect();
+
+        let Contender {
+            id: win_id,
+            node: win_node,
+            addr,
+            write,
+            read_len,
+        } = winner;
+        let plain_read = write.is_empty() && read_len.is_some();
+        let mut cursor = first_bit_at;
+        push_byte(
+            &mut rec.wire,
+            &mut cursor,
+            (addr << 1) | u8::from(plain_read),
+            t,
+        );
+
+        // Address acknowledge, decided at the ACK bit.
+        self.clock.sleep_until_ns(cursor).await;
+        let (target, refused) = {
+            let b = self.inner.borrow();
+            let target = b.node_by_addr(addr);
+            let refused = match target {
+                None => true,
+                Some(n) => n == win_node || b.is_deaf(n, cursor),
+            };
+            (target, refused)
+        };
+        rec.target = target;
+        // Injected NACK: on the address (index 0) or a written data byte.
+        let injected_nack = nack_roll.map(|r| (r % (write.len() as u64 + 1)) as usize);
+        if injected_nack == Some(0) && !refused {
+            self.note_fault(&mut rec, "NACK address".to_string());
+        }
+        let (Some(target), false) = (target, refused || injected_nack == Some(0)) else {
+            push_bit(&mut rec.wire, &mut cursor, true, t);
+            rec.outcome = Outcome::Nack { byte: 0 };
+            self.close(
+                rec,
+                cursor,
+                (win_id, Err(BusError::Nack)),
+                &racing,
+                BusError::Nack,
+            );
+            return;
+        };
+        push_bit(&mut rec.wire, &mut cursor, false, t);
+
+        // Stretch until the target has a listener (or went away).
+        self.clock.sleep_until_ns(cursor).await;
+        let stretch_deadline = cursor.saturating_add(self.config().stretch_timeout_ns);
+        let clock = self.clock.clone();
+        let armed = self
+            .wait_until(stretch_deadline, |b| {
+                b.yield_requests_of(target, clock.now_ns());
+                b.nodes
+                    .get(target)
+                    .is_none_or(|n| n.listen_cap.is_some() || n.alive_from > cursor)
+            })
+            .await;
+        let now = self.clock.now_ns();
+        rec.stretch_ns = now.saturating_sub(cursor);
+        cursor = now;
+        if !armed {
+            rec.outcome = Outcome::Timeout;
+            self.close(
+                rec,
+                cursor,
+                (win_id, Err(BusError::Timeout)),
+                &racing,
+                BusError::Timeout,
+            );
+            return;
+        }
+        let (cap, gone) = {
+            let b = self.inner.borrow();
+            let n = b.nodes.get(target);
+            (
+                n.and_then(|n| n.listen_cap).unwrap_or(0),
+                n.is_none_or(|n| n.alive_from > now),
+            )
+        };
+        let data_start = cursor;
+
+        // Corruption: one bit of one byte of the data part (written, then read).
+        let data_len = write.len() + read_len.unwrap_or(0);
+        let corrupt = corrupt_roll.and_then(|r| {
+            (data_len > 0).then(|| ((r % data_len as u64) as usize, ((r >> 32) % 8) as u8))
+        });
+
+        // Write phase: bytes until the end, an overrun, a reset target or an injected NACK.
+        let overrun_at = (write.len() > cap && !gone).then_some(cap);
+        let refused_at = gone.then_some(0);
+        let data_nack = injected_nack.filter(|&k| k > 0).map(|k| k - 1);
+        let nack_at = [overrun_at, refused_at, data_nack]
+            .into_iter()
+            .flatten()
+            .min();
+        let mut received = Vec::new();
+        for (i, &byte) in write.iter().enumerate() {
+            push_byte(&mut rec.wire, &mut cursor, byte, t);
+            if nack_at == Some(i) {
+                push_bit(&mut rec.wire, &mut cursor, true, t);
+                break;
+            }
+            let seen = match corrupt {
+                Some((k, bit)) if k == i => {
+                    self.note_fault(&mut rec, format!("corrupt written byte {i} bit {bit}"));
+                    byte ^ (1 << bit)
+                }
+                _ => byte,
+            };
+            received.push(seen);
+            push_bit(&mut rec.wire, &mut cursor, false, t);
+        }
+        // Losers that lost on a byte that went out end now; those past a NACK see the NACK.
+        let sent_bytes = nack_at.map_or(write.len(), |k| k + 1);
+        {
+            let mut b = self.inner.borrow_mut();
+            racing.retain(|&(id, bit)| {
+                if (bit - 8) / 8 < sent_bytes {
+                    b.stats.arbitration_lost += 1;
+                    b.finish(
+                        id,
+                        Err(BusError::ArbitrationLost),
+                        loser_end(bit, data_start),
+                    );
+                    false
+                } else {
+                    true
+                }
+            });
+        }
+        rec.received = received.clone();
+        if let Some(k) = nack_at {
+            let kind = if overrun_at == Some(k) {
+                DeliveryKind::Overrun
+            } else {
+                if data_nack == Some(k) && refused_at != Some(k) {
+                    self.note_fault(&mut rec, format!("NACK data byte {k}"));
+                }
+                DeliveryKind::Write
+            };
+            rec.outcome = Outcome::Nack { byte: k + 1 };
+            let end = self.close(
+                rec,
+                cursor,
+                (win_id, Err(BusError::Nack)),
+                &racing,
+                BusError::Nack,
+            );
+            if !gone {
+                self.deliver(target, kind, received, end);
+            }
+            return;
+        }
+
+        let Some(read_len) = read_len else {
+            // A plain write.
+            let end = self.close(
+                rec,
+                cursor,
+                (win_id, Ok(Vec::new())),
+                &racing,
+                BusError::Nack,
+            );
+            self.deliver(target, DeliveryKind::Write, received, end);
+            return;
+        };
+
+        // Read phase: repeated START and address+R (unless it is a plain read).
+        if !plain_read {
+            rec.wire.push((cursor, WireSym::RepeatedStart));
+            cursor += t.repeated_start_ns();
+            push_byte(&mut rec.wire, &mut cursor, (addr << 1) | 1, t);
+            if self.inner.borrow().is_deaf(target, cursor) {
+                push_bit(&mut rec.wire, &mut cursor, true, t);
+                rec.outcome = Outcome::Nack {
+                    byte: write.len() + 1,
+                };
+                self.close(
+                    rec,
+                    cursor,
+                    (win_id, Err(BusError::Nack)),
+                    &racing,
+                    BusError::Nack,
+                );
+                return;
+            }
+            push_bit(&mut rec.wire, &mut cursor, false, t);
+        }
+        self.deliver(
+            target,
+            if plain_read {
+                DeliveryKind::Read
+            } else {
+                DeliveryKind::WriteRead
+            },
+            received,
+            cursor,
+        );
+        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(target) {
+            n.respond = RespondState::Awaiting { txn };
+        }
+        // Stretch until the target responds (or is reset, which releases the lines).
+        self.clock.sleep_until_ns(cursor).await;
+        let deadline = cursor.saturating_add(self.config().stretch_timeout_ns);
+        let answered = self
+            .wait_until(deadline, |b| {
+                b.yield_requests_of(target, clock.now_ns());
+                b.nodes.get(target).is_none_or(|n| match &n.respond {
+                    RespondState::Given { txn: x, .. } | RespondState::Expired { txn: x } => {
+                        *x == txn
+                    }
+                    _ => false,
+                })
+            })
+            .await;
+        let now = self.clock.now_ns();
+        rec.stretch_ns += now.saturating_sub(cursor);
+        cursor = now;
+        let reply = {
+            let mut b = self.inner.borrow_mut();
+            match b.nodes.get_mut(target) {
+                Some(n) if answered => match &n.respond {
+                    RespondState::Given { bytes, .. } => Some(bytes.clone()),
+                    // Reset mid-read: SDA floats high, the master reads 0xFF.
+                    _ => Some(Vec::new()),
+                },
+                Some(n) => {
+                    if matches!(n.respond, RespondState::Awaiting { txn: x } if x == txn) {
+                        n.respond = RespondState::Expired { txn };
+                    }
+                    n.wake();
+                    None
+                }
+                None => None,
+            }
+        };
+        let Some(reply) = reply else {
+            rec.outcome = Outcome::Timeout;
+            self.close(
+                rec,
+                cursor,
+                (win_id, Err(BusError::Timeout)),
+                &racing,
+                BusError::Timeout,
+            );
+            return;
+        };
+        let mut read = Vec::with_capacity(read_len);
+        for i in 0..read_len {
+            let byte = reply.get(i).copied().unwrap_or(0xFF);
+            let seen = match corrupt {
+                Some((k, bit)) if k == write.len() + i => {
+                    self.note_fault(&mut rec, format!("corrupt read byte {i} bit {bit}"));
+                    byte ^ (1 << bit)
+                }
+                _ => byte,
+            };
+            push_byte(&mut rec.wire, &mut cursor, seen, t);
+            // The master ACKs every byte but the last.
+            push_bit(&mut rec.wire, &mut cursor, i + 1 == read_len, t);
+            read.push(seen);
+        }
+        rec.read = read.clone();
+        let end = self.close(rec, cursor, (win_id, Ok(read)), &racing, BusError::Nack);
+        let mut b = self.inner.borrow_mut();
+        if let Some(n) = b.nodes.get_mut(target) {
+            if matches!(&n.respond, RespondState::Given { txn: x, .. } if *x == txn) {
+                n.respond = RespondState::Done { txn, at: end };
+            }
+            n.wake();
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Contender {
+    id: u64,
+    node: NodeId,
+    addr: u8,
+    write: Vec<u8>,
+    read_len: Option<usize>,
+}
+
+/// Wired-AND arbitration over the address byte and the written bytes. Returns the winner's
+/// index and, per contender, the stream bit (0 = address MSB) where it lost.
+fn arbitrate(contenders: &[Contender]) -> (usize, Vec<Option<usize>>) {
+    let streams: Vec<Vec<bool>> = contenders
+        .iter()
+        .map(|c| {
+            let rw = u8::from(c.write.is_empty() && c.read_len.is_some());
+            std::iter::once((c.addr << 1) | rw)
+                .chain(c.write.iter().copied())
+                .flat_map(|b| (0..8).rev().map(move |i| (b >> i) & 1 == 1))
+                .collect()
+        })
+        .collect();
+    let mut alive: Vec<usize> = (0..contenders.len()).collect();
+    let mut lost_at: Vec<Option<usize>> = vec![None; contenders.len()];
+    let mut bit = 0usize;
+    while alive.len() > 1 {
+        let vals: Vec<Option<bool>> = alive
+            .iter()
+            .map(|&i| streams.get(i).and_then(|s| s.get(bit).copied()))
+            .collect();
+        if vals.iter().any(Option::is_none) {
+            // A stream ended while the others agree so far: undefined by the spec; the
+            // lowest node index wins, the others lose at this bit.
+            for &i in alive.iter().skip(1) {
+                if let Some(l) = lost_at.get_mut(i) {
+                    *l = Some(bit);
+                }
+            }
+            alive.truncate(1);
+            break;
+        }
+        if vals.contains(&Some(false)) && vals.contains(&Some(true)) {
+            let mut next = Vec::new();
+            for (&i, v) in alive.iter().zip(&vals) {
+                if *v == Some(true) {
+                    if let Some(l) = lost_at.get_mut(i) {
+                        *l = Some(bit);
+                    }
+                } else {
+                    next.push(i);
+                }
+            }
+            alive = next;
+        }
+        bit += 1;
+    }
+    (alive.first().copied().unwrap_or(0), lost_at)
+}
+
+/// Adds `w` to `wakers` unless it wakes the same task as one already there.
+fn register(wakers: &mut Vec<Waker>, w: &Waker) {
+    if !wakers.iter().any(|x| x.will_wake(w)) {
+        wakers.push(w.clone());
+    }
+}
+
+fn push_byte(wire: &mut Vec<(Nanos, WireSym)>, cursor: &mut Nanos, byte: u8, t: Timing) {
+    for i in (0..8).rev() {
+        push_bit(wire, cursor, (byte >> i) & 1 == 1, t);
+    }
+}
+
+/// One bit (an ACK is a 0 bit, a NACK a 1 bit).
+fn push_bit(wire: &mut Vec<(Nanos, WireSym)>, cursor: &mut Nanos, value: bool, t: Timing) {
+    wire.push((*cursor, WireSym::Bit { value }));
+    *cursor += t.bit_ns;
+}
+
+/// Completes on its second poll; registers the engine's waker on the first.
+struct Notified<'a> {
+    inner: &'a Rc<RefCell<BusInner>>,
+    armed: bool,
+}
+
+impl Future for Notified<'_> {
+    type Output = ();
+
+    fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<()> {
+        if self.armed {
+            return Poll::Ready(());
+        }
+        self.armed = true;
+        self.inner.borrow_mut().engine_waker = Some(cx.waker().clone());
+        Poll::Pending
+    }
+}
+
+/// A node's handle to the bus: [`MultiMaster`] as controller and target.
+pub struct SimPort {
+    bus: SimBus,
+    node: NodeId,
+}
+
+impl SimPort {
+    /// This port's node.
+    pub fn node(&self) -> NodeId {
+        self.node
+    }
+
+    /// The bus.
+    pub fn bus(&self) -> &SimBus {
+        &self.bus
+    }
+
+    async fn transact(
+        &mut self,
+        addr: u8,
+        bytes: &[u8],
+        read: Option<&mut [u8]>,
+    ) -> Result<(), BusError> {
+        let inner = &self.bus.inner;
+        let clock = &self.bus.clock;
+        let _call = ControllerCall {
+            inner,
+            clock,
+            node: self.node,
+        };
+        let id = {
+            let mut b = inner.borrow_mut();
+            let id = b.next_req;
+            b.next_req += 1;
+            b.requests.insert(
+                id,
+                Request {
+                    node: self.node,
+                    addr: addr & 0x7f,
+                    write: bytes.to_vec(),
+                    read_len: read.as_ref().map(|r| r.len()),
+                    registered: clock.now_ns(),
+                    state: ReqState::Waiting,
+                    waker: None,
+                },
+            );
+            b.wake_engine();
+            id
+        };
+        let guard = RequestGuard { inner, id };
+        let (result, at) = poll_fn(|cx| {
+            let mut b = inner.borrow_mut();
+            let Some(r) = b.requests.get_mut(&id) else {
+                return Poll::Ready((Err(BusError::Bus), 0));
+            };
+            if matches!(r.state, ReqState::Done { .. }) {
+                let Some(done) = b.requests.remove(&id) else {
+                    return Poll::Ready((Err(BusError::Bus), 0));
+                };
+                match done.state {
+                    ReqState::Done { result, at } => Poll::Ready((result, at)),
+                    _ => Poll::Ready((Err(BusError::Bus), 0)),
+                }
+            } else {
+                r.waker = Some(cx.waker().clone());
+                Poll::Pending
+            }
+        })
+        .await;
+        drop(guard);
+        clock.sleep_until_ns(at).await;
+        let data = result?;
+        if let Some(read) = read {
+            for (dst, src) in read
+                .iter_mut()
+                .zip(data.iter().chain(std::iter::repeat(&0xFF)))
+            {
+                *dst = *src;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Ends a node's controller window when its call returns: a single-role node that took part
+/// in a transaction stays deaf for its role-switch time after that.
+struct ControllerCall<'a> {
+    inner: &'a Rc<RefCell<BusInner>>,
+    clock: &'a SimClock,
+    node: NodeId,
+}
+
+impl Drop for ControllerCall<'_> {
+    fn drop(&mut self) {
+        let now = self.clock.now_ns();
+        if let Ok(mut b) = self.inner.try_borrow_mut() {
+            if let Some(n) = b.nodes.get_mut(self.node) {
+                if n.controller_active {
+                    n.controller_active = false;
+                    if let Role::SingleRole { switch_ns } = n.cfg.role {
+                        n.deaf_until = now.saturating_add(switch_ns);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Withdraws a request whose caller went away (a started transaction plays out on the wire).
+struct RequestGuard<'a> {
+    inner: &'a Rc<RefCell<BusInner>>,
+    id: u64,
+}
+
+impl Drop for RequestGuard<'_> {
+    fn drop(&mut self) {
+        if let Ok(mut b) = self.inner.try_borrow_mut() {
+            let remove = match b.requests.get(&self.id) {
+                Some(r) => !matches!(r.state, ReqState::InFlight),
+                None => false,
+            };
+            if remove {
+                b.requests.remove(&self.id);
+            } else if let Some(r) = b.requests.get_mut(&self.id) {
+                // In flight: the engine finishes it; nobody collects the result.
+                r.waker = None;
+            }
+        }
+    }
+}
+
+/// Arms a node's target side for the listen future's lifetime.
+struct ListenGuard<'a> {
+    inner: &'a Rc<RefCell<BusInner>>,
+    node: NodeId,
+}
+
+impl Drop for ListenGuard<'_> {
+    fn drop(&mut self) {
+        if let Ok(mut b) = self.inner.try_borrow_mut() {
+            if let Some(n) = b.nodes.get_mut(self.node) {
+                n.listen_cap = None;
+            }
+        }
+    }
+}
+
+impl MultiMaster for SimPort {
+    async fn write(&mut self, addr: u8, bytes: &[u8]) -> Result<(), BusError> {
+        self.transact(addr, bytes, None).await
+    }
+
+    async fn write_read(
+        &mut self,
+        addr: u8,
+        bytes: &[u8],
+        read: &mut [u8],
+    ) -> Result<(), BusError> {
+        self.transact(addr, bytes, Some(read)).await
+    }
+
+    async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
+        let inner = &self.bus.inner;
+        let clock = &self.bus.clock;
+        let node = self.node;
+        let _guard = ListenGuard { inner, node };
+        loop {
+            let next_ready = {
+                let mut b = inner.borrow_mut();
+                let now = clock.now_ns();
+                let alive = b.nodes.get(node).is_some_and(|n| n.alive_from <= now);
+                let Some(n) = b.nodes.get_mut(node) else {
+                    return Err(BusError::Bus);
+                };
+                let cap = alive.then_some(buf.len());
+                let newly_armed = n.listen_cap.is_none() && cap.is_some();
+                n.listen_cap = cap;
+                if newly_armed {
+                    // Tell a stretching engine that a listener is here.
+                    b.wake_engine();
+                }
+                let Some(n) = b.nodes.get_mut(node) else {
+                    return Err(BusError::Bus);
+                };
+                match n.inbox.front() {
+                    Some(d) if d.ready_at <= now => {
+                        let Some(d) = n.inbox.pop_front() else {
+                            return Err(BusError::Bus);
+                        };
+                        n.listen_cap = None;
+                        let len = d.bytes.len();
+                        let Some(dst) = buf.get_mut(..len) else {
+                            return Err(BusError::Overrun);
+                        };
+                        dst.copy_from_slice(&d.bytes);
+                        return match d.kind {
+                            DeliveryKind::Write => Ok(Incoming::Write(len)),
+                            DeliveryKind::WriteRead => Ok(Incoming::WriteRead(len)),
+                            DeliveryKind::Read => Ok(Incoming::Read),
+                            DeliveryKind::Overrun => Err(BusError::Overrun),
+                        };
+                    }
+                    Some(d) => Some(d.ready_at),
+                    None => (!alive).then(|| b.nodes.get(node).map_or(0, |n| n.alive_from)),
+                }
+            };
+            let wait = NodeWait {
+                inner,
+                node,
+                armed: false,
+            };
+            match next_ready {
+                Some(at) => {
+                    select(clock.sleep_until_ns(at), wait).await;
+                }
+                None => wait.await,
+            }
+        }
+    }
+
+    async fn respond(&mut self, bytes: &[u8]) -> Result<(), BusError> {
+        let inner = &self.bus.inner;
+        let clock = &self.bus.clock;
+        let node = self.node;
+        let txn = {
+            let mut b = inner.borrow_mut();
+            let Some(n) = b.nodes.get_mut(node) else {
+                return Err(BusError::Bus);
+            };
+            match n.respond.clone() {
+                RespondState::Awaiting { txn } => {
+                    n.respond = RespondState::Given {
+                        txn,
+                        bytes: bytes.to_vec(),
+                    };
+                    b.wake_engine();
+                    txn
+                }
+                RespondState::Expired { .. } => {
+                    n.respond = RespondState::Idle;
+                    return Err(BusError::Timeout);
+                }
+                _ => return Err(BusError::Bus),
+            }
+        };
+        let (result, at) = poll_fn(|cx| {
+            let mut b = inner.borrow_mut();
+            let Some(n) = b.nodes.get_mut(node) else {
+                return Poll::Ready((Err(BusError::Bus), 0));
+            };
+            match n.respond {
+                RespondState::Done { txn: x, at } if x == txn => {
+                    n.respond = RespondState::Idle;
+                    Poll::Ready((Ok(()), at))
+                }
+                RespondState::Expired { txn: x } if x == txn => {
+                    n.respond = RespondState::Idle;
+                    Poll::Ready((Err(BusError::Timeout), 0))
+                }
+                RespondState::Given { txn: x, .. } if x == txn => {
+                    register(&mut n.waiters, cx.waker());
+                    Poll::Pending
+                }
+                _ => Poll::Ready((Err(BusError::Bus), 0)),
+            }
+        })
+        .await;
+        clock.sleep_until_ns(at).await;
+        result
+    }
+}
+
+/// Completes on its second poll; registers on the node's waiters on the first.
+struct NodeWait<'a> {
+    inner: &'a Rc<RefCell<BusInner>>,
+    node: NodeId,
+    armed: bool,
+}
+
+impl Future for NodeWait<'_> {
+    type Output = ();
+
+    fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<()> {
+        if self.armed {
+            return Poll::Ready(());
+        }
+        self.armed = true;
+        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(self.node) {
+            register(&mut n.waiters, cx.waker());
+        }
+        Poll::Pending
+    }
+}
+
+#[cfg(test)]
+#[path = "bus_tests.rs"]
+mod tests;

@@ -1,0 +1,648 @@
+//! A deterministic, single-threaded executor with virtual time.
+//!
+//! Any number of `!Send` futures (MB tasks, DB tasks, robot programs, the bus engine) run on
+//! one thread. The executor polls every ready task in spawn order until none is ready, then
+//! moves virtual time to the earliest sleeper's deadline and wakes every sleeper due by then.
+//! Nothing reads the wall clock and nothing sleeps: a simulated minute takes as long as the
+//! work done in it, and the same inputs give the same order of polls, byte for byte.
+//!
+//! Time is kept in nanoseconds so that bus bit times at 1 MHz (and the I2C spec's sub-µs setup
+//! and hold times) are exact; [`SimClock`] exposes it to the runtimes as the microsecond
+//! [`x10_hal::time::Clock`].
+
+use std::cell::{Cell, RefCell};
+use std::collections::BTreeMap;
+use std::future::Future;
+use std::pin::Pin;
+use std::rc::Rc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::task::{Context, Poll, Wake, Waker};
+
+use x10_hal::time::{Clock, Instant};
+
+/// Nanoseconds of virtual time.
+pub type Nanos = u64;
+
+/// How many polls one virtual instant may take before the executor reports a livelock (tasks
+/// that wake each other forever while no timer is left to move time on).
+pub const MAX_POLLS_PER_INSTANT: u64 = 2_000_000;
+
+/// Polls after which an instant counts as *spinning*: tasks keep waking each other (as
+/// embassy-sync's single-waker `Channel` senders do when several wait on a full channel).
+/// On a chip that is a busy loop while time passes, so the executor moves time on to the next
+/// timer with the spinning tasks still ready, and counts it in [`RunStats::spins`].
+pub const SPIN_POLLS: u64 = 2_000;
+
+#[derive(Default)]
+struct TimeState {
+    now: Nanos,
+    timers: BTreeMap<(Nanos, u64), Waker>,
+    next_timer: u64,
+}
+
+/// Virtual time and the sleepers' queue, shared by the executor and every [`SimClock`].
+#[derive(Default)]
+struct TimeCore {
+    state: RefCell<TimeState>,
+}
+
+impl TimeCore {
+    fn now(&self) -> Nanos {
+        self.state.borrow().now
+    }
+}
+
+/// The clock of one simulation: virtual time that advances only when every task waits.
+///
+/// Cloning is cheap; every clone reads the same time.
+#[derive(Clone)]
+pub struct SimClock {
+    core: Rc<TimeCore>,
+}
+
+impl Default for SimClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SimClock {
+    /// A clock at virtual time 0. Give it to [`Executor::with_clock`] to run tasks on it.
+    pub fn new() -> SimClock {
+        SimClock {
+            core: Rc::new(TimeCore::default()),
+        }
+    }
+
+    /// Now, in nanoseconds.
+    pub fn now_ns(&self) -> Nanos {
+        self.core.now()
+    }
+
+    /// Sleeps until `at` nanoseconds (returns at once if that has passed).
+    pub fn sleep_until_ns(&self, at: Nanos) -> Sleep {
+        Sleep {
+            core: self.core.clone(),
+            at,
+            key: None,
+        }
+    }
+
+    /// Sleeps for `ns` nanoseconds.
+    pub fn sleep_ns(&self, ns: Nanos) -> Sleep {
+        self.sleep_until_ns(self.now_ns().saturating_add(ns))
+    }
+}
+
+impl Clock for SimClock {
+    fn now(&self) -> Instant {
+        Instant(self.now_ns() / 1_000)
+    }
+
+    async fn sleep_until(&self, at: Instant) {
+        self.sleep_until_ns(at.0.saturating_mul(1_000)).await
+    }
+}
+
+/// The future of [`SimClock::sleep_until_ns`]. Dropping it removes its timer.
+pub struct Sleep {
+    core: Rc<TimeCore>,
+    at: Nanos,
+    key: Option<(Nanos, u64)>,
+}
+
+impl Future for Sleep {
+    type Output = ();
+
+    fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<()> {
+        let this = &mut *self;
+        let mut st = this.core.state.borrow_mut();
+        if st.now >= this.at {
+            if let Some(key) = this.key.take() {
+                st.timers.remove(&key);
+            }
+            return Poll::Ready(());
+        }
+        let key = match this.key {
+            Some(key) => key,
+            None => {
+                let key = (this.at, st.next_timer);
+                st.next_timer += 1;
+                this.key = Some(key);
+                key
+            }
+        };
+        st.timers.insert(key, cx.waker().clone());
+        Poll::Pending
+    }
+}
+
+impl Drop for Sleep {
+    fn drop(&mut self) {
+        if let Some(key) = self.key.take() {
+            if let Ok(mut st) = self.core.state.try_borrow_mut() {
+                st.timers.remove(&key);
+            }
+        }
+    }
+}
+
+struct TaskFlag {
+    woken: AtomicBool,
+}
+
+impl Wake for TaskFlag {
+    fn wake(self: Arc<Self>) {
+        self.woken.store(true, Ordering::Relaxed);
+    }
+
+    fn wake_by_ref(self: &Arc<Self>) {
+        self.woken.store(true, Ordering::Relaxed);
+    }
+}
+
+type BoxFuture<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
+
+struct Task<'a> {
+    name: String,
+    future: BoxFuture<'a>,
+    flag: Arc<TaskFlag>,
+    waker: Waker,
+}
+
+/// Identifies a spawned task.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct TaskId(pub usize);
+
+/// Spawns tasks into a running [`Executor`] (from inside other tasks).
+#[derive(Clone)]
+pub struct Spawner<'a> {
+    queue: Rc<RefCell<Vec<(String, BoxFuture<'a>)>>>,
+}
+
+impl<'a> Spawner<'a> {
+    /// Queues `future` as a new task; it is first polled in the same virtual instant.
+    pub fn spawn(&self, name: impl Into<String>, future: impl Future<Output = ()> + 'a) {
+        self.queue
+            .borrow_mut()
+            .push((name.into(), Box::pin(future)));
+    }
+}
+
+/// Why [`Executor::run_until_ns`] stopped early.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum RunError {
+    /// Some task kept waking itself at one instant without ever sleeping.
+    Livelock {
+        /// The instant, in ns.
+        at: Nanos,
+        /// The tasks that were still being woken.
+        tasks: Vec<String>,
+    },
+}
+
+impl std::fmt::Display for RunError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            RunError::Livelock { at, tasks } => write!(
+                f,
+                "livelock at t = {at} ns: tasks {tasks:?} never stop waking themselves"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for RunError {}
+
+/// What a run did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RunStats {
+    /// Virtual time at the end, in ns.
+    pub end_ns: Nanos,
+    /// Task polls in all.
+    pub polls: u64,
+    /// Tasks that ran to completion.
+    pub finished: usize,
+    /// Tasks still alive.
+    pub alive: usize,
+    /// Instants left while tasks were still spinning (see [`SPIN_POLLS`]).
+    pub spins: u64,
+}
+
+/// The deterministic executor. `'a` lets tasks borrow anything that outlives the executor.
+pub struct Executor<'a> {
+    time: Rc<TimeCore>,
+    tasks: Vec<Option<Task<'a>>>,
+    spawn_queue: Rc<RefCell<Vec<(String, BoxFuture<'a>)>>>,
+    polls: Cell<u64>,
+    finished: usize,
+    spins: u64,
+}
+
+impl Default for Executor<'_> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<'a> Executor<'a> {
+    /// An executor at virtual time 0 with no tasks, on a clock of its own.
+    pub fn new() -> Self {
+        Self::with_clock(&SimClock::new())
+    }
+
+    /// An executor with no tasks on `clock` (made before the things the tasks borrow).
+    pub fn with_clock(clock: &SimClock) -> Self {
+        Executor {
+            time: clock.core.clone(),
+            tasks: Vec::new(),
+            spawn_queue: Rc::new(RefCell::new(Vec::new())),
+            polls: Cell::new(0),
+            finished: 0,
+            spins: 0,
+        }
+    }
+
+    /// The clock of this executor's virtual time.
+    pub fn clock(&self) -> SimClock {
+        SimClock {
+            core: self.time.clone(),
+        }
+    }
+
+    /// A handle to spawn tasks from inside tasks.
+    pub fn spawner(&self) -> Spawner<'a> {
+        Spawner {
+            queue: self.spawn_queue.clone(),
+        }
+    }
+
+    /// Adds a task; tasks are polled in the order they were spawned.
+    pub fn spawn(
+        &mut self,
+        name: impl Into<String>,
+        future: impl Future<Output = ()> + 'a,
+    ) -> TaskId {
+        self.push_task(name.into(), Box::pin(future))
+    }
+
+    fn push_task(&mut self, name: String, future: BoxFuture<'a>) -> TaskId {
+        let flag = Arc::new(TaskFlag {
+            woken: AtomicBool::new(true),
+        });
+        let waker = Waker::from(flag.clone());
+        self.tasks.push(Some(Task {
+            name,
+            future,
+            flag,
+            waker,
+        }));
+        TaskId(self.tasks.len() - 1)
+    }
+
+    fn drain_spawns(&mut self) -> bool {
+        let queued: Vec<_> = self.spawn_queue.borrow_mut().drain(..).collect();
+        let any = !queued.is_empty();
+        for (name, fut) in queued {
+            self.push_task(name, fut);
+        }
+        any
+    }
+
+    /// Virtual time now, in ns.
+    pub fn now_ns(&self) -> Nanos {
+        self.time.now()
+    }
+
+    /// True while the task has not finished.
+    pub fn is_alive(&self, id: TaskId) -> bool {
+        self.tasks.get(id.0).is_some_and(Option::is_some)
+    }
+
+    /// Polls every ready task until none is ready, or until the instant spins
+    /// ([`SPIN_POLLS`]) while a timer could move time on; returns the polls made and whether
+    /// it spun.
+    fn run_instant(&mut self) -> Result<(u64, bool), RunError> {
+        let mut polls_here = 0u64;
+        loop {
+            let mut progressed = self.drain_spawns();
+            for i in 0..self.tasks.len() {
+                let Some(slot) = self.tasks.get_mut(i) else {
+                    continue;
+                };
+                let Some(task) = slot.as_mut() else { continue };
+                if !task.flag.woken.swap(false, Ordering::Relaxed) {
+                    continue;
+                }
+                progressed = true;
+                polls_here += 1;
+                let waker = task.waker.clone();
+                let mut cx = Context::from_waker(&waker);
+                if task.future.as_mut().poll(&mut cx).is_ready() {
+                    *slot = None;
+                    self.finished += 1;
+                }
+            }
+            if !progressed {
+                return Ok((polls_here, false));
+            }
+            if polls_here > SPIN_POLLS && !self.time.state.borrow().timers.is_empty() {
+                return Ok((polls_here, true));
+            }
+            if polls_here > MAX_POLLS_PER_INSTANT {
+                let tasks = self
+                    .tasks
+                    .iter()
+                    .flatten()
+                    .filter(|t| t.flag.woken.load(Ordering::Relaxed))
+                    .map(|t| t.name.clone())
+                    .collect();
+                return Err(RunError::Livelock {
+                    at: self.time.now(),
+                    tasks,
+                });
+            }
+        }
+    }
+
+    /// Runs until virtual time `end` (ns) or until no task can ever wake again, whichever is
+    /// first. Time ends at `end` in the first case and at the last wake-up in the second.
+    ///
+    /// # Errors
+    /// [`RunError::Livelock`] when some task keeps waking itself at one instant.
+    pub fn run_until_ns(&mut self, end: Nanos) -> Result<RunStats, RunError> {
+        self.run_while(end, &|| true)
+    }
+
+    /// As [`Executor::run_until_ns`], but also stops after the first instant at which
+    /// `keep_going` returns false.
+    ///
+    /// # Errors
+    /// [`RunError::Livelock`] when some task keeps waking itself at one instant.
+    pub fn run_while(
+        &mut self,
+        end: Nanos,
+        keep_going: &dyn Fn() -> bool,
+    ) -> Result<RunStats, RunError> {
+        loop {
+            let (polls, spun) = self.run_instant()?;
+            self.polls.set(self.polls.get() + polls);
+            if spun {
+                self.spins += 1;
+            }
+            if !keep_going() {
+                break;
+            }
+            let due: Vec<Waker> = {
+                let mut st = self.time.state.borrow_mut();
+                let Some((&(deadline, _), _)) = st.timers.first_key_value() else {
+                    break;
+                };
+                if deadline > end {
+                    st.now = st.now.max(end);
+                    break;
+                }
+                st.now = st.now.max(deadline);
+                let now = st.now;
+                let mut due = Vec::new();
+                while let Some(entry) = st.timers.first_entry() {
+                    if entry.key().0 > now {
+                        break;
+                    }
+                    due.push(entry.remove());
+                }
+                due
+            };
+            for w in due {
+                w.wake();
+            }
+        }
+        Ok(self.stats())
+    }
+
+    /// Statistics so far.
+    pub fn stats(&self) -> RunStats {
+        RunStats {
+            end_ns: self.time.now(),
+            polls: self.polls.get(),
+            finished: self.finished,
+            alive: self.tasks.iter().flatten().count(),
+            spins: self.spins,
+        }
+    }
+}
+
+/// A small seeded generator (SplitMix64): fault injection and scripted noise. Same seed, same
+/// numbers, on every machine.
+#[derive(Clone, Debug)]
+pub struct Rng {
+    state: u64,
+}
+
+impl Rng {
+    /// A generator from `seed`.
+    pub fn new(seed: u64) -> Rng {
+        Rng { state: seed }
+    }
+
+    /// The next 64 random bits.
+    pub fn next_u64(&mut self) -> u64 {
+        self.state = self.state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// A number in `0..n` (0 when `n` is 0).
+    pub fn below(&mut self, n: u64) -> u64 {
+        if n == 0 {
+            0
+        } else {
+            self.next_u64() % n
+        }
+    }
+
+    /// True with probability `ppm` parts per million.
+    pub fn chance_ppm(&mut self, ppm: u32) -> bool {
+        ppm > 0 && self.below(1_000_000) < u64::from(ppm)
+    }
+
+    /// An independent generator derived from this one (for another component).
+    pub fn fork(&mut self) -> Rng {
+        Rng::new(self.next_u64())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::cell::RefCell;
+
+    #[test]
+    fn sleepers_wake_in_deadline_order_and_time_jumps() {
+        let log = RefCell::new(Vec::new());
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        for (name, at) in [("c", 30u64), ("a", 10), ("b", 20), ("a2", 10)] {
+            let clock = clock.clone();
+            let log = &log;
+            ex.spawn(name, async move {
+                clock.sleep_until(Instant(at)).await;
+                log.borrow_mut().push((name, clock.now().0));
+            });
+        }
+        let stats = ex.run_until_ns(1_000_000).unwrap();
+        assert_eq!(
+            *log.borrow(),
+            vec![("a", 10), ("a2", 10), ("b", 20), ("c", 30)]
+        );
+        assert_eq!(stats.end_ns, 30_000);
+        assert_eq!(stats.finished, 4);
+        assert_eq!(stats.alive, 0);
+    }
+
+    #[test]
+    fn run_stops_at_end_and_resumes() {
+        let count = Cell::new(0u32);
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        let c = &count;
+        ex.spawn("ticker", async move {
+            loop {
+                clock.sleep_us(100).await;
+                c.set(c.get() + 1);
+            }
+        });
+        let s = ex.run_until_ns(1_050_000).unwrap();
+        assert_eq!(count.get(), 10);
+        assert_eq!(s.end_ns, 1_050_000);
+        ex.run_until_ns(2_000_000).unwrap();
+        assert_eq!(count.get(), 20);
+    }
+
+    #[test]
+    fn channel_wakeups_run_in_the_same_instant() {
+        use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+        use embassy_sync::channel::Channel;
+        let ch: Channel<NoopRawMutex, u32, 4> = Channel::new();
+        let got = RefCell::new(Vec::new());
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        let (chr, gotr) = (&ch, &got);
+        let c2 = clock.clone();
+        ex.spawn("rx", async move {
+            for _ in 0..3 {
+                let v = chr.receive().await;
+                gotr.borrow_mut().push((v, c2.now_ns()));
+            }
+        });
+        ex.spawn("tx", async move {
+            for v in 0..3 {
+                clock.sleep_ns(500).await;
+                chr.send(v).await;
+            }
+        });
+        ex.run_until_ns(10_000).unwrap();
+        assert_eq!(*got.borrow(), vec![(0, 500), (1, 1000), (2, 1500)]);
+    }
+
+    #[test]
+    fn dropped_sleep_leaves_no_timer() {
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        let c = clock.clone();
+        ex.spawn("select", async move {
+            let long = c.sleep_ns(1_000_000);
+            let short = c.sleep_ns(10);
+            embassy_futures::select::select(long, short).await;
+        });
+        let s = ex.run_until_ns(u64::MAX).unwrap();
+        // The long sleep was dropped: time stops at the short one.
+        assert_eq!(s.end_ns, 10);
+    }
+
+    #[test]
+    fn livelock_is_reported() {
+        let mut ex = Executor::new();
+        ex.spawn(
+            "spinner",
+            std::future::poll_fn(|cx: &mut Context<'_>| {
+                cx.waker().wake_by_ref();
+                Poll::<()>::Pending
+            }),
+        );
+        match ex.run_until_ns(10) {
+            Err(RunError::Livelock { at, tasks }) => {
+                assert_eq!(at, 0);
+                assert_eq!(tasks, vec!["spinner".to_string()]);
+            }
+            other => panic!("expected livelock, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn spinning_tasks_do_not_stop_time() {
+        // Two tasks that wake each other forever, and a sleeper: time still reaches the
+        // sleeper's deadline, and the spin is counted.
+        let woke = Cell::new(false);
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        for name in ["a", "b"] {
+            ex.spawn(
+                name,
+                std::future::poll_fn(|cx: &mut Context<'_>| {
+                    cx.waker().wake_by_ref();
+                    Poll::<()>::Pending
+                }),
+            );
+        }
+        let w = &woke;
+        let c2 = clock.clone();
+        ex.spawn("sleeper", async move {
+            clock.sleep_ns(1_000).await;
+            w.set(true);
+        });
+        ex.spawn("late sleeper", async move {
+            c2.sleep_ns(1_000_000).await;
+        });
+        let s = ex.run_until_ns(500).unwrap();
+        assert!(!woke.get());
+        assert_eq!(s.end_ns, 500);
+        let s = ex.run_until_ns(2_000).unwrap();
+        assert!(woke.get());
+        assert!(s.spins >= 2, "{s:?}");
+    }
+
+    #[test]
+    fn spawner_adds_tasks_at_the_current_instant() {
+        let seen = RefCell::new(Vec::new());
+        let mut ex = Executor::new();
+        let sp = ex.spawner();
+        let clock = ex.clock();
+        let s = &seen;
+        ex.spawn("parent", async move {
+            clock.sleep_ns(7).await;
+            let c = clock.clone();
+            sp.spawn("child", async move {
+                s.borrow_mut().push(c.now_ns());
+            });
+        });
+        ex.run_until_ns(100).unwrap();
+        assert_eq!(*seen.borrow(), vec![7]);
+    }
+
+    #[test]
+    fn rng_is_deterministic() {
+        let mut a = Rng::new(42);
+        let mut b = Rng::new(42);
+        let xs: Vec<u64> = (0..5).map(|_| a.next_u64()).collect();
+        let ys: Vec<u64> = (0..5).map(|_| b.next_u64()).collect();
+        assert_eq!(xs, ys);
+        assert_ne!(Rng::new(43).next_u64(), xs[0]);
+        assert!((0..1000).all(|_| a.below(7) < 7));
+        assert!(!a.chance_ppm(0));
+        assert!(a.chance_ppm(1_000_000));
+    }
+}

@@ -1,0 +1,846 @@
+//! Simulated sensor and actuator ports: [`firmware_db::Ports`] on virtual time.
+//!
+//! Inputs follow scripts ([`Digital`], [`Analog`]) written as functions of virtual time: a
+//! button pressed at t = 2 s, a thermistor warming up, a light level, an ultrasonic echo.
+//! Outputs (digital levels and PWM settings, on actuator ports and on sensor pins driven as
+//! outputs) are recorded in a shared [`ActuatorLog`] as timestamped changes, so tests can ask
+//! what a pin was at any instant.
+//!
+//! Port operations take the virtual time of [`PortsTiming`] (an ADC conversion by default);
+//! CPU time is not modelled.
+
+use std::cell::RefCell;
+use std::fmt;
+use std::rc::Rc;
+
+use firmware_db::{PortError, Ports, SafeState};
+use x10_microcode::{Edge, Level, Pin, PinRef, Port, PortKind};
+
+use crate::exec::{Nanos, SimClock};
+
+/// A scripted analog input, in ADC counts, as a function of virtual time.
+#[derive(Clone)]
+pub enum Analog {
+    /// Always this value.
+    Const(u16),
+    /// Linear from `from` at `start_ms` to `to` at `end_ms`, constant outside.
+    Ramp {
+        /// Value until `start_ms`.
+        from: u16,
+        /// Value from `end_ms` on.
+        to: u16,
+        /// Start of the ramp.
+        start_ms: u64,
+        /// End of the ramp.
+        end_ms: u64,
+    },
+    /// Piecewise constant: `(from_ms, value)` pairs in time order; before the first, `initial`.
+    Steps {
+        /// Value before the first step.
+        initial: u16,
+        /// Steps.
+        steps: Vec<(u64, u16)>,
+    },
+    /// Any function of the time in µs.
+    Func(Rc<dyn Fn(u64) -> u16>),
+}
+
+impl fmt::Debug for Analog {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Analog::Const(v) => write!(f, "Const({v})"),
+            Analog::Ramp {
+                from,
+                to,
+                start_ms,
+                end_ms,
+            } => write!(f, "Ramp({from}@{start_ms}ms -> {to}@{end_ms}ms)"),
+            Analog::Steps { initial, steps } => write!(f, "Steps({initial}, {steps:?})"),
+            Analog::Func(_) => f.write_str("Func"),
+        }
+    }
+}
+
+impl Analog {
+    /// The value at `t_ns`.
+    pub fn value_at(&self, t_ns: Nanos) -> u16 {
+        match self {
+            Analog::Const(v) => *v,
+            Analog::Ramp {
+                from,
+                to,
+                start_ms,
+                end_ms,
+            } => {
+                let (s, e) = (start_ms * 1_000_000, end_ms * 1_000_000);
+                if t_ns <= s || e <= s {
+                    if t_ns >= e {
+                        *to
+                    } else {
+                        *from
+                    }
+                } else if t_ns >= e {
+                    *to
+                } else {
+                    let span = (e - s) as i128;
+                    let done = (t_ns - s) as i128;
+                    let v = i128::from(*from) + (i128::from(*to) - i128::from(*from)) * done / span;
+                    u16::try_from(v).unwrap_or(if to > from { *to } else { *from })
+                }
+            }
+            Analog::Steps { initial, steps } => steps
+                .iter()
+                .take_while(|(ms, _)| ms * 1_000_000 <= t_ns)
+                .last()
+                .map_or(*initial, |(_, v)| *v),
+            Analog::Func(f) => f(t_ns / 1_000),
+        }
+    }
+}
+
+/// A scripted digital input as a function of virtual time.
+#[derive(Clone, Debug)]
+pub enum Digital {
+    /// Always this level.
+    Const(bool),
+    /// `initial`, then toggled at each of `toggles_ms` (in time order).
+    Toggles {
+        /// Level before the first toggle.
+        initial: bool,
+        /// Toggle times in ms.
+        toggles_ms: Vec<u64>,
+    },
+    /// Periodic high pulses (an ultrasonic echo): from `first_us` on, every `period_us`, a
+    /// pulse whose width in µs is `width_us` evaluated at the pulse's start.
+    Pulses {
+        /// Start of the first pulse.
+        first_us: u64,
+        /// Period.
+        period_us: u64,
+        /// Pulse width in µs, as a function of time.
+        width_us: Analog,
+    },
+}
+
+impl Digital {
+    /// Low until `at_ms`, then high: a button pressed once and held.
+    pub fn pressed_at(at_ms: u64) -> Digital {
+        Digital::Toggles {
+            initial: false,
+            toggles_ms: vec![at_ms],
+        }
+    }
+
+    /// The level at `t_ns`.
+    pub fn level_at(&self, t_ns: Nanos) -> bool {
+        match self {
+            Digital::Const(v) => *v,
+            Digital::Toggles {
+                initial,
+                toggles_ms,
+            } => {
+                let n = toggles_ms
+                    .iter()
+                    .take_while(|ms| *ms * 1_000_000 <= t_ns)
+                    .count();
+                *initial ^ (n % 2 == 1)
+            }
+            Digital::Pulses {
+                first_us,
+                period_us,
+                width_us,
+            } => {
+                let first = first_us * 1_000;
+                let period = (period_us * 1_000).max(1);
+                if t_ns < first {
+                    return false;
+                }
+                let start = first + (t_ns - first) / period * period;
+                let width = u64::from(width_us.value_at(start)) * 1_000;
+                t_ns < start + width.min(period)
+            }
+        }
+    }
+
+    /// The first instant strictly after `t_ns` at which the level changes, if any.
+    pub fn next_change_after(&self, t_ns: Nanos) -> Option<Nanos> {
+        match self {
+            Digital::Const(_) => None,
+            Digital::Toggles { toggles_ms, .. } => toggles_ms
+                .iter()
+                .map(|ms| ms * 1_000_000)
+                .find(|&at| at > t_ns),
+            Digital::Pulses {
+                first_us,
+                period_us,
+                width_us,
+            } => {
+                let first = first_us * 1_000;
+                let period = (period_us * 1_000).max(1);
+                if t_ns < first {
+                    return Some(first);
+                }
+                let start = first + (t_ns - first) / period * period;
+                let width = (u64::from(width_us.value_at(start)) * 1_000).min(period);
+                if width > 0 && t_ns < start + width {
+                    Some(start + width)
+                } else {
+                    Some(start + period)
+                }
+            }
+        }
+    }
+}
+
+/// What a sensor port's inputs do.
+#[derive(Clone, Debug)]
+pub struct SensorScript {
+    /// Digital pin A.
+    pub a: Digital,
+    /// Digital pin B.
+    pub b: Digital,
+    /// Analog input.
+    pub analog: Analog,
+}
+
+impl Default for SensorScript {
+    fn default() -> Self {
+        SensorScript {
+            a: Digital::Const(false),
+            b: Digital::Const(false),
+            analog: Analog::Const(0),
+        }
+    }
+}
+
+/// Virtual time each port operation takes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PortsTiming {
+    /// A digital read or write.
+    pub gpio_ns: Nanos,
+    /// A PWM setting.
+    pub pwm_ns: Nanos,
+    /// An ADC conversion.
+    pub adc_ns: Nanos,
+}
+
+impl PortsTiming {
+    /// GPIO and PWM instantaneous; an ADC conversion of 2 µs (the RP2040's 96 cycles at
+    /// 48 MHz).
+    pub const DEFAULT: PortsTiming = PortsTiming {
+        gpio_ns: 0,
+        pwm_ns: 0,
+        adc_ns: 2_000,
+    };
+}
+
+/// What changed on an output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Change {
+    /// Digital level driven.
+    Digital(Level),
+    /// PWM duty (0–255).
+    Duty(u8),
+    /// PWM frequency of the port (Hz).
+    Frequency(u16),
+    /// PWM high time (µs).
+    PulseWidth(u16),
+}
+
+/// One recorded output change.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct OutputChange {
+    /// When (ns).
+    pub t_ns: Nanos,
+    /// Board name (`mb`, `db09`, …).
+    pub board: String,
+    /// Which pin (pin A for port-wide settings).
+    pub pin: PinRef,
+    /// What it became.
+    pub change: Change,
+}
+
+impl fmt::Display for OutputChange {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.change {
+            Change::Digital(l) => write!(
+                f,
+                "{} {} {}",
+                self.board,
+                self.pin,
+                if l.is_high() { "high" } else { "low" }
+            ),
+            Change::Duty(d) => write!(f, "{} {} pwm {d}", self.board, self.pin),
+            Change::Frequency(hz) => {
+                write!(f, "{} {} pwm frequency {hz} Hz", self.board, self.pin.port)
+            }
+            Change::PulseWidth(us) => write!(f, "{} {} pulse width {us} us", self.board, self.pin),
+        }
+    }
+}
+
+/// Every output change of every simulated board, shared. Cloning shares the log.
+#[derive(Clone, Default)]
+pub struct ActuatorLog {
+    changes: Rc<RefCell<Vec<OutputChange>>>,
+}
+
+impl ActuatorLog {
+    /// An empty log.
+    pub fn new() -> ActuatorLog {
+        ActuatorLog::default()
+    }
+
+    fn push(&self, c: OutputChange) {
+        self.changes.borrow_mut().push(c);
+    }
+
+    /// All changes so far, in time order.
+    pub fn changes(&self) -> Vec<OutputChange> {
+        self.changes.borrow().clone()
+    }
+
+    /// Number of changes so far.
+    pub fn len(&self) -> usize {
+        self.changes.borrow().len()
+    }
+
+    /// True when nothing changed yet.
+    pub fn is_empty(&self) -> bool {
+        self.changes.borrow().is_empty()
+    }
+
+    /// Changes of one board's pin, in time order.
+    pub fn of(&self, board: &str, pin: PinRef) -> Vec<OutputChange> {
+        self.changes
+            .borrow()
+            .iter()
+            .filter(|c| c.board == board && c.pin == pin)
+            .cloned()
+            .collect()
+    }
+
+    /// The level a pin was driven to at `t_ns` (`None`: never driven by then).
+    pub fn level_at(&self, board: &str, pin: PinRef, t_ns: Nanos) -> Option<Level> {
+        self.changes
+            .borrow()
+            .iter()
+            .rev()
+            .filter(|c| c.board == board && c.pin == pin && c.t_ns <= t_ns)
+            .find_map(|c| match c.change {
+                Change::Digital(l) => Some(l),
+                _ => None,
+            })
+    }
+
+    /// The PWM duty of a pin at `t_ns` (0 if never set).
+    pub fn duty_at(&self, board: &str, pin: PinRef, t_ns: Nanos) -> u8 {
+        self.changes
+            .borrow()
+            .iter()
+            .rev()
+            .filter(|c| c.board == board && c.pin == pin && c.t_ns <= t_ns)
+            .find_map(|c| match c.change {
+                Change::Duty(d) => Some(d),
+                _ => None,
+            })
+            .unwrap_or(0)
+    }
+}
+
+#[derive(Clone, Copy, Debug, Default)]
+struct ActuatorState {
+    out: [Option<Level>; 2],
+    duty: [u8; 2],
+    freq: Option<u16>,
+    width: [Option<u16>; 2],
+}
+
+#[derive(Debug)]
+struct State {
+    sensor_out: Vec<[Option<Level>; 2]>,
+    actuators: Vec<ActuatorState>,
+    busy: Vec<PinRef>,
+}
+
+/// One board's simulated ports.
+pub struct SimPorts {
+    board: String,
+    clock: SimClock,
+    timing: PortsTiming,
+    adc_bits: u8,
+    sensors: Vec<SensorScript>,
+    actuator_inputs: Vec<[Digital; 2]>,
+    safe: Vec<SafeState>,
+    state: RefCell<State>,
+    log: ActuatorLog,
+}
+
+impl SimPorts {
+    /// A board named `board` with `sensor_ports` idle sensor ports (inputs low, analog 0),
+    /// `actuator_ports` actuator ports, a 10-bit ADC (the thesis's Arduino figures), default
+    /// timing, recording into `log`.
+    pub fn new(
+        board: impl Into<String>,
+        clock: SimClock,
+        log: ActuatorLog,
+        sensor_ports: u8,
+        actuator_ports: u8,
+    ) -> SimPorts {
+        let s = usize::from(sensor_ports.min(Port::MAX_PORTS));
+        let a = usize::from(actuator_ports.min(Port::MAX_PORTS));
+        SimPorts {
+            board: board.into(),
+            clock,
+            timing: PortsTiming::DEFAULT,
+            adc_bits: 10,
+            sensors: vec![SensorScript::default(); s],
+            actuator_inputs: vec![[Digital::Const(false), Digital::Const(false)]; a],
+            safe: vec![SafeState::ALL_LOW; a],
+            state: RefCell::new(State {
+                sensor_out: vec![[None, None]; s],
+                actuators: vec![ActuatorState::default(); a],
+                busy: Vec::new(),
+            }),
+            log,
+        }
+    }
+
+    /// Scripts sensor port `number` (1-based); out-of-range numbers are ignored.
+    pub fn with_sensor(mut self, number: u8, script: SensorScript) -> SimPorts {
+        if let Some(s) = self.sensors.get_mut(usize::from(number.wrapping_sub(1))) {
+            *s = script;
+        }
+        self
+    }
+
+    /// Sets the safe state of actuator port `number` (1-based).
+    pub fn with_safe_state(mut self, number: u8, safe: SafeState) -> SimPorts {
+        if let Some(s) = self.safe.get_mut(usize::from(number.wrapping_sub(1))) {
+            *s = safe;
+        }
+        self
+    }
+
+    /// Sets the operation timing.
+    pub fn with_timing(mut self, timing: PortsTiming) -> SimPorts {
+        self.timing = timing;
+        self
+    }
+
+    /// Sets the ADC resolution (1–16 bits).
+    pub fn with_adc_bits(mut self, bits: u8) -> SimPorts {
+        self.adc_bits = bits.clamp(1, 16);
+        self
+    }
+
+    /// The same board (scripts, timing, safe states, log) as it is after power-up: every
+    /// output undriven, PWM off. The simulator builds one per (re)boot of a board.
+    pub fn fresh(&self) -> SimPorts {
+        SimPorts {
+            board: self.board.clone(),
+            clock: self.clock.clone(),
+            timing: self.timing,
+            adc_bits: self.adc_bits,
+            sensors: self.sensors.clone(),
+            actuator_inputs: self.actuator_inputs.clone(),
+            safe: self.safe.clone(),
+            state: RefCell::new(State {
+                sensor_out: vec![[None, None]; self.sensors.len()],
+                actuators: vec![ActuatorState::default(); self.actuator_inputs.len()],
+                busy: Vec::new(),
+            }),
+            log: self.log.clone(),
+        }
+    }
+
+    /// The board name.
+    pub fn board(&self) -> &str {
+        &self.board
+    }
+
+    /// The shared log.
+    pub fn log(&self) -> &ActuatorLog {
+        &self.log
+    }
+
+    fn input(&self, pin: PinRef) -> Result<&Digital, PortError> {
+        let i = usize::from(pin.port.index());
+        match pin.port.kind() {
+            PortKind::Sensor => self.sensors.get(i).map(|s| match pin.pin {
+                Pin::A => &s.a,
+                Pin::B => &s.b,
+            }),
+            PortKind::Actuator => self
+                .actuator_inputs
+                .get(i)
+                .and_then(|p| p.get(pin.pin.index())),
+        }
+        .ok_or(PortError::NoSuchPin)
+    }
+
+    fn record(&self, pin: PinRef, change: Change) {
+        self.log.push(OutputChange {
+            t_ns: self.clock.now_ns(),
+            board: self.board.clone(),
+            pin,
+            change,
+        });
+    }
+
+    fn check_not_busy(&self, pin: PinRef) -> Result<(), PortError> {
+        if self.state.borrow().busy.contains(&pin) {
+            Err(PortError::Busy)
+        } else {
+            Ok(())
+        }
+    }
+
+    async fn take(&self, ns: Nanos) {
+        if ns > 0 {
+            self.clock.sleep_ns(ns).await;
+        }
+    }
+}
+
+impl Ports for SimPorts {
+    fn sensor_ports(&self) -> u8 {
+        u8::try_from(self.sensors.len()).unwrap_or(Port::MAX_PORTS)
+    }
+
+    fn actuator_ports(&self) -> u8 {
+        u8::try_from(self.actuator_inputs.len()).unwrap_or(Port::MAX_PORTS)
+    }
+
+    fn adc_bits(&self) -> u8 {
+        self.adc_bits
+    }
+
+    async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
+        self.check_not_busy(pin)?;
+        let level = self.input(pin)?.level_at(self.clock.now_ns());
+        {
+            // Reading makes the pin an input.
+            let mut st = self.state.borrow_mut();
+            let i = usize::from(pin.port.index());
+            let out = match pin.port.kind() {
+                PortKind::Sensor => st.sensor_out.get_mut(i),
+                PortKind::Actuator => st.actuators.get_mut(i).map(|a| &mut a.out),
+            };
+            if let Some(slot) = out.and_then(|o| o.get_mut(pin.pin.index())) {
+                *slot = None;
+            }
+        }
+        self.take(self.timing.gpio_ns).await;
+        Ok(Level::from_bool(level))
+    }
+
+    async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
+        self.check_not_busy(pin)?;
+        let changed = {
+            let mut st = self.state.borrow_mut();
+            let i = usize::from(pin.port.index());
+            let out = match pin.port.kind() {
+                PortKind::Sensor => st.sensor_out.get_mut(i),
+                PortKind::Actuator => st.actuators.get_mut(i).map(|a| &mut a.out),
+            };
+            let slot = out
+                .and_then(|o| o.get_mut(pin.pin.index()))
+                .ok_or(PortError::NoSuchPin)?;
+            let changed = *slot != Some(level);
+            *slot = Some(level);
+            changed
+        };
+        self.take(self.timing.gpio_ns).await;
+        if changed {
+            self.record(pin, Change::Digital(level));
+        }
+        Ok(())
+    }
+
+    async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
+        if pin.port.kind() != PortKind::Actuator {
+            return Err(PortError::Unsupported);
+        }
+        let changed = {
+            let mut st = self.state.borrow_mut();
+            let a = st
+                .actuators
+                .get_mut(usize::from(pin.port.index()))
+                .ok_or(PortError::NoSuchPin)?;
+            let slot = a
+                .duty
+                .get_mut(pin.pin.index())
+                .ok_or(PortError::NoSuchPin)?;
+            let changed = *slot != duty;
+            *slot = duty;
+            changed
+        };
+        self.take(self.timing.pwm_ns).await;
+        if changed {
+            self.record(pin, Change::Duty(duty));
+        }
+        Ok(())
+    }
+
+    async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
+        if port.kind() != PortKind::Actuator || hz == 0 {
+            return Err(PortError::Unsupported);
+        }
+        let changed = {
+            let mut st = self.state.borrow_mut();
+            let a = st
+                .actuators
+                .get_mut(usize::from(port.index()))
+                .ok_or(PortError::NoSuchPin)?;
+            let changed = a.freq != Some(hz);
+            a.freq = Some(hz);
+            changed
+        };
+        self.take(self.timing.pwm_ns).await;
+        if changed {
+            self.record(port.into(), Change::Frequency(hz));
+        }
+        Ok(())
+    }
+
+    async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
+        if pin.port.kind() != PortKind::Actuator {
+            return Err(PortError::Unsupported);
+        }
+        let changed = {
+            let mut st = self.state.borrow_mut();
+            let a = st
+                .actuators
+                .get_mut(usize::from(pin.port.index()))
+                .ok_or(PortError::NoSuchPin)?;
+            // The period of the current frequency (50 Hz servo default).
+            let period_us = 1_000_000 / u32::from(a.freq.unwrap_or(50).max(1));
+            if u32::from(us) > period_us {
+                return Err(PortError::Unsupported);
+            }
+            let slot = a
+                .width
+                .get_mut(pin.pin.index())
+                .ok_or(PortError::NoSuchPin)?;
+            let changed = *slot != Some(us);
+            *slot = Some(us);
+            changed
+        };
+        self.take(self.timing.pwm_ns).await;
+        if changed {
+            self.record(pin, Change::PulseWidth(us));
+        }
+        Ok(())
+    }
+
+    async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
+        if port.kind() != PortKind::Sensor {
+            return Err(PortError::Unsupported);
+        }
+        let script = self
+            .sensors
+            .get(usize::from(port.index()))
+            .ok_or(PortError::NoSuchPin)?;
+        // Sampled at the start of the conversion.
+        let v = script.analog.value_at(self.clock.now_ns());
+        self.take(self.timing.adc_ns).await;
+        let max = if self.adc_bits >= 16 {
+            u16::MAX
+        } else {
+            (1u16 << self.adc_bits) - 1
+        };
+        Ok(v.min(max))
+    }
+
+    async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError> {
+        self.check_not_busy(pin)?;
+        let signal = self.input(pin)?.clone();
+        self.state.borrow_mut().busy.push(pin);
+        let deadline = self
+            .clock
+            .now_ns()
+            .saturating_add(u64::from(timeout_ms) * 1_000_000);
+        let start_level = matches!(edge, Edge::Rising);
+        let result = async {
+            // Wait for the starting edge, then for the opposite one.
+            let mut started = None;
+            let mut t = self.clock.now_ns();
+            loop {
+                let Some(at) = signal.next_change_after(t).filter(|&at| at <= deadline) else {
+                    self.clock.sleep_until_ns(deadline).await;
+                    return Err(PortError::Timeout);
+                };
+                t = at;
+                let level = signal.level_at(at);
+                match started {
+                    None if level == start_level => started = Some(at),
+                    Some(s) if level != start_level => {
+                        self.clock.sleep_until_ns(at).await;
+                        let us = (at - s) / 1_000;
+                        return Ok(u32::try_from(us).unwrap_or(u32::MAX));
+                    }
+                    _ => {}
+                }
+            }
+        }
+        .await;
+        self.state.borrow_mut().busy.retain(|p| *p != pin);
+        result
+    }
+
+    fn safe_state(&self, port: Port) -> SafeState {
+        self.safe
+            .get(usize::from(port.index()))
+            .copied()
+            .unwrap_or(SafeState::ALL_LOW)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::exec::Executor;
+    use x10_hal::time::Clock;
+
+    fn pin(kind: PortKind, n: u8, p: Pin) -> PinRef {
+        Port::new(kind, n).unwrap().pin(p)
+    }
+
+    #[test]
+    fn signals_follow_their_scripts() {
+        let b = Digital::pressed_at(2_000);
+        assert!(!b.level_at(1_999_999_999));
+        assert!(b.level_at(2_000_000_000));
+        assert_eq!(b.next_change_after(0), Some(2_000_000_000));
+        assert_eq!(b.next_change_after(2_000_000_000), None);
+        let r = Analog::Ramp {
+            from: 100,
+            to: 300,
+            start_ms: 1_000,
+            end_ms: 3_000,
+        };
+        assert_eq!(r.value_at(0), 100);
+        assert_eq!(r.value_at(2_000_000_000), 200);
+        assert_eq!(r.value_at(9_000_000_000), 300);
+        let s = Analog::Steps {
+            initial: 5,
+            steps: vec![(10, 6), (20, 7)],
+        };
+        assert_eq!(
+            [0, 10, 15, 20, 99].map(|ms| s.value_at(ms * 1_000_000)),
+            [5, 6, 6, 7, 7]
+        );
+        let echo = Digital::Pulses {
+            first_us: 100,
+            period_us: 1_000,
+            width_us: Analog::Const(300),
+        };
+        assert!(!echo.level_at(99_999));
+        assert!(echo.level_at(100_000));
+        assert!(!echo.level_at(400_000));
+        assert!(echo.level_at(1_100_000));
+        assert_eq!(echo.next_change_after(100_000), Some(400_000));
+        assert_eq!(echo.next_change_after(400_000), Some(1_100_000));
+    }
+
+    #[test]
+    fn outputs_are_logged_only_when_they_change_and_inputs_follow_time() {
+        let log = ActuatorLog::new();
+        let clock = SimClock::new();
+        let ports = SimPorts::new("db09", clock.clone(), log.clone(), 2, 2).with_sensor(
+            1,
+            SensorScript {
+                a: Digital::pressed_at(2),
+                b: Digital::Const(true),
+                analog: Analog::Ramp {
+                    from: 0,
+                    to: 2000,
+                    start_ms: 0,
+                    end_ms: 10,
+                },
+            },
+        );
+        let results = RefCell::new(Vec::new());
+        let mut ex = Executor::with_clock(&clock);
+        let (p, r) = (&ports, &results);
+        let a1a = pin(PortKind::Actuator, 1, Pin::A);
+        let s1a = pin(PortKind::Sensor, 1, Pin::A);
+        ex.spawn("t", async move {
+            let push = |v: String| r.borrow_mut().push(v);
+            p.digital_write(a1a, Level::High).await.unwrap();
+            p.digital_write(a1a, Level::High).await.unwrap();
+            p.pwm_duty(a1a, 128).await.unwrap();
+            let v = p.digital_read(s1a).await;
+            push(format!("{v:?}"));
+            clock.sleep_until(x10_hal::time::Instant(5_000)).await;
+            let v = p.digital_read(s1a).await;
+            push(format!("{v:?}"));
+            let v = p.analog_read(s1a.port).await;
+            push(format!("{v:?}"));
+            let v = p.pwm_duty(s1a, 1).await;
+            push(format!("{v:?}"));
+            let v = p
+                .digital_write(pin(PortKind::Actuator, 3, Pin::A), Level::Low)
+                .await;
+            push(format!("{v:?}"));
+            p.digital_write(a1a, Level::Low).await.unwrap();
+        });
+        ex.run_until_ns(1_000_000_000).unwrap();
+        assert_eq!(
+            *results.borrow(),
+            vec![
+                "Ok(Low)",
+                "Ok(High)",
+                "Ok(1000)",
+                "Err(Unsupported)",
+                "Err(NoSuchPin)"
+            ]
+        );
+        let changes = log.changes();
+        assert_eq!(changes.len(), 3);
+        assert_eq!(changes[0].change, Change::Digital(Level::High));
+        assert_eq!(changes[1].change, Change::Duty(128));
+        assert_eq!(changes[2].t_ns, 5_002_000);
+        assert_eq!(log.level_at("db09", a1a, 5_000_000), Some(Level::High));
+        assert_eq!(log.level_at("db09", a1a, 6_000_000), Some(Level::Low));
+        assert_eq!(log.duty_at("db09", a1a, 0), 128);
+        assert_eq!(changes[0].to_string(), "db09 A1.A high");
+    }
+
+    #[test]
+    fn pulse_in_measures_the_echo_and_times_out() {
+        let clock = SimClock::new();
+        let ports = SimPorts::new("db", clock.clone(), ActuatorLog::new(), 1, 0).with_sensor(
+            1,
+            SensorScript {
+                a: Digital::Pulses {
+                    first_us: 500,
+                    period_us: 60_000,
+                    width_us: Analog::Const(1_160),
+                },
+                ..SensorScript::default()
+            },
+        );
+        let out = RefCell::new(Vec::new());
+        let mut ex = Executor::with_clock(&clock);
+        let (p, o) = (&ports, &out);
+        let s1a = pin(PortKind::Sensor, 1, Pin::A);
+        let s1b = pin(PortKind::Sensor, 1, Pin::B);
+        ex.spawn("t", async move {
+            let r = p.pulse_in(s1a, Edge::Rising, 100).await;
+            o.borrow_mut().push((clock.now_ns(), r));
+            let r = p.pulse_in(s1a, Edge::Falling, 200).await;
+            o.borrow_mut().push((clock.now_ns(), r));
+            let r = p.pulse_in(s1b, Edge::Rising, 5).await;
+            o.borrow_mut().push((clock.now_ns(), r));
+        });
+        ex.run_until_ns(10_000_000_000).unwrap();
+        let o = out.borrow();
+        assert_eq!(o[0], (1_660_000, Ok(1_160)));
+        // Falling edge: called at the end of the first pulse, so it measures the low time from
+        // the end of the second pulse to the start of the third.
+        assert_eq!(o[1], (120_500_000, Ok(60_000 - 1_160)));
+        assert_eq!(o[2], (125_500_000, Err(PortError::Timeout)));
+    }
+}

@@ -1,0 +1,694 @@
+//! The simulation: the real motherboard runtime (`firmware-mb`, with its internal
+//! daughterboard on simulated ports), any number of real daughterboards (`firmware-db`) at their
+//! addresses, robot programs from `x10-robots` and test tasks, on one simulated bus, in virtual
+//! time. [`Sim::run`] returns everything that happened as a [`SimOutcome`].
+//!
+//! ```
+//! use x10_sim::sim::{Sim, SimConfig};
+//! let outcome = Sim::program(x10_robots::Program::Fig4_4, SimConfig::default()).run().unwrap();
+//! assert!(outcome.trace.render().contains("light_motor"));
+//! ```
+
+use std::fmt;
+use std::future::Future;
+use std::pin::Pin;
+use std::rc::Rc;
+
+use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+use firmware_mb::{run_robot_with, MbConfig, MbDiagnostics, MbHandle, Motherboard, RobotPhase};
+use x10_devices::{Link, LinkError, PinEvent};
+use x10_microcode::{Address, Diagnostics, Op, Payload, PinRef};
+use x10_robots::Program;
+
+use crate::board::{board_name, DbBoard, Notes};
+use crate::bus::{BusConfig, BusRecord, BusStats, FaultConfig, NodeConfig, NodeId, Role, SimBus};
+use crate::exec::{Executor, Nanos, RunError, SimClock};
+use crate::ports::{ActuatorLog, SimPorts};
+use crate::timing::Speed;
+use crate::trace::{self, BusNames, Severity, Trace, TraceLine};
+
+/// The motherboard runtime as the simulator runs it.
+pub type SimMotherboard = Motherboard<NoopRawMutex, SimPorts, SimClock>;
+/// The robot programs' handle on it.
+pub type SimHandle<'a> = MbHandle<'a, NoopRawMutex, SimPorts, SimClock>;
+
+/// Settings of a run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SimConfig {
+    /// Bus clock.
+    pub speed: Speed,
+    /// Seed of everything random (fault injection, the runtimes' backoff jitter).
+    pub seed: u64,
+    /// Virtual time to run, in ms.
+    pub duration_ms: u64,
+    /// The motherboard's own bus address.
+    pub mb_address: Address,
+    /// The motherboard's I2C role handling.
+    pub mb_role: Role,
+    /// Bus fault injection.
+    pub faults: FaultConfig,
+    /// Period of each robot's `step`, in µs.
+    pub robot_period_us: u64,
+    /// The motherboard's request timeout, in µs.
+    pub request_timeout_us: u64,
+    /// Longest a target may stretch SCL, in µs.
+    pub stretch_timeout_us: u64,
+    /// Trace every call robots make through their link (one line per call).
+    pub trace_calls: bool,
+    /// End the run as soon as every test task ([`Sim::with_task`]) has finished (and at
+    /// `duration_ms` at the latest).
+    pub stop_when_tasks_done: bool,
+    /// Keep the wire symbols of every transaction, for [`SimOutcome::vcd`].
+    pub record_wire: bool,
+}
+
+/// The default motherboard address (the lowest ordinary I2C address, so events sent to it
+/// win arbitration against requests to any daughterboard).
+pub const MB_ADDRESS: Address = match Address::external(0x08) {
+    Ok(a) => a,
+    Err(_) => Address::INTERNAL,
+};
+
+impl Default for SimConfig {
+    /// 400 kHz, seed 1, 5 s, MB at 0x08 (dual-role), no faults, robots stepping every 10 ms,
+    /// 100 ms request timeout, 25 ms stretch timeout, calls traced, runs the full duration,
+    /// wire symbols kept.
+    fn default() -> Self {
+        SimConfig {
+            speed: Speed::Fast,
+            seed: 1,
+            duration_ms: 5_000,
+            mb_address: MB_ADDRESS,
+            mb_role: Role::DualRole,
+            faults: FaultConfig::NONE,
+            robot_period_us: 10_000,
+            request_timeout_us: 100_000,
+            stretch_timeout_us: 25_000,
+            trace_calls: true,
+            stop_when_tasks_done: false,
+            record_wire: true,
+        }
+    }
+}
+
+/// What a test task gets: the running motherboard and the simulation around it.
+#[derive(Clone)]
+pub struct Ctx<'a> {
+    /// The motherboard runtime.
+    pub mb: &'a SimMotherboard,
+    /// Virtual time.
+    pub clock: SimClock,
+    /// The bus.
+    pub bus: SimBus,
+    /// Lines for the trace.
+    pub notes: Notes,
+    /// Output changes of every board.
+    pub log: ActuatorLog,
+    nodes: Rc<Vec<(String, NodeId)>>,
+}
+
+impl<'a> Ctx<'a> {
+    /// The robots' handle on the motherboard.
+    pub fn handle(&self) -> SimHandle<'a> {
+        self.mb.handle()
+    }
+
+    /// A handle that traces every call as `who`.
+    pub fn traced(&self, who: &str) -> TracedLink<'a> {
+        TracedLink::new(
+            self.mb.handle(),
+            who,
+            self.clock.clone(),
+            self.notes.clone(),
+        )
+    }
+
+    /// The bus node called `name` (`mb`, `db09`, or a raw node's name).
+    pub fn node(&self, name: &str) -> Option<NodeId> {
+        self.nodes
+            .iter()
+            .find(|(n, _)| n == name)
+            .map(|(_, id)| *id)
+    }
+}
+
+/// A future a test task runs.
+pub type LocalFuture<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
+
+/// A test task: given the context, the future to run.
+pub type TaskFn = Box<dyn for<'a> FnOnce(Ctx<'a>) -> LocalFuture<'a>>;
+
+/// Makes a [`TaskFn`] from a closure (helps type inference).
+pub fn task<F>(f: F) -> TaskFn
+where
+    F: for<'a> FnOnce(Ctx<'a>) -> LocalFuture<'a> + 'static,
+{
+    Box::new(f)
+}
+
+/// A [`Link`] that traces each call (board, operation, outcome, time taken) and forwards it
+/// to the motherboard. Robot programs run on it unchanged.
+#[derive(Clone)]
+pub struct TracedLink<'a> {
+    inner: SimHandle<'a>,
+    who: Rc<str>,
+    clock: SimClock,
+    notes: Notes,
+}
+
+impl<'a> TracedLink<'a> {
+    /// Traces as `who`.
+    pub fn new(inner: SimHandle<'a>, who: &str, clock: SimClock, notes: Notes) -> Self {
+        TracedLink {
+            inner,
+            who: who.into(),
+            clock,
+            notes,
+        }
+    }
+}
+
+/// The value of a reply in words: a level, a number, or the bytes.
+fn value_text(op: &Op<'_>, p: &Payload) -> String {
+    match (op, p.as_slice()) {
+        (Op::DigitalRead(_), [v]) => if *v != 0 { "high" } else { "low" }.to_string(),
+        (Op::AnalogRead(_), [a, b]) => u16::from_le_bytes([*a, *b]).to_string(),
+        (Op::PulseIn { .. }, [a, b, c, d]) => format!("{}us", u32::from_le_bytes([*a, *b, *c, *d])),
+        (_, []) => "ok".to_string(),
+        (_, bytes) => trace::hex(bytes),
+    }
+}
+
+fn db_label(db: Address) -> String {
+    if db.is_internal() {
+        "SELF".to_string()
+    } else {
+        board_name(db)
+    }
+}
+
+impl Link for TracedLink<'_> {
+    async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
+        let t0 = self.clock.now_ns();
+        let r = self.inner.call(db, op).await;
+        let t1 = self.clock.now_ns();
+        let took = trace::micros(t1 - t0);
+        let (severity, outcome) = match &r {
+            Ok(p) => (Severity::Info, value_text(&op, p)),
+            Err(e) => (Severity::Warn, format!("error: {e}")),
+        };
+        self.notes.push(TraceLine::new(
+            t1,
+            severity,
+            self.who.to_string(),
+            format!(
+                "{} {} -> {outcome} in {took}",
+                db_label(db),
+                trace::describe_op(&op)
+            ),
+        ));
+        r
+    }
+
+    async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
+        self.inner.wait_event(db, pin).await
+    }
+}
+
+/// Why a simulation could not run.
+#[derive(Debug)]
+pub enum SimError {
+    /// A robot program could not be built.
+    Program(x10_devices::Error),
+    /// The executor found a task that never stops waking itself.
+    Run(RunError),
+    /// A board name used twice, or an address used by two boards.
+    Config(String),
+}
+
+impl fmt::Display for SimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SimError::Program(e) => write!(f, "cannot build the robot program: {e:?}"),
+            SimError::Run(e) => write!(f, "simulation stopped: {e}"),
+            SimError::Config(s) => write!(f, "bad simulation setup: {s}"),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+/// Everything a run produced.
+pub struct SimOutcome {
+    /// The readable trace.
+    pub trace: Trace,
+    /// Every bus transaction.
+    pub records: Vec<BusRecord>,
+    /// Every output change.
+    pub log: ActuatorLog,
+    /// The motherboard's counters at the end.
+    pub mb: MbDiagnostics,
+    /// The internal daughterboard's counters at the end.
+    pub internal: Diagnostics,
+    /// Each external board's counters at the end (of its last boot).
+    pub boards: Vec<(String, Diagnostics)>,
+    /// Bus counters.
+    pub bus: BusStats,
+    /// Virtual time at the end (ns).
+    pub end_ns: Nanos,
+    /// The bus clock.
+    pub speed: Speed,
+    /// Instants at which tasks were busy-looping when time moved on
+    /// ([`crate::exec::SPIN_POLLS`]): 0 unless some task spins.
+    pub spins: u64,
+}
+
+impl SimOutcome {
+    /// The SDA/SCL waveform of the whole run as a VCD file (empty of transitions when the run
+    /// did not keep wire symbols, [`SimConfig::record_wire`]).
+    pub fn vcd(&self) -> String {
+        crate::vcd::render(&self.records, self.speed.timing(), self.speed.label())
+    }
+
+    /// A board's counters by name (`mb` is the internal board).
+    pub fn board(&self, name: &str) -> Option<&Diagnostics> {
+        if name == "mb" {
+            return Some(&self.internal);
+        }
+        self.boards.iter().find(|(n, _)| n == name).map(|(_, d)| d)
+    }
+}
+
+struct ScheduledReset {
+    board: String,
+    at_ns: Nanos,
+    down_ns: Nanos,
+}
+
+/// A simulation being set up.
+pub struct Sim {
+    config: SimConfig,
+    clock: SimClock,
+    log: ActuatorLog,
+    notes: Notes,
+    mb_ports: SimPorts,
+    boards: Vec<DbBoard>,
+    raw_nodes: Vec<NodeConfig>,
+    program: Option<Program>,
+    tasks: Vec<(String, TaskFn)>,
+    resets: Vec<ScheduledReset>,
+}
+
+impl Sim {
+    /// A simulation with a motherboard whose internal board has 2 idle sensor ports and 2
+    /// actuator ports, no daughterboards and no program.
+    pub fn new(config: SimConfig) -> Sim {
+        let clock = SimClock::new();
+        let log = ActuatorLog::new();
+        let mb_ports = SimPorts::new("mb", clock.clone(), log.clone(), 2, 2);
+        Sim {
+            config,
+            clock,
+            log,
+            notes: Notes::new(),
+            mb_ports,
+            boards: Vec::new(),
+            raw_nodes: Vec::new(),
+            program: None,
+            tasks: Vec::new(),
+            resets: Vec::new(),
+        }
+    }
+
+    /// The simulation of a thesis program with its boards and scripted signals
+    /// ([`crate::scenario`]).
+    pub fn program(program: Program, config: SimConfig) -> Sim {
+        crate::scenario::build(program, config)
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SimConfig {
+        &self.config
+    }
+
+    /// The virtual clock (to build ports before the run).
+    pub fn clock(&self) -> &SimClock {
+        &self.clock
+    }
+
+    /// The output log (to build ports before the run).
+    pub fn log(&self) -> &ActuatorLog {
+        &self.log
+    }
+
+    /// Ports for a board called `name`, on this simulation's clock and log.
+    pub fn ports(&self, name: &str, sensor_ports: u8, actuator_ports: u8) -> SimPorts {
+        SimPorts::new(
+            name,
+            self.clock.clone(),
+            self.log.clone(),
+            sensor_ports,
+            actuator_ports,
+        )
+    }
+
+    /// Replaces the internal daughterboard's ports (name them `mb`).
+    pub fn with_internal_ports(mut self, ports: SimPorts) -> Sim {
+        self.mb_ports = ports;
+        self
+    }
+
+    /// Adds a daughterboard at `address` with `ports`; returns it for further setup through
+    /// [`Sim::board_mut`].
+    pub fn with_board(mut self, address: Address, ports: SimPorts) -> Sim {
+        self.boards
+            .push(DbBoard::new(address, self.config.mb_address, ports));
+        self
+    }
+
+    /// The board called `name`, to change its configuration.
+    pub fn board_mut(&mut self, name: &str) -> Option<&mut DbBoard> {
+        self.boards.iter_mut().find(|b| b.name == name)
+    }
+
+    /// Adds a bus node that runs no firmware (a test task drives it through
+    /// [`Ctx::node`] and [`SimBus::port`]).
+    pub fn with_raw_node(mut self, node: NodeConfig) -> Sim {
+        self.raw_nodes.push(node);
+        self
+    }
+
+    /// Runs `program`'s robots, each in its own task.
+    pub fn with_program(mut self, program: Program) -> Sim {
+        self.program = Some(program);
+        self
+    }
+
+    /// Runs a test task next to everything else.
+    pub fn with_task(mut self, name: &str, f: TaskFn) -> Sim {
+        self.tasks.push((name.to_string(), f));
+        self
+    }
+
+    /// Resets board `name` at `at_ms` for `down_ms` (its firmware restarts afterwards).
+    pub fn reset_at(mut self, name: &str, at_ms: u64, down_ms: u64) -> Sim {
+        self.resets.push(ScheduledReset {
+            board: name.to_string(),
+            at_ns: at_ms * 1_000_000,
+            down_ns: down_ms * 1_000_000,
+        });
+        self
+    }
+
+    fn check(&self) -> Result<(), SimError> {
+        let mut addrs = vec![self.config.mb_address.get()];
+        let mut names = vec!["mb".to_string()];
+        for (name, addr) in self
+            .boards
+            .iter()
+            .map(|b| (b.name.clone(), Some(b.config.address.get())))
+            .chain(self.raw_nodes.iter().map(|n| (n.name.clone(), n.address)))
+        {
+            if names.contains(&name) {
+                return Err(SimError::Config(format!("two boards are called {name}")));
+            }
+            if let Some(a) = addr {
+                if addrs.contains(&a) {
+                    return Err(SimError::Config(format!("address {a:#04x} is used twice")));
+                }
+                addrs.push(a);
+            }
+            names.push(name);
+        }
+        for r in &self.resets {
+            if !names.contains(&r.board) {
+                return Err(SimError::Config(format!(
+                    "no board called {} to reset",
+                    r.board
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Runs the simulation for the configured duration.
+    ///
+    /// # Errors
+    /// [`SimError::Config`] for clashing names or addresses, [`SimError::Program`] when the
+    /// program's robots cannot be built, [`SimError::Run`] when a task livelocks.
+    pub fn run(self) -> Result<SimOutcome, SimError> {
+        self.check()?;
+        let Sim {
+            config,
+            clock,
+            log,
+            notes,
+            mb_ports,
+            boards,
+            raw_nodes,
+            program,
+            tasks,
+            resets,
+        } = self;
+        let mut bus_cfg = BusConfig::new(config.speed);
+        bus_cfg.seed = config.seed;
+        bus_cfg.faults = config.faults;
+        bus_cfg.stretch_timeout_ns = config.stretch_timeout_us * 1_000;
+        bus_cfg.record_wire = config.record_wire;
+        let bus = SimBus::new(clock.clone(), bus_cfg);
+        let mb_node = bus.add_node(
+            NodeConfig::new("mb", Some(config.mb_address.get())).with_role(config.mb_role),
+        );
+        let mut nodes = vec![("mb".to_string(), mb_node)];
+        let board_nodes: Vec<NodeId> = boards
+            .iter()
+            .map(|b| {
+                let id = bus.add_node(b.node_config());
+                nodes.push((b.name.clone(), id));
+                id
+            })
+            .collect();
+        for n in raw_nodes {
+            let name = n.name.clone();
+            nodes.push((name, bus.add_node(n)));
+        }
+        let nodes = Rc::new(nodes);
+
+        let mut mb_cfg = MbConfig::new(config.mb_address);
+        mb_cfg.request_timeout_us = config.request_timeout_us;
+        mb_cfg.seed = (config.seed as u32)
+            ^ ((config.seed >> 32) as u32)
+            ^ u32::from(config.mb_address.get());
+        let mb: SimMotherboard = Motherboard::new(mb_cfg, clock.clone(), mb_ports);
+
+        // One build per robot, each on a link that traces under the robot's name (the
+        // program's code is the same; only the trace label differs).
+        let mut robots = Vec::new();
+        if let Some(p) = program {
+            for (i, name) in p.robot_names().iter().enumerate() {
+                let link = TracedLink::new(mb.handle(), name, clock.clone(), notes.clone());
+                let built = p.build(link).map_err(SimError::Program)?;
+                if let Some(r) = built.into_iter().nth(i) {
+                    robots.push(r);
+                }
+            }
+        }
+
+        let run = {
+            let mut ex = Executor::with_clock(&clock);
+            ex.spawn("bus", bus.engine());
+            let mb_ref = &mb;
+            let mb_port = bus.port(mb_node);
+            ex.spawn("mb", async move {
+                mb_ref.run(mb_port).await;
+            });
+            for (b, &node) in boards.iter().zip(&board_nodes) {
+                ex.spawn(b.name.clone(), b.run(bus.clone(), node, notes.clone()));
+            }
+            for r in resets {
+                let Some(&(_, node)) = nodes.iter().find(|(n, _)| *n == r.board) else {
+                    continue;
+                };
+                let (bus, clock) = (bus.clone(), clock.clone());
+                ex.spawn(format!("reset {}", r.board), async move {
+                    clock.sleep_until_ns(r.at_ns).await;
+                    bus.reset_node(node, r.down_ns);
+                });
+            }
+            for robot in robots {
+                let name = robot.name();
+                let clock2 = clock.clone();
+                let notes2 = notes.clone();
+                ex.spawn(name, async move {
+                    run_robot_with(robot, clock2.clone(), config.robot_period_us, |phase, e| {
+                        let what = match phase {
+                            RobotPhase::Setup => "setup",
+                            RobotPhase::Step => "step",
+                        };
+                        notes2.push(TraceLine::new(
+                            clock2.now_ns(),
+                            Severity::Warn,
+                            name,
+                            format!("{what} failed: {e}"),
+                        ));
+                    })
+                    .await;
+                });
+            }
+            let running = Rc::new(std::cell::Cell::new(tasks.len()));
+            for (name, f) in tasks {
+                let ctx = Ctx {
+                    mb: &mb,
+                    clock: clock.clone(),
+                    bus: bus.clone(),
+                    notes: notes.clone(),
+                    log: log.clone(),
+                    nodes: nodes.clone(),
+                };
+                let fut = f(ctx);
+                let running = running.clone();
+                ex.spawn(name, async move {
+                    fut.await;
+                    running.set(running.get().saturating_sub(1));
+                });
+            }
+            let stop_early = config.stop_when_tasks_done;
+            let keep_going = || !stop_early || running.get() > 0;
+            ex.run_while(config.duration_ms.saturating_mul(1_000_000), &keep_going)
+                .map_err(SimError::Run)?
+        };
+        let end_ns = run.end_ns;
+
+        let names: Vec<String> = {
+            let mut v = vec![String::new(); nodes.len()];
+            for (name, id) in nodes.iter() {
+                if let Some(slot) = v.get_mut(*id) {
+                    *slot = name.clone();
+                }
+            }
+            v
+        };
+        let records = bus.records();
+        let bus_names = BusNames {
+            names: &names,
+            mb_address: Some(config.mb_address.get()),
+        };
+        let mut trace = Trace::new();
+        let mut lines: Vec<TraceLine> = records
+            .iter()
+            .flat_map(|r| trace::bus_lines(r, &bus_names))
+            .collect();
+        lines.extend(bus.yields().iter().map(|y| {
+            TraceLine::new(
+                y.t_ns,
+                Severity::Info,
+                names.get(y.node).cloned().unwrap_or_default(),
+                format!(
+                    "gives up starting its transaction to {:#04x}: it is being addressed (serves it, then retries)",
+                    y.addr
+                ),
+            )
+        }));
+        lines.extend(log.changes().iter().map(trace::change_line));
+        lines.extend(
+            notes
+                .lines()
+                .into_iter()
+                .filter(|l| config.trace_calls || l.severity >= Severity::Warn),
+        );
+        trace.extend(lines);
+        Ok(SimOutcome {
+            trace,
+            records,
+            log,
+            mb: mb.diagnostics(),
+            internal: mb.internal().diagnostics(),
+            boards: boards
+                .iter()
+                .map(|b| (b.name.clone(), b.diagnostics.get()))
+                .collect(),
+            bus: bus.stats(),
+            end_ns,
+            speed: config.speed,
+            spins: run.spins,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn addr(n: u8) -> Address {
+        Address::external(n).unwrap()
+    }
+
+    #[test]
+    fn clashing_addresses_and_names_are_refused() {
+        let sim = Sim::new(SimConfig::default());
+        let p1 = sim.ports("db09", 1, 1);
+        let p2 = sim.ports("db09b", 1, 1);
+        let err = sim
+            .with_board(addr(9), p1)
+            .with_raw_node(NodeConfig::new("other", Some(9)))
+            .run()
+            .err()
+            .map(|e| e.to_string());
+        assert_eq!(
+            err.as_deref(),
+            Some("bad simulation setup: address 0x09 is used twice")
+        );
+        let sim = Sim::new(SimConfig::default());
+        let err = sim
+            .with_board(addr(8), p2)
+            .run()
+            .err()
+            .map(|e| e.to_string());
+        assert_eq!(
+            err.as_deref(),
+            Some("bad simulation setup: address 0x08 is used twice")
+        );
+        let err = Sim::new(SimConfig::default())
+            .reset_at("db42", 1, 1)
+            .run()
+            .err()
+            .map(|e| e.to_string());
+        assert_eq!(
+            err.as_deref(),
+            Some("bad simulation setup: no board called db42 to reset")
+        );
+    }
+
+    #[test]
+    fn reply_values_in_words() {
+        let s1 = x10_microcode::Port::sensor(1).unwrap();
+        let p = |b: &[u8]| Payload::from_slice(b).unwrap();
+        assert_eq!(value_text(&Op::AnalogRead(s1), &p(&[0xc8, 0x02])), "712");
+        assert_eq!(value_text(&Op::DigitalRead(s1.into()), &p(&[1])), "high");
+        assert_eq!(value_text(&Op::Ping, &p(&[])), "ok");
+        assert_eq!(value_text(&Op::Identify, &p(&[1, 2])), "[01 02]");
+        assert_eq!(db_label(Address::INTERNAL), "SELF");
+        assert_eq!(db_label(addr(0x6c)), "db6c");
+    }
+
+    #[test]
+    fn tasks_can_end_the_run_early() {
+        let config = SimConfig {
+            stop_when_tasks_done: true,
+            duration_ms: 10_000,
+            ..SimConfig::default()
+        };
+        let o = Sim::new(config)
+            .with_task(
+                "short",
+                task(|ctx| {
+                    Box::pin(async move {
+                        ctx.clock.sleep_ns(3_000_000).await;
+                    })
+                }),
+            )
+            .run()
+            .unwrap();
+        assert_eq!(o.end_ns, 3_000_000);
+    }
+}
