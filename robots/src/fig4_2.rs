@@ -23,13 +23,18 @@
 //!   [`x10_devices::HBridge`] convention (A HIGH, B LOW) and off is the bridge's stopped state
 //!   (coast: A LOW, B LOW, PWM 0), so the PWM does not stay at 100 %.
 //! * The C `||` skips the force reading while the button is pressed; so does this program.
-//! * The thesis re-sends the motor command on every pass of `loop()`; this program sends it
-//!   only when the wanted speed changes (or after a failed command, when the motor's speed is
-//!   unknown), which leaves the bus to the sensor reads. `setup` puts the motor in the stopped
-//!   state first (the thesis's `setup()` is empty, so the motor starts in whatever state the
-//!   pins had).
+//! * The thesis re-sends the motor command on every pass of `loop()`. This program sends it
+//!   when the wanted speed changes, and also every [`crate::REFRESH_STEPS`] steps without a
+//!   change, and at the next step after any failed call (every call goes to the motor's
+//!   board, and a NACK or timeout may be that board resetting, which leaves the motor
+//!   coasting): the motor is driven again within [`crate::REFRESH_STEPS`] steps after a reset
+//!   nobody reported, while the bus stays free for the sensor reads in between. `setup` puts
+//!   the motor in the stopped state first (the thesis's `setup()` is empty, so the motor
+//!   starts in whatever state the pins had).
 
-use x10_devices::{AnalogSensor, Button, DcMotor, Error, Link, LinkError, Pin, Robot, Speed, SELF};
+use x10_devices::{
+    AnalogSensor, Button, DcMotor, Error, Link, LinkError, Pin, Refresh, Robot, Speed, SELF,
+};
 
 /// The board everything is on.
 pub const BOARD: x10_devices::Address = SELF;
@@ -50,6 +55,7 @@ pub struct SingleBoard<L> {
     motor: DcMotor<L>,
     force: AnalogSensor<L>,
     button: Button<L>,
+    refresh: Refresh,
 }
 
 impl<L: Link + Clone> SingleBoard<L> {
@@ -62,23 +68,19 @@ impl<L: Link + Clone> SingleBoard<L> {
             motor: DcMotor::new(link.clone(), BOARD, MOTOR_PORT)?,
             force: AnalogSensor::new(link.clone(), BOARD, FORCE_PORT)?,
             button: Button::new(link, BOARD, BUTTON_PORT, BUTTON_PIN)?,
+            refresh: crate::REFRESH,
         })
     }
 }
 
 impl<L: Link> SingleBoard<L> {
-    /// The motor's last commanded speed.
+    /// The motor's last commanded speed; `None` when unknown (before `setup`, after a failed
+    /// call).
     pub fn motor_speed(&self) -> Option<Speed> {
         self.motor.speed()
     }
-}
 
-impl<L: Link> Robot for SingleBoard<L> {
-    async fn setup(&mut self) -> Result<(), LinkError> {
-        Ok(self.motor.stop().await?)
-    }
-
-    async fn step(&mut self) -> Result<(), LinkError> {
+    async fn control(&mut self) -> Result<(), LinkError> {
         let pressed = self.button.is_pressed().await?;
         let run = pressed || self.force.read_raw().await? > FORCE_THRESHOLD;
         let want = if run {
@@ -86,9 +88,28 @@ impl<L: Link> Robot for SingleBoard<L> {
         } else {
             Speed::STOP
         };
-        if self.motor.speed() != Some(want) {
+        let due = self.refresh.tick();
+        if due || self.motor.speed() != Some(want) {
             self.motor.set_speed(want).await?;
+            self.refresh.restart();
         }
         Ok(())
+    }
+}
+
+impl<L: Link> Robot for SingleBoard<L> {
+    async fn setup(&mut self) -> Result<(), LinkError> {
+        self.motor.stop().await?;
+        self.refresh.restart();
+        Ok(())
+    }
+
+    async fn step(&mut self) -> Result<(), LinkError> {
+        let result = self.control().await;
+        if result.is_err() {
+            // The board may be resetting: send the motor command again at the next step.
+            self.motor.invalidate();
+        }
+        result
     }
 }

@@ -18,7 +18,13 @@
 //!
 //! The alarm **latches**, as in the thesis: its `loop()` turns the alarm on (`alarm.on_a()`)
 //! and has no branch that turns it off, so once raised it stays on until the program restarts
-//! (`setup` drives it LOW). It is written once when raised, not on every pass.
+//! (`setup` drives it LOW). The latch holds the decision, not the write: a condition seen once
+//! keeps the alarm wanted even if writing it failed and the temperature is back to normal.
+//!
+//! The alarm's level is written when it changes, every [`crate::REFRESH_STEPS`] steps without
+//! a change (LOW as well as HIGH: board 10 may have reset and dropped a raised alarm to its
+//! safe LOW state), and at the next step after a failed write; not on every pass as in the
+//! thesis. A failed thermistor read does not count: it is another board.
 //!
 //! ## Differences from the thesis's code
 //! * `readThermistorFarenheit(<200` does not compile; the intent is `readThermistorFahrenheit()
@@ -30,7 +36,9 @@
 //!   alarm).
 //! * `setup` puts the alarm in a known state (LOW); the thesis's `setup()` is empty.
 
-use x10_devices::{Actuator, Address, Error, Level, Link, LinkError, Pin, Robot, Thermistor};
+use x10_devices::{
+    Actuator, Address, Error, Level, Link, LinkError, Pin, Refresh, Robot, Thermistor,
+};
 
 const fn addr(n: u8) -> Address {
     match Address::new(n) {
@@ -65,7 +73,11 @@ pub struct TemperatureAlarm<L> {
     cold: Thermistor<L>,
     hot: Thermistor<L>,
     alarm: Actuator<L>,
-    alarm_on: bool,
+    /// The latch: the condition has been seen since `setup`.
+    raised: bool,
+    /// The level last written successfully; `None` when unknown.
+    level: Option<Level>,
+    refresh: Refresh,
 }
 
 impl<L: Link + Clone> TemperatureAlarm<L> {
@@ -78,15 +90,22 @@ impl<L: Link + Clone> TemperatureAlarm<L> {
             cold: Thermistor::new(link.clone(), FREEZER, COLD_PORT)?,
             hot: Thermistor::new(link.clone(), OVEN, HOT_PORT)?,
             alarm: Actuator::new(link, CONTROL_BOARD, ALARM_PORT)?,
-            alarm_on: false,
+            raised: false,
+            level: None,
+            refresh: crate::REFRESH,
         })
     }
 }
 
 impl<L: Link> TemperatureAlarm<L> {
-    /// True once the alarm has been raised (it latches).
+    /// True once the alarm has been raised (it latches), whether or not writing it succeeded.
+    pub fn alarm_raised(&self) -> bool {
+        self.raised
+    }
+
+    /// True while the alarm is known to sound: the last write (HIGH) succeeded.
     pub fn alarm_on(&self) -> bool {
-        self.alarm_on
+        self.level == Some(Level::High)
     }
 
     /// The thesis's condition; an unreadable thermistor counts as "alarm" and is reported.
@@ -100,20 +119,30 @@ impl<L: Link> TemperatureAlarm<L> {
             Err(e) => (true, Some(e)),
         }
     }
+
+    /// Writes `level` to the alarm; its level is unknown if that fails.
+    async fn write(&mut self, level: Level) -> Result<(), LinkError> {
+        self.level = None;
+        self.alarm.write_digital(ALARM_PIN, level).await?;
+        self.level = Some(level);
+        self.refresh.restart();
+        Ok(())
+    }
 }
 
 impl<L: Link> Robot for TemperatureAlarm<L> {
     async fn setup(&mut self) -> Result<(), LinkError> {
-        self.alarm.write_digital(ALARM_PIN, Level::Low).await?;
-        self.alarm_on = false;
-        Ok(())
+        self.raised = false;
+        self.write(Level::Low).await
     }
 
     async fn step(&mut self) -> Result<(), LinkError> {
         let (wanted, fault) = self.alarm_wanted().await;
-        if wanted && !self.alarm_on {
-            self.alarm.write_digital(ALARM_PIN, Level::High).await?;
-            self.alarm_on = true;
+        self.raised |= wanted;
+        let level = if self.raised { Level::High } else { Level::Low };
+        let due = self.refresh.tick();
+        if due || self.level != Some(level) {
+            self.write(level).await?;
         }
         match fault {
             Some(e) => Err(e.into()),

@@ -37,6 +37,13 @@
 //! for robot in Program::Fig4_4.build(handle)? { spawner.spawn(robot_task(robot).unwrap()) }
 //! ```
 //!
+//! ## Keeping the actuators driven
+//! The programs send an actuator command when the wanted state changes, and also every
+//! [`REFRESH_STEPS`] steps without a change, and at the next step after a failed call to the
+//! actuator's board. A daughterboard that resets comes back in its safe state without the
+//! program noticing (its calls may not even fail); the periodic re-send restores the state
+//! within [`REFRESH_STEPS`] steps, the re-send after a failure usually at once.
+//!
 //! Adding a module the way Figure 4.4 does is adding a `Robot` type in its own module and
 //! listing it in a program; no existing robot's code changes ([`light_motor`] explains).
 #![no_std]
@@ -48,7 +55,7 @@
 use core::fmt;
 use core::str::FromStr;
 
-use x10_devices::{Address, Error, Link, LinkError, Robot, SELF};
+use x10_devices::{Address, Error, Link, LinkError, Refresh, Robot, SELF};
 
 pub mod fig4_2;
 pub mod fig4_6;
@@ -60,6 +67,20 @@ pub use light_motor::LightMotor;
 
 /// Most robots (tasks) one program has.
 pub const MAX_ROBOTS: usize = 2;
+
+/// Every robot re-sends its actuator state at least every this many steps, changed or not
+/// (see [`x10_devices::Refresh`]), so a daughterboard that reset and fell back to its safe
+/// state (motor coasting, alarm LOW) is driven again within 25 steps: 250 ms at the
+/// simulator's 10 ms step period, 500 ms at the firmware's 20 ms. After a failed call the
+/// state is sent again at the next step (each robot's documentation says which calls).
+pub const REFRESH_STEPS: u16 = 25;
+
+/// [`REFRESH_STEPS`] as a [`Refresh`].
+const REFRESH: Refresh = match Refresh::every(REFRESH_STEPS) {
+    Ok(r) => r,
+    // Evaluated at compile time: a bad constant fails the build, never the robot.
+    Err(_) => panic!("REFRESH_STEPS is at least 1"),
+};
 
 /// The robots of one program, one per task.
 pub type Robots<L> = heapless::Vec<AnyRobot<L>, MAX_ROBOTS>;

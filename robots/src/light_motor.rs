@@ -24,10 +24,12 @@
 //! * Its "off" is `setDigital(LO, HI)` with the PWM left at 50 %: reverse at half power. Here
 //!   off is the H-bridge's stopped state (coast).
 //! * The light sensor is commented "force sensor"; it is an [`AnalogSensor`] here.
-//! * The motor command is sent when the wanted speed changes, not on every pass (as in
-//!   [`crate::fig4_2`]); `setup` stops the motor.
+//! * The motor command is sent when the wanted speed changes, every
+//!   [`crate::REFRESH_STEPS`] steps without a change, and at the next step after any failed
+//!   call to board 9 (it may be resetting), not on every pass (as in [`crate::fig4_2`]);
+//!   `setup` stops the motor.
 
-use x10_devices::{Address, AnalogSensor, DcMotor, Error, Link, LinkError, Robot, Speed};
+use x10_devices::{Address, AnalogSensor, DcMotor, Error, Link, LinkError, Refresh, Robot, Speed};
 
 /// Daughterboard 9 (the thesis's `BOARD2`).
 pub const BOARD: Address = match Address::new(9) {
@@ -53,6 +55,7 @@ pub const RUN_SPEED: Speed = match Speed::new(50) {
 pub struct LightMotor<L> {
     motor: DcMotor<L>,
     light: AnalogSensor<L>,
+    refresh: Refresh,
 }
 
 impl<L: Link + Clone> LightMotor<L> {
@@ -64,28 +67,43 @@ impl<L: Link + Clone> LightMotor<L> {
         Ok(LightMotor {
             motor: DcMotor::new(link.clone(), BOARD, MOTOR_PORT)?,
             light: AnalogSensor::new(link, BOARD, LIGHT_PORT)?,
+            refresh: crate::REFRESH,
         })
     }
 }
 
 impl<L: Link> LightMotor<L> {
-    /// The motor's last commanded speed.
+    /// The motor's last commanded speed; `None` when unknown (before `setup`, after a failed
+    /// call).
     pub fn motor_speed(&self) -> Option<Speed> {
         self.motor.speed()
+    }
+
+    async fn control(&mut self) -> Result<(), LinkError> {
+        let bright = self.light.read_raw().await? > LIGHT_THRESHOLD;
+        let want = if bright { RUN_SPEED } else { Speed::STOP };
+        let due = self.refresh.tick();
+        if due || self.motor.speed() != Some(want) {
+            self.motor.set_speed(want).await?;
+            self.refresh.restart();
+        }
+        Ok(())
     }
 }
 
 impl<L: Link> Robot for LightMotor<L> {
     async fn setup(&mut self) -> Result<(), LinkError> {
-        Ok(self.motor.stop().await?)
+        self.motor.stop().await?;
+        self.refresh.restart();
+        Ok(())
     }
 
     async fn step(&mut self) -> Result<(), LinkError> {
-        let bright = self.light.read_raw().await? > LIGHT_THRESHOLD;
-        let want = if bright { RUN_SPEED } else { Speed::STOP };
-        if self.motor.speed() != Some(want) {
-            self.motor.set_speed(want).await?;
+        let result = self.control().await;
+        if result.is_err() {
+            // Board 9 may be resetting: send the motor command again at the next step.
+            self.motor.invalidate();
         }
-        Ok(())
+        result
     }
 }

@@ -76,9 +76,20 @@ impl<L: Link> DcMotor<L> {
     }
 
     /// The speed last set successfully; `None` before the first, after a failed command (the
-    /// bridge may be half-way) and after [`DcMotor::brake`].
+    /// bridge may be half-way), after [`DcMotor::brake`] and after [`DcMotor::invalidate`].
     pub fn speed(&self) -> Option<Speed> {
         self.speed
+    }
+
+    /// Forgets the speed (sends nothing): [`DcMotor::speed`] is `None` until the next
+    /// successful [`DcMotor::set_speed`], so a program that compares it with the speed it
+    /// wants sends the command again, and [`DcMotor::ramp_to`] starts from 0.
+    ///
+    /// Call it when the board may have lost the state without a failed motor command: after
+    /// any failed call to the motor's board (a NACK or timeout may be the board resetting,
+    /// and a reset leaves the bridge coasting), or when the board reports a boot.
+    pub fn invalidate(&mut self) {
+        self.speed = None;
     }
 
     /// Sets the speed at once (three writes, see [`HBridge`]).

@@ -32,6 +32,8 @@ pub enum Quantity {
     CalibrationSpan,
     /// The speed of sound in m/s.
     SpeedOfSound,
+    /// The interval of a [`crate::Refresh`] in steps.
+    RefreshSteps,
 }
 
 /// A value outside the range its type allows. Nothing was sent.

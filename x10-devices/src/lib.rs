@@ -14,6 +14,10 @@
 //!   [`Button`], [`AnalogSensor`], [`Ultrasonic`]. Each is a few dozen lines; their arithmetic
 //!   lives in [`math`], where it is tested from raw numbers.
 //!
+//! [`Refresh`] tells a control loop when to re-send an actuator state that did not change, so
+//! a board that reset (and fell back to its safe state) is driven again within a bounded number
+//! of steps.
+//!
 //! Units and ranges are types ([`Speed`], [`Percent`], [`Duty`], [`Celsius`], …): an
 //! out-of-range value is a [`RangeError`] when the value is made, before anything is sent.
 //! Every driver method returns [`Error`]; `docs/drivers.md` lists the exact microcode each
@@ -41,6 +45,7 @@ mod hbridge;
 mod link;
 pub mod math;
 mod port;
+mod refresh;
 mod robot;
 mod servo;
 #[cfg(feature = "testing")]
@@ -58,6 +63,7 @@ pub use hbridge::HBridge;
 pub use link::{Link, LinkError, PinEvent};
 pub use math::{Calibration, Divider, SteinhartHart};
 pub use port::{Actuator, Sensor};
+pub use refresh::Refresh;
 pub use robot::Robot;
 pub use servo::{Servo, ServoConfig};
 pub use thermistor::{Thermistor, ThermistorConfig};

@@ -6,8 +6,8 @@ use x10_devices::testing::RecordingLink;
 use x10_devices::{
     Address, AnalogSensor, Button, ButtonState, Calibration, Celsius, DcMotor, Degrees, Divider,
     Duty, Error, EventKind, HBridge, LinkError, Millimetres, Pin, PinEvent, Quantity, Ramp,
-    RangeError, Servo, ServoConfig, Speed, Status, SteinhartHart, Thermistor, ThermistorConfig,
-    Ultrasonic, UltrasonicConfig, SELF,
+    RangeError, Refresh, Servo, ServoConfig, Speed, Status, SteinhartHart, Thermistor,
+    ThermistorConfig, Ultrasonic, UltrasonicConfig, SELF,
 };
 
 fn db(n: u8) -> Address {
@@ -250,6 +250,74 @@ fn motor_ramp_stops_at_a_failure() {
     assert_eq!(delay.log, vec![(3, 5_000_000)]);
     assert_eq!(m.speed(), None);
     link.finish();
+}
+
+#[test]
+fn motor_invalidate_forgets_the_speed_so_it_is_sent_again() {
+    let link = RecordingLink::<32>::new();
+    let mut m = DcMotor::new(&link, db(9), 1).unwrap();
+    let ramp = Ramp::new(100, 0).unwrap();
+    let mut delay = LogDelay {
+        link: &link,
+        log: Vec::new(),
+    };
+    link.acks(3);
+    block_on(m.set_speed(Speed::new(-50).unwrap())).unwrap();
+    link.assert_sent(&[
+        &[0x11, 0x09, 0x00, 0x00],
+        &[0x12, 0x09, 0x01, 0x01],
+        &[0x20, 0x09, 0x00, 0x02, 127],
+    ]);
+    // Known: a ramp to the same speed sends nothing.
+    block_on(m.ramp_to(Speed::new(-50).unwrap(), ramp, &mut delay)).unwrap();
+    link.assert_sent(&[]);
+    // Forgotten (the board may have reset): nothing is sent by invalidate itself...
+    m.invalidate();
+    assert_eq!(m.speed(), None);
+    link.assert_sent(&[]);
+    // ...and the same ramp now drives the bridge again, from 0 in one step of 100 %.
+    link.acks(3);
+    block_on(m.ramp_to(Speed::new(-50).unwrap(), ramp, &mut delay)).unwrap();
+    link.assert_sent(&[
+        &[0x11, 0x09, 0x00, 0x03],
+        &[0x12, 0x09, 0x01, 0x04],
+        &[0x20, 0x09, 0x00, 0x05, 127],
+    ]);
+    assert_eq!(m.speed(), Some(Speed::new(-50).unwrap()));
+    assert!(delay.log.is_empty());
+    link.finish();
+}
+
+#[test]
+fn refresh_is_due_every_n_steps_until_restarted() {
+    assert_eq!(
+        Refresh::every(0),
+        Err(RangeError {
+            quantity: Quantity::RefreshSteps,
+            value: 0,
+            min: 1,
+            max: 65_535
+        })
+    );
+    let mut every_step = Refresh::every(1).unwrap();
+    assert_eq!(every_step.steps(), 1);
+    assert!(every_step.tick());
+    every_step.restart();
+    assert!(every_step.tick());
+
+    let mut r = Refresh::every(4).unwrap();
+    let due: Vec<bool> = (0..6).map(|_| r.tick()).collect();
+    assert_eq!(due, [false, false, false, true, true, true]);
+    r.restart();
+    let due: Vec<bool> = (0..4).map(|_| r.tick()).collect();
+    assert_eq!(due, [false, false, false, true]);
+
+    // The count saturates: never wraps back to "not due".
+    let mut longest = Refresh::every(u16::MAX).unwrap();
+    assert_eq!((1..u16::MAX).filter(|_| longest.tick()).count(), 0);
+    assert!(longest.tick());
+    assert!(longest.tick());
+    assert!(longest.tick());
 }
 
 #[test]
