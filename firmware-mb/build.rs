@@ -1,0 +1,67 @@
+//! Build script of the motherboard images (nothing happens for host builds):
+//!
+//! * the robot program: `X10_ROBOT` names one of `x10_robots::names()` (default `fig4_2`);
+//!   it becomes `$OUT_DIR/robot.rs`, which the images include, so the image runs exactly the
+//!   program the simulator runs under that name. An unknown name stops the build and lists
+//!   the programs.
+//! * link arguments, as in firmware-db's build script: `link.x` (with the workspace root's
+//!   `memory.x`; `__x10_stm32g431` selects the STM32G431 values in it), `link-rp.x` for the
+//!   Pico, `defmt.x`.
+
+use std::env;
+
+/// Program run when `X10_ROBOT` is not set: the one that needs no daughterboard.
+#[cfg(feature = "_chip")]
+const DEFAULT_ROBOT: &str = "fig4_2";
+
+fn main() {
+    println!("cargo:rerun-if-changed=build.rs");
+    #[cfg(feature = "_chip")]
+    robot();
+    if env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
+        return;
+    }
+    if let Some(dir) = env::var_os("CARGO_MANIFEST_DIR") {
+        let memory_x = std::path::Path::new(&dir).join("../memory.x");
+        println!("cargo:rerun-if-changed={}", memory_x.display());
+    }
+    println!("cargo:rustc-link-arg-bins=--nmagic");
+    println!("cargo:rustc-link-arg-bins=-Tlink.x");
+    if env::var_os("CARGO_FEATURE_RP2040").is_some() {
+        println!("cargo:rustc-link-arg-bins=-Tlink-rp.x");
+    }
+    if env::var_os("CARGO_FEATURE_STM32G431").is_some() {
+        println!("cargo:rustc-link-arg-bins=--defsym=__x10_stm32g431=1");
+    }
+    println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
+}
+
+/// Writes `$OUT_DIR/robot.rs` for the program named by `X10_ROBOT`.
+#[cfg(feature = "_chip")]
+fn robot() {
+    use std::path::PathBuf;
+    use std::process::exit;
+
+    println!("cargo:rerun-if-env-changed=X10_ROBOT");
+    let name = env::var("X10_ROBOT").unwrap_or_else(|_| DEFAULT_ROBOT.to_owned());
+    let Some(program) = x10_robots::Program::from_name(&name) else {
+        eprintln!(
+            "X10_ROBOT={name:?} is not a robot program; the programs are: {}",
+            x10_robots::names().join(", ")
+        );
+        exit(1);
+    };
+    let code = format!(
+        "/// The robot program of this image (`X10_ROBOT={name}`): {desc}\n\
+         const PROGRAM: x10_robots::Program = x10_robots::Program::{program:?};\n",
+        desc = program.description(),
+    );
+    let Some(out) = env::var_os("OUT_DIR").map(PathBuf::from) else {
+        eprintln!("OUT_DIR is not set: not run by cargo?");
+        exit(1);
+    };
+    if let Err(e) = std::fs::write(out.join("robot.rs"), code) {
+        eprintln!("cannot write {}: {e}", out.join("robot.rs").display());
+        exit(1);
+    }
+}

@@ -1,0 +1,78 @@
+//! # x10-boards: the chip code of the X10 boards
+//!
+//! Everything that the motherboard (MB) and daughterboard (DB) images of one board share, and
+//! nothing the portable runtimes decide:
+//!
+//! * the pin map, one table per board ([`pins::PICO`], [`pins::G431`]), also shown in
+//!   `docs/boards.md` (a host test keeps the two equal);
+//! * the bus: [`x10_hal::bus::MultiMaster`] for the RP2040 (`pico::PicoBus`, switching the I2C
+//!   block between controller and target, only while the bus is idle) and for the STM32G431
+//!   (`g431::G431Bus`, one I2C v2 `MultiMaster` handle);
+//! * the ports: [`x10_hal::ports::Ports`] for each board (`pico::PicoPorts`,
+//!   `g431::G431Ports`), used by a DB image and by the internal daughterboard of an MB image;
+//! * the clock: [`EmbassyClock`], [`x10_hal::time::Clock`] on embassy-time;
+//! * the DB address: a build-time base plus jumpers read at boot ([`address`]).
+//!
+//! Retries, backoff, timeouts and the choice of when to be controller or target belong to the
+//! runtimes and `x10-hal`; the adapters here only translate calls and errors, and refuse to
+//! take the controller role while the bus is in use (which the runtimes see as arbitration
+//! lost, and retry).
+//!
+//! The images themselves (`main`, tasks, defmt-rtt, panic-probe) are the bins of firmware-mb
+//! and firmware-db.
+//!
+//! Features: `rp2040`, `stm32g431` (one per build: each brings its HAL and critical section),
+//! `time` (only [`EmbassyClock`]). Without any, only the portable parts compile:
+//! the pin tables, PWM arithmetic ([`pwm`]), pulse-in edge logic ([`pulse`]) and addresses,
+//! all tested on the host.
+#![no_std]
+
+#[macro_use]
+pub mod pins;
+pub mod address;
+pub mod pulse;
+pub mod pwm;
+
+#[cfg(feature = "time")]
+mod clock;
+#[cfg(feature = "time")]
+pub use clock::EmbassyClock;
+
+#[cfg(all(feature = "rp2040", feature = "stm32g431"))]
+compile_error!("features `rp2040` and `stm32g431` are exclusive: build one image per cargo call");
+
+#[cfg(feature = "rp2040")]
+pub mod pico;
+
+#[cfg(feature = "stm32g431")]
+pub mod g431;
+
+/// How a board's bus adapter is set up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BusConfig {
+    /// This node's own 7-bit address (where it listens as a target).
+    pub own_address: u8,
+    /// SCL frequency in Hz (100 kHz, 400 kHz or 1 MHz).
+    pub frequency_hz: u32,
+    /// Longest one controller transaction or one answer to a read may take, clock stretching
+    /// included, before it fails with `BusError::Timeout`.
+    pub timeout_us: u32,
+}
+
+impl BusConfig {
+    /// Standard-mode I2C (100 kHz, as the thesis's Arduino boards run) and a 20 ms timeout: the
+    /// longest transfer (a 36-byte frame out and a 32-byte reply back) takes about 6.3 ms at
+    /// 100 kHz.
+    pub const fn standard(own_address: u8) -> BusConfig {
+        BusConfig {
+            own_address,
+            frequency_hz: 100_000,
+            timeout_us: 20_000,
+        }
+    }
+}
+
+/// Receive buffer size of the adapters: the longest frame plus one byte, so that a longer
+/// write is seen (and answered `BusError::Overrun`) instead of being cut silently.
+pub const RX_LEN: usize = x10_microcode::MAX_FRAME_LEN + 1;

@@ -1,0 +1,192 @@
+//! PWM arithmetic shared by the chip modules: which counter setup gives a frequency, and which
+//! compare value gives a duty cycle or a pulse width. Pure integer math, tested on the host;
+//! the chip modules only write the results into registers.
+
+/// Frequency of every PWM port after boot, in Hz (until `pwm_frequency` changes it).
+pub const DEFAULT_HZ: u16 = 1_000;
+
+/// Fewest counter steps per period accepted: below this an 8-bit duty loses resolution, so
+/// such frequencies are answered `unsupported`.
+pub const MIN_COUNTS: u32 = 256;
+
+/// What a PWM pin was last told, kept so that a frequency change can recompute its compare
+/// value and the pin keeps its duty cycle or its pulse width.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Output {
+    /// A duty cycle, 0 (always low) to 255 (always high).
+    Duty(u8),
+    /// A high time per period, in µs.
+    PulseUs(u16),
+}
+
+impl Output {
+    /// Off.
+    pub const OFF: Output = Output::Duty(0);
+}
+
+/// The counter setup of an RP2040 PWM slice.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SliceTiming {
+    /// Clock divider in 1/16 steps (16 = divide by 1, the largest is 4095 = 255 15/16).
+    pub div16: u16,
+    /// TOP: the counter counts 0..=top, so a period is `top + 1` counts.
+    pub top: u16,
+}
+
+/// The counter setup that makes an RP2040 PWM slice (clocked at `sys_hz`) run at `hz`, with
+/// the smallest divider (hence the finest duty resolution). `None` when `hz` is 0, below what
+/// the largest divider reaches, or so high that a period has fewer than [`MIN_COUNTS`] steps.
+pub fn rp2040_slice(sys_hz: u32, hz: u16) -> Option<SliceTiming> {
+    if hz == 0 {
+        return None;
+    }
+    // Period in 1/16 clock cycles.
+    let period16 = u64::from(sys_hz) * 16 / u64::from(hz);
+    let div16 = period16.div_ceil(65_536).max(16);
+    if div16 > 4_095 {
+        return None;
+    }
+    let counts = (period16 + div16 / 2) / div16;
+    if counts < u64::from(MIN_COUNTS) || counts > 65_536 {
+        return None;
+    }
+    Some(SliceTiming {
+        div16: div16 as u16,
+        top: (counts - 1) as u16,
+    })
+}
+
+/// Whether an STM32 timer clocked at `timer_hz` can run at `hz` with at least [`MIN_COUNTS`]
+/// steps per period (the prescaler reaches the low end of `u16` frequencies on every timer
+/// clock up to 170 MHz).
+pub fn stm32_frequency_ok(timer_hz: u32, hz: u16) -> bool {
+    hz != 0 && timer_hz / u32::from(hz) >= MIN_COUNTS
+}
+
+/// A PWM unit's time base: how many counts a period has, and how fast the counter ticks
+/// (`tick_num / tick_den` counts per second).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Timebase {
+    /// Counts per period; a compare value of `counts` is always high.
+    pub counts: u32,
+    /// Tick rate numerator (counts per second × `tick_den`).
+    pub tick_num: u64,
+    /// Tick rate denominator (not 0).
+    pub tick_den: u64,
+}
+
+impl Timebase {
+    /// The time base of an RP2040 slice clocked at `sys_hz`.
+    pub fn rp2040(sys_hz: u32, t: SliceTiming) -> Timebase {
+        Timebase {
+            counts: u32::from(t.top) + 1,
+            tick_num: u64::from(sys_hz) * 16,
+            tick_den: u64::from(t.div16.max(1)),
+        }
+    }
+
+    /// The time base of a timer that runs at `hz` with `counts` counts per period (what
+    /// embassy-stm32's `SimplePwm` reports as frequency and maximum duty).
+    pub fn from_frequency(hz: u32, counts: u32) -> Timebase {
+        Timebase {
+            counts,
+            tick_num: u64::from(hz) * u64::from(counts),
+            tick_den: 1,
+        }
+    }
+
+    /// The compare value for `out`: duty `d` gives `round(d · counts / 255)`; a pulse of
+    /// `us` µs gives `round(us · tick rate / 10^6)`. `None` when the pulse is longer than a
+    /// period.
+    pub fn compare(&self, out: Output) -> Option<u32> {
+        match out {
+            Output::Duty(d) => {
+                let c = (u64::from(d) * u64::from(self.counts) + 127) / 255;
+                Some(c as u32)
+            }
+            Output::PulseUs(us) => {
+                let den = self.tick_den.max(1) * 1_000_000;
+                let c = (u64::from(us) * self.tick_num + den / 2) / den;
+                u32::try_from(c).ok().filter(|&c| c <= self.counts)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SYS: u32 = 125_000_000;
+
+    #[test]
+    fn rp2040_default_frequency() {
+        // 125 MHz / 1 kHz = 125 000 cycles = 2 000 000 sixteenths: divider
+        // ceil(2 000 000 / 65 536) = 31/16, round(2 000 000 / 31) = 64 516 counts.
+        let t = rp2040_slice(SYS, 1_000).unwrap();
+        assert_eq!(
+            t,
+            SliceTiming {
+                div16: 31,
+                top: 64_515
+            }
+        );
+        let tb = Timebase::rp2040(SYS, t);
+        assert_eq!(tb.counts, 64_516);
+        assert_eq!(tb.compare(Output::Duty(0)), Some(0));
+        assert_eq!(tb.compare(Output::Duty(255)), Some(64_516));
+        assert_eq!(tb.compare(Output::Duty(128)), Some(32_385));
+        // 1.5 ms = 1.5 periods at 1 kHz: too long.
+        assert_eq!(tb.compare(Output::PulseUs(1_500)), None);
+        assert_eq!(tb.compare(Output::PulseUs(1_000)), Some(64_516));
+        assert_eq!(tb.compare(Output::PulseUs(250)), Some(16_129));
+    }
+
+    #[test]
+    fn rp2040_servo_frequency() {
+        // 50 Hz: 2 500 000 cycles, divider ceil(40 000 000 / 65 536) = 611/16 = 38.1875.
+        let t = rp2040_slice(SYS, 50).unwrap();
+        assert_eq!(t.div16, 611);
+        assert_eq!(t.top, 65_465); // round(40 000 000 / 611) - 1
+        let tb = Timebase::rp2040(SYS, t);
+        // 1.5 ms at 125 MHz / 38.1875 = 3 273 322 ticks/s → 4 910 counts.
+        assert_eq!(tb.compare(Output::PulseUs(1_500)), Some(4_910));
+        assert_eq!(tb.compare(Output::PulseUs(20_000)), Some(65_466));
+        assert_eq!(tb.compare(Output::PulseUs(20_001)), None);
+    }
+
+    #[test]
+    fn rp2040_limits() {
+        assert_eq!(rp2040_slice(SYS, 0), None);
+        // Lowest: 125 MHz / (255.9375 · 65 536) = 7.45 Hz.
+        assert_eq!(rp2040_slice(SYS, 7), None);
+        assert!(rp2040_slice(SYS, 8).is_some());
+        // Highest with 256 counts: 488 281 Hz, above u16; 65 535 Hz gives 1 907 counts.
+        assert_eq!(rp2040_slice(SYS, 65_535).unwrap().top, 1_906);
+        // A 10 MHz clock gives only 153 counts at 65 535 Hz.
+        assert_eq!(rp2040_slice(10_000_000, 65_535), None);
+        assert_eq!(rp2040_slice(10_000_000, 39_062).unwrap().top, 255);
+    }
+
+    #[test]
+    fn stm32_limits() {
+        assert!(stm32_frequency_ok(170_000_000, 65_535));
+        assert!(stm32_frequency_ok(16_000_000, 62_500));
+        assert!(!stm32_frequency_ok(16_000_000, 62_501));
+        assert!(!stm32_frequency_ok(16_000_000, 0));
+        assert!(stm32_frequency_ok(16_000_000, 1));
+    }
+
+    #[test]
+    fn from_frequency_pulse() {
+        // 50 Hz, 64 000 counts (16 MHz / 5 / 64 000): 20 ms per period.
+        let tb = Timebase::from_frequency(50, 64_000);
+        assert_eq!(tb.compare(Output::PulseUs(1_000)), Some(3_200));
+        assert_eq!(tb.compare(Output::PulseUs(20_000)), Some(64_000));
+        assert_eq!(tb.compare(Output::PulseUs(20_001)), None);
+        assert_eq!(tb.compare(Output::Duty(255)), Some(64_000));
+    }
+}
