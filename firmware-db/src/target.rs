@@ -14,6 +14,13 @@ use crate::daughterboard::{bump, Daughterboard};
 use crate::event::OutEvent;
 use x10_hal::ports::Ports;
 
+/// Attempts of one event that may fail because the board was being addressed without
+/// counting against its [`x10_hal::retry::RetryPolicy`] (see [`run_target`]). Past this many
+/// the attempts count again, so an event cannot be postponed forever by a motherboard that
+/// polls the board back to back and wins every arbitration (an MB whose own address is not the
+/// lowest on the bus).
+pub const MAX_EVENT_YIELDS: u8 = 16;
+
 /// Serves the bus for `db`; never returns.
 ///
 /// While no event is waiting the port listens at the board's address: a write is executed
@@ -22,12 +29,30 @@ use x10_hal::ports::Ports;
 /// error (a write too long for the buffer) counts as `bad_length`.
 ///
 /// When an event is queued the port becomes a brief master and writes it to
-/// `config.mb_address` (with PEC when negotiated). NACK, arbitration loss, bus timeout or
-/// fault make it wait the [`Backoff`] delay of `config.retry`, listening meanwhile (the MB may
-/// be talking to this board: that is often why arbitration was lost), and try again; every
-/// retry counts in `event_retries`, every arbitration loss in `arbitration_lost`, every
+/// `config.mb_address` (with PEC when negotiated). A failed attempt waits while listening (the
+/// MB may be talking to this board: that is often why the write could not go out), then the
+/// event is tried again:
+///
+/// * `ArbitrationLost` or `Nack`, and within the wait a transaction addressed to this board is
+///   served: this board was being addressed (a port that sees its own address while its write
+///   waits for the bus gives up with `ArbitrationLost`, see [`MultiMaster`]). The event is
+///   retried right after serving that transaction and the attempt does not count: the bus
+///   frees after the STOP, and an event to the MB's (lowest) address wins the arbitration
+///   against the MB's next request. At most [`MAX_EVENT_YIELDS`] attempts per event are
+///   forgiven this way. The wait is the [`Backoff`] delay of `config.retry` (or its
+///   `base_us` once the attempts are used up);
+/// * otherwise (and for `Timeout` or `Bus`) the attempt counts: the [`Backoff`] delay is
+///   waited out, listening, and the event is tried again.
+///
+/// Every retry counts in `event_retries`, every arbitration loss in `arbitration_lost`, every
 /// delivery in `events_sent`. When the attempts are used up the event is dropped, counted in
 /// `events_dropped` and reported by an overflow event.
+///
+/// After an event has been dropped this way the MB is taken to be gone (reset, crashed,
+/// unpowered): the board sends nothing more and only listens, so a dead MB does not turn into
+/// a bus flooded with retries. Events meanwhile wait in the queue (and what does not fit is
+/// counted in `events_dropped`); the first transaction addressed to the board shows the MB is
+/// back, and delivery resumes with the queued events and the overflow report.
 ///
 /// Run it next to [`Daughterboard::run_background`] (or use [`run`], which joins both).
 pub async fn run_target<M, P, B, C>(
@@ -45,13 +70,23 @@ where
     let mut rx = [0u8; MAX_FRAME_LEN];
     let mut tx = [0u8; MAX_FRAME_LEN];
     let mut sent: u32 = 0;
+    // False once an event could not be delivered, until the MB addresses this board again.
+    let mut mb_present = true;
     loop {
+        if !mb_present {
+            let incoming = bus.listen(&mut rx).await;
+            mb_present = serve(db, &mut bus, incoming, &rx, &mut tx).await;
+            continue;
+        }
         let r = select(bus.listen(&mut rx), db.next_event()).await;
         match r {
-            Either::First(incoming) => serve(db, &mut bus, incoming, &rx, &mut tx).await,
+            Either::First(incoming) => {
+                serve(db, &mut bus, incoming, &rx, &mut tx).await;
+            }
             Either::Second(ev) => {
                 sent = sent.wrapping_add(1);
-                deliver(db, &mut bus, &clock, &config, &ev, sent, &mut rx, &mut tx).await;
+                mb_present =
+                    deliver(db, &mut bus, &clock, &config, &ev, sent, &mut rx, &mut tx).await;
             }
         }
     }
@@ -74,14 +109,15 @@ where
     never
 }
 
-/// Serves one transaction addressed to the board.
+/// Serves one transaction; true when it was addressed to the board (including a write too
+/// long for the buffer).
 async fn serve<M: RawMutex, P: Ports, B: MultiMaster>(
     db: &Daughterboard<M, P>,
     bus: &mut B,
     incoming: Result<Incoming, BusError>,
     rx: &[u8],
     tx: &mut [u8],
-) {
+) -> bool {
     match incoming {
         Ok(Incoming::Write(n)) => db.handle_write(rx.get(..n).unwrap_or(rx), false).await,
         Ok(Incoming::WriteRead(n)) => {
@@ -97,11 +133,13 @@ async fn serve<M: RawMutex, P: Ports, B: MultiMaster>(
             db.with(|s| bump(&mut s.diag.bad_length));
             db.heard.signal(());
         }
-        Err(_) => {}
+        Err(_) => return false,
     }
+    true
 }
 
-/// Delivers one event, retrying with backoff while serving the listener.
+/// Delivers one event, retrying with backoff while serving the listener. False when it was
+/// dropped because every attempt failed (the MB is taken to be gone).
 #[allow(clippy::too_many_arguments)]
 async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
     db: &Daughterboard<M, P>,
@@ -112,42 +150,61 @@ async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
     nth: u32,
     rx: &mut [u8],
     tx: &mut [u8],
-) {
+) -> bool {
     let mut frame = [0u8; MAX_FRAME_LEN];
     let len = db.encode_event(ev, config.mb_address, &mut frame);
     let Some(bytes) = frame.get(..len).filter(|b| !b.is_empty()) else {
         db.event_lost();
-        return;
+        return true;
     };
     let seed = (u32::from(db.address().get()) << 24) ^ nth;
     let mut backoff = Backoff::new(config.retry, seed);
+    let mut yields: u8 = 0;
     loop {
-        match bus.write(config.mb_address.get(), bytes).await {
+        let e = match bus.write(config.mb_address.get(), bytes).await {
             Ok(()) => {
                 db.with(|s| bump(&mut s.diag.events_sent));
-                return;
+                return true;
             }
-            Err(e) => {
-                if e == BusError::ArbitrationLost {
-                    db.with(|s| bump(&mut s.diag.arbitration_lost));
-                }
-                match backoff.next_delay_us() {
-                    Some(delay) => {
-                        db.with(|s| bump(&mut s.diag.event_retries));
-                        let until = clock.now().plus_us(u64::from(delay));
-                        listen_until(db, bus, clock, until, rx, tx).await;
-                    }
-                    None => {
-                        db.event_lost();
-                        return;
-                    }
-                }
-            }
+            Err(e) => e,
+        };
+        if e == BusError::ArbitrationLost {
+            db.with(|s| bump(&mut s.diag.arbitration_lost));
         }
+        // The attempt counts only if nobody addresses us while we wait: decide on a copy.
+        let mut counted = backoff.clone();
+        let delay = counted.next_delay_us();
+        let may_yield =
+            matches!(e, BusError::ArbitrationLost | BusError::Nack) && yields < MAX_EVENT_YIELDS;
+        if may_yield {
+            let wait = delay.unwrap_or(config.retry.base_us);
+            let until = clock.now().plus_us(u64::from(wait));
+            if listen_until(db, bus, clock, until, rx, tx, true).await {
+                yields += 1;
+                db.with(|s| bump(&mut s.diag.event_retries));
+                continue;
+            }
+            backoff = counted;
+            if delay.is_none() {
+                db.event_lost();
+                return false;
+            }
+            db.with(|s| bump(&mut s.diag.event_retries));
+            continue;
+        }
+        backoff = counted;
+        let Some(delay) = delay else {
+            db.event_lost();
+            return false;
+        };
+        db.with(|s| bump(&mut s.diag.event_retries));
+        let until = clock.now().plus_us(u64::from(delay));
+        listen_until(db, bus, clock, until, rx, tx, false).await;
     }
 }
 
-/// Serves the listener until `until`.
+/// Serves the listener until `until`, or, with `stop_when_addressed`, until the first
+/// transaction addressed to the board has been served. True when one was served.
 async fn listen_until<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
     db: &Daughterboard<M, P>,
     bus: &mut B,
@@ -155,12 +212,19 @@ async fn listen_until<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
     until: Instant,
     rx: &mut [u8],
     tx: &mut [u8],
-) {
+    stop_when_addressed: bool,
+) -> bool {
+    let mut served = false;
     loop {
         let r = select(bus.listen(rx), clock.sleep_until(until)).await;
         match r {
-            Either::First(incoming) => serve(db, bus, incoming, rx, tx).await,
-            Either::Second(()) => return,
+            Either::First(incoming) => {
+                served |= serve(db, bus, incoming, rx, tx).await;
+                if served && stop_when_addressed {
+                    return true;
+                }
+            }
+            Either::Second(()) => return served,
         }
     }
 }

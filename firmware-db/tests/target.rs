@@ -61,19 +61,19 @@ fn boot_event_is_written_to_the_mb_then_requests_are_served() {
 #[test]
 fn events_are_retried_with_backoff_while_listening() {
     let (clock, db, bus, tcfg) = setup();
-    // boot event: NACK, arbitration lost, then delivered
-    bus.script_writes(&[Err(BusError::Nack), Err(BusError::ArbitrationLost)]);
+    // boot event: bus timeout, arbitration lost (nobody addresses us), then delivered
+    bus.script_writes(&[Err(BusError::Timeout), Err(BusError::ArbitrationLost)]);
     let fut = run(&db, bus.clone(), &clock, tcfg);
     let mut fut = core::pin::pin!(fut);
-    run_until(&clock, 0, fut.as_mut());
-    // during the first backoff the MB talks to us: we answer
+    run_until(&clock, 50, fut.as_mut());
+    // during the first backoff the MB talks to us: we answer, and keep waiting
     bus.push(Txn::WriteRead(vec![0x00, 0x09, 0x00, 0x01]));
     run_until(&clock, 10_000, fut.as_mut());
     let ops = bus.take_ops();
     let frame = boot_frame(&db);
     assert_eq!(ops.len(), 4, "{ops:?}");
     assert_eq!(ops[0], (0, BusOp::Write(MB, frame.clone())));
-    assert_eq!(ops[1], (0, BusOp::Respond(vec![0x01, 0x00, 0x00])));
+    assert_eq!(ops[1], (50, BusOp::Respond(vec![0x01, 0x00, 0x00])));
     assert_eq!(ops[2].1, BusOp::Write(MB, frame.clone()));
     assert_eq!(ops[3].1, BusOp::Write(MB, frame));
     // backoff: first delay in 100..150 µs, second in 200..300 µs after the first retry
@@ -89,6 +89,82 @@ fn events_are_retried_with_backoff_while_listening() {
 }
 
 #[test]
+fn an_attempt_lost_to_a_transaction_addressed_to_us_is_retried_at_once_and_not_counted() {
+    let (clock, db, bus, tcfg) = setup();
+    // The MB polls us back to back: each time the event is about to go out, the MB's next
+    // request to us has the bus (the port gives up its waiting write: arbitration lost, or
+    // a single-role MB NACKs). 3 attempts are allowed; 5 such failures must not drop it.
+    let ping = |seq| Txn::WriteRead(vec![0x00, 0x09, 0x00, seq]);
+    for seq in 1..=5 {
+        let e = if seq == 3 {
+            BusError::Nack
+        } else {
+            BusError::ArbitrationLost
+        };
+        bus.script_addressed(e, ping(seq));
+    }
+    let fut = run(&db, bus.clone(), &clock, tcfg);
+    let mut fut = core::pin::pin!(fut);
+    run_until(&clock, 10_000, fut.as_mut());
+    let frame = boot_frame(&db);
+    let mut expected = Vec::new();
+    for seq in 1..=5u8 {
+        expected.push((0, BusOp::Write(MB, frame.clone())));
+        expected.push((0, BusOp::Respond(vec![seq, 0x00, 0x00])));
+    }
+    // each retry right after serving the request, at the same instant: no backoff
+    expected.push((0, BusOp::Write(MB, frame)));
+    assert_eq!(bus.take_ops(), expected);
+    let d = db.diagnostics();
+    assert_eq!(
+        (d.events_sent, d.event_retries, d.arbitration_lost),
+        (1, 5, 4)
+    );
+    assert_eq!((d.events_dropped, d.frames_ok), (0, 5));
+}
+
+#[test]
+fn forgiven_attempts_are_bounded_and_a_dropped_event_is_still_reported() {
+    let (clock, db, bus, tcfg) = setup();
+    // An MB that wins every arbitration while polling us: 16 forgiven attempts, then the
+    // 3 attempts of the policy, then the event is dropped and reported.
+    let n = usize::from(firmware_db::MAX_EVENT_YIELDS) + 3;
+    for i in 0..n {
+        bus.script_addressed(
+            BusError::ArbitrationLost,
+            Txn::WriteRead(vec![0x00, 0x09, 0x00, i as u8]),
+        );
+    }
+    let fut = run(&db, bus.clone(), &clock, tcfg);
+    let mut fut = core::pin::pin!(fut);
+    run_until(&clock, 10_000, fut.as_mut());
+    let ops = bus.take_ops();
+    let writes: Vec<u64> = ops
+        .iter()
+        .filter(|(_, op)| matches!(op, BusOp::Write(..)))
+        .map(|(t, _)| *t)
+        .collect();
+    // n attempts at the boot event, then the overflow report
+    assert_eq!(writes.len(), n + 1, "{ops:?}");
+    assert!(writes[..=16].iter().all(|&t| t == 0), "{writes:?}");
+    // counted attempts wait out their backoff although we were addressed at once
+    assert!((100..150).contains(&writes[17]), "{writes:?}");
+    assert!(
+        (200..300).contains(&(writes[18] - writes[17])),
+        "{writes:?}"
+    );
+    assert_eq!(
+        ops.last().unwrap().1,
+        BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00])
+    );
+    let d = db.diagnostics();
+    assert_eq!(
+        (d.events_sent, d.event_retries, d.events_dropped),
+        (1, n as u16 - 1, 1)
+    );
+}
+
+#[test]
 fn an_undeliverable_event_is_dropped_counted_and_reported() {
     let (clock, db, bus, tcfg) = setup();
     bus.script_writes(&[Err(BusError::Nack); 3]);
@@ -96,10 +172,23 @@ fn an_undeliverable_event_is_dropped_counted_and_reported() {
     let mut fut = core::pin::pin!(fut);
     run_until(&clock, 10_000, fut.as_mut());
     let ops = bus.take_ops();
-    assert_eq!(ops.len(), 4, "{ops:?}");
-    // three attempts at the boot event, then the overflow report (counter 1, one dropped)
+    // three attempts at the boot event; then the MB is taken to be gone: nothing more is sent
+    assert_eq!(ops.len(), 3, "{ops:?}");
+    let d = db.diagnostics();
     assert_eq!(
-        ops[3].1,
+        (d.events_sent, d.event_retries, d.events_dropped),
+        (0, 2, 1)
+    );
+    // Still silent much later: a dead MB does not get a bus flooded with retries.
+    run_until(&clock, 500_000, fut.as_mut());
+    assert_eq!(bus.take_ops(), vec![]);
+    // The MB is back (it sends a heartbeat): the overflow report (counter 1, one dropped) goes.
+    bus.push(Txn::Write(vec![0x02, 0x09, 0x00, 0x05]));
+    run_until(&clock, 510_000, fut.as_mut());
+    let ops = bus.take_ops();
+    assert_eq!(ops.len(), 1, "{ops:?}");
+    assert_eq!(
+        ops[0].1,
         BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00])
     );
     let d = db.diagnostics();

@@ -20,6 +20,13 @@ pub struct MbConfig {
     pub default_pulse_timeout_ms: u16,
     /// Retries of one bus transaction after NACK or arbitration loss.
     pub retry: RetryPolicy,
+    /// After losing arbitration the dispatcher listens at least this long (µs) before it
+    /// retries, unless a write to the motherboard (the event that won) arrives first: then it
+    /// retries at once. Keep it longer than a daughterboard's first event retry after a
+    /// NACK (`RetryPolicy::DEFAULT`: under 150 µs) plus that NACKed write (up to 100 µs at
+    /// 100 kHz), so that the event that beat an MB whose role switch is too slow to ACK it
+    /// finds the MB listening on its first retry, instead of colliding with the MB's retry.
+    pub arbitration_wait_us: u32,
     /// Seed of the backoff jitter (differs per node so that colliding masters back off
     /// differently; the simulator sets it for reproducible runs).
     pub seed: u32,
@@ -28,14 +35,16 @@ pub struct MbConfig {
 }
 
 impl MbConfig {
-    /// 100 ms per request, 1 s default pulse-in timeout, [`RetryPolicy::DEFAULT`], and an
-    /// internal daughterboard with every capability.
+    /// 100 ms per request, 1 s default pulse-in timeout, [`RetryPolicy::DEFAULT`], 400 µs of
+    /// listening after a lost arbitration, and an internal daughterboard with every
+    /// capability.
     pub const fn new(address: Address) -> MbConfig {
         MbConfig {
             address,
             request_timeout_us: 100_000,
             default_pulse_timeout_ms: 1_000,
             retry: RetryPolicy::DEFAULT,
+            arbitration_wait_us: 400,
             seed: address.get() as u32,
             internal: DbConfig::new(Address::INTERNAL, BoardKind::INTERNAL),
         }

@@ -26,8 +26,17 @@ pub struct MbDiagnostics {
     pub arbitration_lost: u32,
     /// Bus transactions NACKed (each attempt).
     pub nacked: u32,
+    /// Heartbeats the failsafe keepalive sent (see `Motherboard::run_keepalive`).
+    pub keepalives: u32,
+    /// Failsafes the keepalive set again after the board's `boot` event.
+    pub failsafe_resends: u32,
+    /// Keepalive attempts that failed (also counted as the request's own outcome).
+    pub keepalive_failures: u32,
     /// Bus transactions retried.
     pub retries: u32,
+    /// Failed attempts not counted against the retry policy because a write to the
+    /// motherboard (an event that won the bus) arrived before the retry.
+    pub yields: u32,
     /// Requests whose caller went away (its future was dropped) before they ended.
     pub cancelled: u32,
     /// Jobs dropped by the dispatcher because their caller had already given up.

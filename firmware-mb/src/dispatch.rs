@@ -10,27 +10,36 @@ use x10_hal::time::{Clock, Instant};
 use x10_microcode::MAX_FRAME_LEN;
 
 use crate::diag::bump;
-use crate::motherboard::{Job, Motherboard};
+use crate::motherboard::Motherboard;
+use crate::table::Job;
 
 impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// The dispatcher and the DB-interrupt listener on `bus`; never returns. Part of
     /// [`Motherboard::run`].
     ///
-    /// Idle, it listens at the motherboard's address (polled before the request channel, so a
+    /// Idle, it listens at the motherboard's address (polled before the request queue, so a
     /// transaction already under way is never cut): writes are events or deferred replies and
-    /// are routed; reads get nothing. A request from the channel goes out as one `write`
+    /// are routed; reads get nothing. A request from the queue goes out as one `write`
     /// (outputs) or one `write_read` with a repeated START (inputs, reading the reply header,
-    /// the operation's reply capacity and the PEC byte if negotiated). NACK and arbitration
-    /// loss are retried after a [`Backoff`] delay during which the listener runs again (the
-    /// winner of the arbitration is often a daughterboard writing an event to us); when the
-    /// attempts are used up the request ends in `Nack` or `ArbitrationLost`. A bus timeout
-    /// ends it in `Timeout`, a bus fault in `Bus`. A request whose caller already gave up is
-    /// not sent.
+    /// the operation's reply capacity and the PEC byte if negotiated). After a NACK or a lost
+    /// arbitration the listener runs again (the winner of the arbitration is usually a
+    /// daughterboard writing an event to us), for the [`Backoff`] delay, and after a lost
+    /// arbitration for at least `MbConfig::arbitration_wait_us`:
+    ///
+    /// * if a write to the motherboard arrives meanwhile (after a NACK: an event from the
+    ///   board addressed, which was busy sending it), the transaction is retried right after
+    ///   it and the attempt does not count (`yields`);
+    /// * otherwise the attempt counts, and when the attempts are used up the request ends in
+    ///   `Nack` (at once) or `ArbitrationLost` (after that last wait).
+    ///
+    /// Retries go on only while the caller waits, so forgiven attempts are bounded by the
+    /// request's deadline. A bus timeout ends the request in `Timeout`, a bus fault in
+    /// `Bus`. A request whose caller already gave up is not sent.
     pub async fn run_dispatcher<B: MultiMaster>(&self, mut bus: B) -> ! {
         let mut rx = [0u8; MAX_FRAME_LEN];
         let mut nth: u32 = 0;
         loop {
-            let r = select(bus.listen(&mut rx), self.requests.receive()).await;
+            let r = select(bus.listen(&mut rx), self.next_job()).await;
             match r {
                 Either::First(incoming) => self.serve_listener(&mut bus, incoming, &rx).await,
                 Either::Second(job) => {
@@ -57,12 +66,29 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         }
     }
 
-    async fn listen_until<B: MultiMaster>(&self, bus: &mut B, until: Instant, rx: &mut [u8]) {
+    /// Listens until `until`, or until a write to the motherboard whose first byte (an
+    /// event's source) satisfies `wanted` has been served. True when one was.
+    async fn listen_until<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        until: Instant,
+        rx: &mut [u8],
+        wanted: impl Fn(u8) -> bool,
+    ) -> bool {
         loop {
             let r = select(bus.listen(rx), self.clock.sleep_until(until)).await;
             match r {
-                Either::First(incoming) => self.serve_listener(bus, incoming, rx).await,
-                Either::Second(()) => return,
+                Either::First(incoming) => {
+                    let source = match incoming {
+                        Ok(Incoming::Write(n)) if n > 0 => rx.first().copied(),
+                        _ => None,
+                    };
+                    self.serve_listener(bus, incoming, rx).await;
+                    if source.is_some_and(&wanted) {
+                        return true;
+                    }
+                }
+                Either::Second(()) => return false,
             }
         }
     }
@@ -112,20 +138,52 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                 }
                 BusError::Timeout | BusError::Bus | BusError::Overrun => false,
             };
-            let delay = if retry { backoff.next_delay_us() } else { None };
-            let Some(delay) = delay else {
+            // The attempt counts only if no write to us arrives while we wait: decide on a
+            // copy of the backoff.
+            let mut counted = backoff.clone();
+            let delay = if retry { counted.next_delay_us() } else { None };
+            let wait = match (e, delay) {
+                (BusError::ArbitrationLost, d) => {
+                    Some(d.unwrap_or(0).max(self.config.arbitration_wait_us))
+                }
+                (_, d) => d,
+            };
+            let Some(wait) = wait else {
                 warn!(
                     "request {} to {} failed after {} attempts",
                     meta.seq,
                     addr,
-                    backoff.attempts()
+                    counted.attempts()
                 );
                 self.finish_transfer(meta, Err(e));
                 return;
             };
+            let until = self.clock.now().plus_us(u64::from(wait));
+            // After a lost arbitration any write to us may be what won the bus (or what a
+            // single-role port was too busy to ACK); after a NACK only one from the board we
+            // addressed is (it was busy sending it to us).
+            let yielded = if e == BusError::ArbitrationLost {
+                self.listen_until(bus, until, rx, |_| true).await
+            } else {
+                self.listen_until(bus, until, rx, |source| source == addr)
+                    .await
+            };
+            if yielded {
+                // The bus is free again: retry at once, and the attempt does not count.
+                self.with(|t| bump(&mut t.diag.yields));
+            } else if delay.is_none() {
+                warn!(
+                    "request {} to {} failed after {} attempts",
+                    meta.seq,
+                    addr,
+                    counted.attempts()
+                );
+                self.finish_transfer(meta, Err(e));
+                return;
+            } else {
+                backoff = counted;
+            }
             self.with(|t| bump(&mut t.diag.retries));
-            let until = self.clock.now().plus_us(u64::from(delay));
-            self.listen_until(bus, until, rx).await;
             if !self.is_queued(meta.ticket) {
                 self.with(|t| bump(&mut t.diag.abandoned));
                 return;

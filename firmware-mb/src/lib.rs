@@ -3,9 +3,12 @@
 //! Portable (no chip code, `no_std`, no allocation). The motherboard owns the bus controller
 //! role and serves any number of robot tasks:
 //!
-//! * [`Motherboard::run`] joins the three long-running parts: the dispatcher with its
+//! * [`Motherboard::run`] joins the four long-running parts: the dispatcher with its
 //!   DB-interrupt listener ([`Motherboard::run_dispatcher`]), the internal daughterboard's
-//!   background work, and the routing of its events ([`Motherboard::run_internal_events`]);
+//!   background work, the routing of its events ([`Motherboard::run_internal_events`]), and
+//!   the failsafe keepalive ([`Motherboard::run_keepalive`]: a board whose failsafe a
+//!   program set hears a heartbeat whenever nothing was sent to it for a third of the
+//!   timeout);
 //! * [`Motherboard::call`] / [`MbHandle`] (an [`x10_devices::Link`]) is what robot programs
 //!   use: a pending table keyed by (board, sequence number) makes every request end exactly
 //!   once, with its value or a typed [`x10_devices::LinkError`];
@@ -35,6 +38,7 @@ mod config;
 mod diag;
 mod dispatch;
 mod handle;
+mod keepalive;
 mod motherboard;
 mod robot;
 mod table;
@@ -42,6 +46,7 @@ mod table;
 pub use config::MbConfig;
 pub use diag::MbDiagnostics;
 pub use handle::MbHandle;
+pub use keepalive::{BUSY_RETRY_US, MAX_KEEPALIVES};
 pub use motherboard::{Motherboard, REQUEST_QUEUE_LEN};
 pub use robot::{run_robot, run_robot_with, RobotPhase};
 pub use table::{MAX_EVENT_WAITERS, MAX_PENDING, RECENT_LEN, UNCLAIMED_EVENTS};

@@ -3,11 +3,10 @@
 
 use core::cell::RefCell;
 
-use embassy_futures::join::join3;
+use embassy_futures::join::join4;
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::RawMutex;
 use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
-use embassy_sync::channel::Channel;
 use embassy_sync::mutex::Mutex;
 use embassy_sync::signal::Signal;
 use firmware_db::{Daughterboard, Ports, REPLY_BUF_LEN};
@@ -22,28 +21,14 @@ use x10_microcode::{
 
 use crate::config::MbConfig;
 use crate::diag::{bump, MbDiagnostics};
-use crate::table::{Ended, SlotState, Table, Ticket, WaiterTicket, MAX_EVENT_WAITERS, MAX_PENDING};
+use crate::keepalive::failsafe_change;
+use crate::table::{
+    Ended, Job, JobMeta, SlotState, Table, Ticket, WaiterTicket, MAX_EVENT_WAITERS, MAX_PENDING,
+};
 
-/// Requests waiting for the dispatcher.
-pub const REQUEST_QUEUE_LEN: usize = 8;
-
-/// What the dispatcher needs to know about a request besides its bytes.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct JobMeta {
-    pub(crate) ticket: Ticket,
-    pub(crate) db: Address,
-    pub(crate) seq: u8,
-    /// PEC state the frame was built with (the reply is checked the same way).
-    pub(crate) pec: bool,
-    /// Bytes to read after a repeated START (0: the request is a single write).
-    pub(crate) read_len: usize,
-}
-
-/// A request for the dispatcher: its frame, ready to go on the bus.
-pub(crate) struct Job {
-    pub(crate) meta: JobMeta,
-    pub(crate) frame: Vec<u8, MAX_FRAME_LEN>,
-}
+/// Requests that can wait for the dispatcher: one per pending slot, so a caller that holds a
+/// slot never waits for room in the queue ([`MAX_PENDING`]).
+pub const REQUEST_QUEUE_LEN: usize = MAX_PENDING;
 
 /// The motherboard runtime: everything the dispatcher, the internal daughterboard and the
 /// robot tasks share. Generic over the raw mutex `M`, the internal board's ports `P` and the
@@ -57,7 +42,10 @@ pub struct Motherboard<M: RawMutex, P: Ports, C: Clock> {
     pub(crate) clock: C,
     internal: Daughterboard<M, P>,
     internal_lock: Mutex<M, ()>,
-    pub(crate) requests: Channel<M, Job, REQUEST_QUEUE_LEN>,
+    /// Signalled when a job is queued (the dispatcher takes it from the table).
+    job_ready: Signal<M, ()>,
+    /// Signalled when a failsafe kept alive changes (set, stopped, board rebooted).
+    pub(crate) keepalive_changed: Signal<M, ()>,
     table: BlockingMutex<M, RefCell<Table>>,
     done: [Signal<M, Result<Payload, LinkError>>; MAX_PENDING],
     waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
@@ -176,7 +164,8 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
             clock,
             internal: Daughterboard::new(internal_ports, internal),
             internal_lock: Mutex::new(()),
-            requests: Channel::new(),
+            job_ready: Signal::new(),
+            keepalive_changed: Signal::new(),
             table: BlockingMutex::new(RefCell::new(Table::new())),
             done: [const { Signal::new() }; MAX_PENDING],
             waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
@@ -219,12 +208,14 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     }
 
     /// Runs the motherboard; never returns: the dispatcher with its DB-interrupt listener on
-    /// `bus`, the internal daughterboard's background work, and the routing of its events.
+    /// `bus`, the internal daughterboard's background work, the routing of its events, and
+    /// the failsafe keepalive ([`Motherboard::run_keepalive`]).
     pub async fn run<B: MultiMaster>(&self, bus: B) -> ! {
-        let (never, _, _) = join3(
+        let (never, _, _, _) = join4(
             self.run_dispatcher(bus),
             self.internal.run_background(&self.clock),
             self.run_internal_events(),
+            self.run_keepalive(),
         )
         .await;
         never
@@ -271,6 +262,11 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// * reads: `Ok(payload)` for status `ok`;
     /// * deferred operations (`pending`): `Ok(payload)` of the deferred reply.
     ///
+    /// Requests to external boards wait for the dispatcher in one queue, oldest first. The
+    /// queue has room for every pending slot, so a caller never waits for room in it; a
+    /// request whose caller times out (or is dropped) while it waits leaves the queue at once
+    /// and never reaches the bus.
+    ///
     /// Dropping the future gives the request up: its slot is freed and a reply that still
     /// comes is counted as late and dropped.
     ///
@@ -293,9 +289,10 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                 db.get(),
             )));
         }
-        let deadline = self.clock.now().plus_us(timeout_us);
+        let now = self.clock.now();
+        let deadline = now.plus_us(timeout_us);
         let (ticket, seq, pec_on) = self.with(|t| {
-            let (ticket, seq) = t.alloc(db, pec_change(&op))?;
+            let (ticket, seq) = t.alloc(db, pec_change(&op), failsafe_change(&op), now)?;
             if let Some(s) = self.done.get(ticket.index) {
                 s.reset();
             }
@@ -332,18 +329,23 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                 0
             },
         };
-        let send = async {
-            if db.is_internal() {
-                self.call_internal(&meta, bytes).await;
-            } else {
-                let mut frame = Vec::new();
-                // `bytes` is at most MAX_FRAME_LEN long.
-                let _ = frame.extend_from_slice(bytes);
-                self.requests.send(Job { meta, frame }).await;
+        if db.is_internal() {
+            let internal = self.call_internal(&meta, bytes);
+            if let Either::Second(()) = select(internal, self.clock.sleep_until(deadline)).await {
+                return guard.expire();
             }
-        };
-        if let Either::Second(()) = select(send, self.clock.sleep_until(deadline)).await {
-            return guard.expire();
+        } else {
+            let mut frame = Vec::new();
+            // `bytes` is at most MAX_FRAME_LEN long.
+            let _ = frame.extend_from_slice(bytes);
+            // Never full: every queued job holds one of the MAX_PENDING slots, and a job
+            // leaves the queue when its slot is released.
+            if self.with(|t| t.enqueue(Job { meta, frame })).is_err() {
+                self.with(|t| bump(&mut t.diag.busy));
+                guard.release(Ended::GaveUp);
+                return Err(LinkError::Busy);
+            }
+            self.job_ready.signal(());
         }
         let Some(signal) = self.done.get(ticket.index) else {
             return guard.expire();
@@ -372,6 +374,17 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         }
     }
 
+    /// The oldest queued job; waits for one. Cancel-safe: a job is taken out only when this
+    /// returns it.
+    pub(crate) async fn next_job(&self) -> Job {
+        loop {
+            if let Some(job) = self.with(Table::pop_job) {
+                return job;
+            }
+            self.job_ready.wait().await;
+        }
+    }
+
     /// True while the request is waiting for the dispatcher.
     pub(crate) fn is_queued(&self, t: Ticket) -> bool {
         self.with(|tb| tb.state(t) == SlotState::Queued)
@@ -381,6 +394,11 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// the bus error after every retry.
     pub(crate) fn finish_transfer(&self, meta: &JobMeta, r: Result<Option<&[u8]>, BusError>) {
         let replied = matches!(r, Ok(Some(_)));
+        if r.is_ok() {
+            // The board saw a transaction: that keeps its failsafe alive.
+            let now = self.clock.now();
+            self.with(|t| t.keepalive.sent(meta.db, now));
+        }
         let outcome = match r {
             Ok(None) => Outcome::Complete(Ok(Payload::new())),
             Ok(Some(read)) => match Reply::parse_read(meta.db, meta.pec, read) {
@@ -436,6 +454,14 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                 }
             }
         });
+        self.notify_keepalive();
+    }
+
+    /// Wakes the keepalive task when a failsafe setting changed.
+    fn notify_keepalive(&self) {
+        if self.with(Table::take_keepalive_changed) {
+            self.keepalive_changed.signal(());
+        }
     }
 
     /// A reply that failed its PEC check but reads, without PEC, as `bad_length`: the board
@@ -535,11 +561,12 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                 info!("board {} booted", ev.source.get());
                 self.with(|t| {
                     bump(&mut t.diag.boots);
-                    t.set_pec(ev.source, false);
+                    t.booted(ev.source);
                 });
             }
             EventKind::Unknown(_) => self.with(|t| bump(&mut t.diag.bad_events)),
         }
+        self.notify_keepalive();
     }
 
     /// Waits for the next pin-change or analog-threshold event from `pin` on board `db`. An

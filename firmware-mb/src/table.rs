@@ -5,9 +5,11 @@
 
 use heapless::Vec;
 use x10_devices::{LinkError, PinEvent};
-use x10_microcode::{Address, PinRef};
+use x10_microcode::{Address, PinRef, MAX_FRAME_LEN};
 
 use crate::diag::{bump, MbDiagnostics};
+use crate::keepalive::Keepalives;
+use x10_hal::time::Instant;
 
 /// Requests outstanding at the same time (all boards together).
 pub const MAX_PENDING: usize = 16;
@@ -18,6 +20,25 @@ pub const RECENT_LEN: usize = 16;
 pub const MAX_EVENT_WAITERS: usize = 8;
 /// Pin events kept for a later `wait_event` when no task was waiting.
 pub const UNCLAIMED_EVENTS: usize = 8;
+
+/// What the dispatcher needs to know about a request besides its bytes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct JobMeta {
+    pub(crate) ticket: Ticket,
+    pub(crate) db: Address,
+    pub(crate) seq: u8,
+    /// PEC state the frame was built with (the reply is checked the same way).
+    pub(crate) pec: bool,
+    /// Bytes to read after a repeated START (0: the request is a single write).
+    pub(crate) read_len: usize,
+}
+
+/// A request for the dispatcher: its frame, ready to go on the bus.
+#[derive(Clone, Debug)]
+pub(crate) struct Job {
+    pub(crate) meta: JobMeta,
+    pub(crate) frame: Vec<u8, MAX_FRAME_LEN>,
+}
 
 /// Boards the table tracks: every 7-bit address.
 const BOARDS: usize = 128;
@@ -42,6 +63,8 @@ struct Slot {
     state: SlotState,
     /// PEC setting the request asks for (a `set_pec`), applied when it succeeds.
     pec_change: Option<bool>,
+    /// Failsafe timeout the request sets (a `set_failsafe`), kept alive when it succeeds.
+    failsafe_change: Option<u16>,
 }
 
 const FREE_SLOT: Slot = Slot {
@@ -50,6 +73,7 @@ const FREE_SLOT: Slot = Slot {
     seq: 0,
     state: SlotState::Free,
     pec_change: None,
+    failsafe_change: None,
 };
 
 /// One request's claim on a slot.
@@ -98,6 +122,13 @@ pub(crate) struct Table {
     pub(crate) diag: MbDiagnostics,
     waiters: [WaiterSlot; MAX_EVENT_WAITERS],
     unclaimed: Vec<PinEvent, UNCLAIMED_EVENTS>,
+    /// Requests for the dispatcher, oldest first. Each holds a slot, so the queue never
+    /// overflows; releasing the slot takes the job out.
+    queue: Vec<Job, MAX_PENDING>,
+    /// The failsafes the motherboard keeps alive.
+    pub(crate) keepalive: Keepalives,
+    /// A failsafe setting changed (the keepalive task must look again).
+    keepalive_changed: bool,
 }
 
 fn board_index(a: Address) -> usize {
@@ -125,6 +156,10 @@ impl Table {
                 arbitration_lost: 0,
                 nacked: 0,
                 retries: 0,
+                yields: 0,
+                keepalives: 0,
+                failsafe_resends: 0,
+                keepalive_failures: 0,
                 abandoned: 0,
                 cancelled: 0,
                 late_replies: 0,
@@ -146,6 +181,39 @@ impl Table {
                 state: Waiter::Free,
             }; MAX_EVENT_WAITERS],
             unclaimed: Vec::new(),
+            queue: Vec::new(),
+            keepalive: Keepalives::new(),
+            keepalive_changed: false,
+        }
+    }
+
+    /// True (once) when a failsafe setting changed since the last call.
+    pub(crate) fn take_keepalive_changed(&mut self) -> bool {
+        core::mem::take(&mut self.keepalive_changed)
+    }
+
+    /// `board` rebooted: its PEC is off, and a failsafe kept alive must be set again.
+    pub(crate) fn booted(&mut self, board: Address) {
+        self.set_pec(board, false);
+        if self.keepalive.booted(board) {
+            self.keepalive_changed = true;
+        }
+    }
+
+    /// Queues a job for the dispatcher (behind every job queued before).
+    ///
+    /// # Errors
+    /// The job back if the queue is full (it cannot be while each job holds a slot).
+    pub(crate) fn enqueue(&mut self, job: Job) -> Result<(), Job> {
+        self.queue.push(job)
+    }
+
+    /// The oldest queued job.
+    pub(crate) fn pop_job(&mut self) -> Option<Job> {
+        if self.queue.is_empty() {
+            None
+        } else {
+            Some(self.queue.remove(0))
         }
     }
 
@@ -171,19 +239,35 @@ impl Table {
     }
 
     /// Claims a slot and the next free sequence number of `board` (skipping numbers still
-    /// pending or recently ended).
+    /// pending or recently ended). A request that sets a failsafe (`failsafe_change` non-zero)
+    /// also claims room to keep it alive.
     ///
     /// # Errors
-    /// [`LinkError::Busy`] when every slot is in use, or every sequence number of the board.
+    /// [`LinkError::Busy`] when every slot is in use, or every sequence number of the board,
+    /// or (for a failsafe) [`crate::MAX_KEEPALIVES`] boards already have one.
     pub(crate) fn alloc(
         &mut self,
         board: Address,
         pec_change: Option<bool>,
+        failsafe_change: Option<u16>,
+        now: Instant,
     ) -> Result<(Ticket, u8), LinkError> {
         let Some(index) = self.slots.iter().position(|s| s.state == SlotState::Free) else {
             bump(&mut self.diag.busy);
             return Err(LinkError::Busy);
         };
+        if failsafe_change.is_some_and(|t| t > 0) {
+            let slots = &self.slots;
+            let in_flight = |b: Address| {
+                slots.iter().any(|s| {
+                    s.state != SlotState::Free && s.board == b.get() && s.failsafe_change.is_some()
+                })
+            };
+            if self.keepalive.reserve(board, now, in_flight).is_err() {
+                bump(&mut self.diag.busy);
+                return Err(LinkError::Busy);
+            }
+        }
         let b = board.get();
         let start = self.next_seq.get(board_index(board)).copied().unwrap_or(0);
         let Some(seq) = (0..=u8::MAX)
@@ -207,6 +291,7 @@ impl Table {
             seq,
             state: SlotState::Queued,
             pec_change,
+            failsafe_change,
         };
         bump(&mut self.diag.requests);
         Ok((Ticket { index, generation }, seq))
@@ -253,13 +338,17 @@ impl Table {
             return false;
         }
         s.state = SlotState::Done;
-        let (board, pec_change) = (s.board, s.pec_change);
+        let (board, pec_change, failsafe_change) = (s.board, s.pec_change, s.failsafe_change);
         let d = &mut self.diag;
         match result {
             Ok(_) => {
                 bump(&mut d.completed);
                 if let (Some(on), Ok(a)) = (pec_change, Address::new(board)) {
                     self.set_pec(a, on);
+                }
+                if let (Some(ms), Ok(a)) = (failsafe_change, Address::new(board)) {
+                    self.keepalive.set(a, ms);
+                    self.keepalive_changed = true;
                 }
             }
             Err(LinkError::Timeout) => bump(&mut d.timeouts),
@@ -273,8 +362,10 @@ impl Table {
         true
     }
 
-    /// Frees a slot and remembers how its request ended.
+    /// Frees a slot, takes its job out of the queue if it is still there, and remembers how
+    /// its request ended.
     pub(crate) fn release(&mut self, t: Ticket, ended: Ended) {
+        self.queue.retain(|j| j.meta.ticket != t);
         let Some(s) = self.slot_mut(t) else {
             return;
         };

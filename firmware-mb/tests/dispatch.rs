@@ -71,6 +71,18 @@ fn a(n: u8) -> Port {
     Port::actuator(n).unwrap()
 }
 
+/// When the tests that must not see the boards' boot events start their calls.
+const BOOTED_US: u64 = 1_000;
+
+/// Runs `call` once the boot events of the world's boards (sent again at the start of every
+/// `World::sim`) have been routed.
+async fn after_boot<T>(w: &World, call: impl std::future::Future<Output = T>) -> T {
+    w.clock
+        .sleep_until(Instant(w.clock.now_us() + BOOTED_US))
+        .await;
+    call.await
+}
+
 /// The transactions to `node` (retries included).
 fn to(bus: &LoopBus, node: u8) -> Vec<(u64, Seen)> {
     bus.seen()
@@ -351,33 +363,116 @@ fn an_absent_board_is_nacked_after_every_retry() {
 #[test]
 fn arbitration_loss_is_retried_then_succeeds_or_ends_typed() {
     let w = world();
-    w.db9.ports().analog.borrow_mut().insert(3, 7);
+    // A scripted board (no boot events in flight) answering analog reads with 7.
+    w.bus.attach(
+        0x22,
+        Node::Script(Box::new(|req| (0, vec![req[3], 0x00, 0x02, 7, 0]))),
+    );
     w.bus.fault(
-        9,
+        0x22,
         Fault {
             error: BusError::ArbitrationLost,
             event: None,
         },
     );
-    let r = w.sim(w.mb.call(addr(9), Op::AnalogRead(s(3))));
+    let r = w.sim(after_boot(&w, w.mb.call(addr(0x22), Op::AnalogRead(s(3)))));
     assert_eq!(r.unwrap()[..], [7, 0]);
     let d = w.mb.diagnostics();
     assert_eq!(
-        (d.arbitration_lost, d.retries, d.arbitration_failures),
-        (1, 1, 0)
+        (
+            d.arbitration_lost,
+            d.retries,
+            d.yields,
+            d.arbitration_failures
+        ),
+        (1, 1, 0, 0)
     );
+    // No event came: the dispatcher listened its full arbitration wait (400 µs, more than the
+    // 100..150 µs backoff) before the retry.
+    let tries = to(&w.bus, 0x22);
+    assert_eq!(tries.len(), 2);
+    assert_eq!(
+        tries[1].0 - tries[0].0,
+        TRANSFER_US + u64::from(MbConfig::new(mb_address()).arbitration_wait_us)
+    );
+    assert_eq!(MbConfig::new(mb_address()).arbitration_wait_us, 400);
     for _ in 0..5 {
         w.bus.fault(
-            9,
+            0x22,
             Fault {
                 error: BusError::ArbitrationLost,
                 event: None,
             },
         );
     }
-    let r = w.sim(w.mb.call(addr(9), Op::AnalogRead(s(3))));
+    let r = w.sim(after_boot(&w, w.mb.call(addr(0x22), Op::AnalogRead(s(3)))));
     assert_eq!(r, Err(LinkError::ArbitrationLost));
-    assert_eq!(w.mb.diagnostics().arbitration_failures, 1);
+    let d = w.mb.diagnostics();
+    assert_eq!((d.arbitration_lost, d.arbitration_failures), (6, 1));
+    // 1 + 4 retries, waits of at least 400 µs and then the backoff's 800..1200 µs
+    let tries = to(&w.bus, 0x22);
+    let gaps: Vec<u64> = tries[2..]
+        .windows(2)
+        .map(|p| p[1].0 - p[0].0 - TRANSFER_US)
+        .collect();
+    assert_eq!(&gaps[..2], &[400, 400], "{gaps:?}");
+    assert!((400..600).contains(&gaps[2]), "{gaps:?}");
+    assert!((800..1200).contains(&gaps[3]), "{gaps:?}");
+}
+
+#[test]
+fn a_lost_attempt_followed_by_the_winners_event_is_retried_at_once_and_not_counted() {
+    let w = world();
+    w.bus.attach(
+        0x22,
+        Node::Script(Box::new(|req| (0, vec![req[3], 0x00, 0x02, 7, 0]))),
+    );
+    let s1a = s(1).pin(Pin::A);
+    let event = |src: u8, n: u8| vec![src, 0x01, s1a.to_byte(), n, 0x00, 0x01, n & 1];
+    // Six losses in a row, each to an event written to us (more than the 5 attempts), then
+    // a NACK from the board addressed while it sends us an event (a single-role board in its
+    // controller window), then a NACK with an event from another board: that one counts.
+    for n in 0..6 {
+        w.bus.fault(
+            0x22,
+            Fault {
+                error: BusError::ArbitrationLost,
+                event: Some(event(0x30 + n, n)),
+            },
+        );
+    }
+    w.bus.fault(
+        0x22,
+        Fault {
+            error: BusError::Nack,
+            event: Some(event(0x22, 6)),
+        },
+    );
+    w.bus.fault(
+        0x22,
+        Fault {
+            error: BusError::Nack,
+            event: Some(event(0x31, 7)),
+        },
+    );
+    let r = w.sim(after_boot(&w, w.mb.call(addr(0x22), Op::AnalogRead(s(3)))));
+    assert_eq!(r.unwrap()[..], [7, 0]);
+    let tries = to(&w.bus, 0x22);
+    let starts: Vec<u64> = tries.iter().map(|t| t.0).collect();
+    // each forgiven retry starts right after the failed transfer (the event is routed at once)
+    let at_once: Vec<u64> = (0..8).map(|i| BOOTED_US + i * TRANSFER_US).collect();
+    assert_eq!(&starts[..8], &at_once[..], "{starts:?}");
+    // the last NACK counted: the 100..150 µs backoff
+    assert_eq!(starts.len(), 9);
+    let gap = starts[8] - starts[7] - TRANSFER_US;
+    assert!((100..150).contains(&gap), "{gap}");
+    let d = w.mb.diagnostics();
+    assert_eq!(
+        (d.arbitration_lost, d.nacked, d.yields, d.retries, d.events),
+        (6, 2, 7, 8, 8 + 3)
+    );
+    // (and the boot events of the internal board, DB 9 and DB 17, before the call)
+    assert_eq!((d.completed, d.boots), (1, 3));
 }
 
 #[test]
@@ -402,7 +497,10 @@ fn an_event_arriving_while_dispatching_is_routed_and_nothing_is_lost() {
         };
         join(
             waiter,
-            w.mb.call(addr(9), Op::DigitalWrite(a(2).pin(Pin::A), Level::High)),
+            after_boot(
+                &w,
+                w.mb.call(addr(9), Op::DigitalWrite(a(2).pin(Pin::A), Level::High)),
+            ),
         )
         .await
     });
@@ -414,10 +512,12 @@ fn an_event_arriving_while_dispatching_is_routed_and_nothing_is_lost() {
     assert!(r.is_ok());
     let writes = to(&w.bus, 9);
     assert_eq!(writes.len(), 2);
-    assert!(
-        got_at.get() < writes[1].0,
-        "event routed during the backoff, before the retry"
-    );
+    // the event is routed as soon as it arrives, and the request is retried right after it
+    // (the bus is free again), without a backoff, and that attempt does not count
+    assert_eq!(writes[1].0, writes[0].0 + TRANSFER_US);
+    assert_eq!(got_at.get(), writes[1].0, "event routed before the retry");
+    let d = w.mb.diagnostics();
+    assert_eq!((d.arbitration_lost, d.yields, d.retries), (1, 1, 1));
 }
 
 #[test]
@@ -653,8 +753,87 @@ fn a_dropped_caller_frees_its_slot_and_its_job_is_not_sent() {
     });
     assert!(r.is_ok());
     let d = w.mb.diagnostics();
-    assert_eq!((d.cancelled, d.abandoned), (1, 1));
+    // the dropped request left the queue at once: the dispatcher never saw it
+    assert_eq!((d.cancelled, d.abandoned), (1, 0));
     assert_eq!(to(&w.bus, 0x25).len(), 1);
+}
+
+#[test]
+fn every_pending_slot_fits_in_the_queue_and_requests_go_out_oldest_first() {
+    let w = world();
+    // A slow board: each ping takes 100 µs on the bus plus 1 ms before it answers.
+    w.bus.attach(
+        0x25,
+        Node::Script(Box::new(|req| (1_000, vec![req[3], 0x00, 0x00]))),
+    );
+    let ends: RefCell<Vec<(usize, u64)>> = RefCell::new(Vec::new());
+    let results = w.sim(after_boot(
+        &w,
+        join_array(core::array::from_fn::<_, MAX_PENDING, _>(|i| {
+            let (mb, clock, ends) = (&w.mb, &w.clock, &ends);
+            async move {
+                let r = mb.call(addr(0x25), Op::Ping).await;
+                ends.borrow_mut().push((i, clock.now_us()));
+                r
+            }
+        })),
+    ));
+    assert!(results.iter().all(Result::is_ok), "{results:?}");
+    // All 16 were queued at once (none waited for room): the transactions follow each
+    // other back to back, in the order of the calls (sequence numbers 0..15), and each
+    // caller is answered when its own transaction ends.
+    let tries = to(&w.bus, 0x25);
+    let seqs: Vec<u8> = tries
+        .iter()
+        .map(|(_, s)| match s {
+            Seen::WriteRead(_, b, _) => b[3],
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    assert_eq!(seqs, (0..MAX_PENDING as u8).collect::<Vec<_>>());
+    let starts: Vec<u64> = tries.iter().map(|t| t.0).collect();
+    let expected: Vec<u64> = (0..MAX_PENDING as u64)
+        .map(|i| BOOTED_US + i * (TRANSFER_US + 1_000))
+        .collect();
+    assert_eq!(starts, expected);
+    let ends = ends.take();
+    assert_eq!(
+        ends,
+        (0..MAX_PENDING)
+            .map(|i| (i, BOOTED_US + (i as u64 + 1) * (TRANSFER_US + 1_000)))
+            .collect::<Vec<_>>()
+    );
+    let d = w.mb.diagnostics();
+    assert_eq!(
+        (d.completed, d.busy, d.timeouts, d.abandoned),
+        (16, 0, 0, 0)
+    );
+}
+
+#[test]
+fn requests_that_time_out_while_queued_leave_the_queue_and_free_their_slots() {
+    let w = world();
+    // The dispatcher is stuck 25 ms on a board that stretches the clock; meanwhile 15
+    // callers with a 2 ms timeout give up while queued, and 15 more take their slots.
+    w.bus.attach(0x26, Node::Silent);
+    let (stuck, (first, second)) = w.sim(after_boot(&w, async {
+        let queued = || {
+            join_array(core::array::from_fn::<_, 15, _>(|_| {
+                w.mb.call_with_timeout(addr(9), Op::Ping, 2_000)
+            }))
+        };
+        let later = async { (queued().await, queued().await) };
+        join(w.mb.call(addr(0x26), Op::Ping), later).await
+    }));
+    assert_eq!(stuck, Err(LinkError::Timeout));
+    assert!(first.iter().all(|r| *r == Err(LinkError::Timeout)));
+    assert!(second.iter().all(|r| *r == Err(LinkError::Timeout)));
+    let d = w.mb.diagnostics();
+    // Every slot came free when its caller gave up (no `Busy`), no job of a caller that gave
+    // up reached the bus or the dispatcher, and nothing was sent to DB 9.
+    assert_eq!((d.busy, d.abandoned, d.timeouts), (0, 0, 31));
+    assert_eq!(to(&w.bus, 9).len(), 0);
+    assert_eq!(to(&w.bus, 0x26).len(), 1);
 }
 
 #[test]

@@ -11,8 +11,9 @@
 //! | `arbitration.rs` | a DB pushing events while the MB dispatches: arbitration, nothing lost |
 //! | `many_tasks.rs` | many robot tasks share the bus; every reply reaches its caller |
 //! | `sequence.rs` | sequence numbers wrap with a request outstanding, never reused |
-//! | `failures.rs` | a DB that never answers, answers late, is absent, resets mid-run |
-//! | `failsafe.rs` | a silent MB trips the DB failsafe; a talking one does not |
+//! | `failures.rs` | a DB that never answers, answers late, is absent, resets mid-run (and its motor is driven again) |
+//! | `failsafe.rs` | a stopped MB trips the DB failsafe; a talking one does not |
+//! | `keepalive.rs` | the MB feeds a board's failsafe with heartbeats while its program is quiet |
 //! | `determinism.rs` | same seed, same trace and waveform, byte for byte |
 //! | `waveform.rs` | the VCD encodes every START, repeated START and STOP |
 //! | `faults.rs` | the robot keeps working through injected NACKs and corrupted bytes |

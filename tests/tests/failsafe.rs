@@ -1,14 +1,20 @@
-//! A motherboard that falls silent trips the daughterboard's failsafe: every actuator goes to
-//! its declared safe state and the board reports it. One that keeps talking never trips it.
+//! A motherboard that falls silent (it stops: a crash, a power loss) trips the daughterboard's
+//! failsafe: every actuator goes to its declared safe state and the board tries to report it.
+//! One that keeps talking never trips it. (A live MB whose program merely stops sending keeps
+//! the failsafe fed with heartbeats: see keepalive.rs.)
 
 use x10_devices::Link;
 use x10_microcode::{Address, Level, Op, Pin};
+use x10_sim::bus::Outcome;
 use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};
 use x10_sim::timing::Speed;
 use x10_tests::{act, duties, levels, ms};
 
+/// When the MB stops in the silent case.
+const MB_STOP_MS: u64 = 300;
+
 /// Sets a 200 ms failsafe on db09, drives its motor (A1.A high, PWM 200), then, when
-/// `heartbeat` is set, sends a heartbeat every 100 ms; otherwise falls silent.
+/// `heartbeat` is set, sends a heartbeat every 100 ms; otherwise the MB stops at 300 ms.
 fn run(heartbeat: bool) -> SimOutcome {
     let config = SimConfig {
         duration_ms: 1_000,
@@ -18,6 +24,11 @@ fn run(heartbeat: bool) -> SimOutcome {
     let ports = sim.ports("db09", 1, 1);
     let db = Address::external(9).unwrap();
     let a1a = act(1, Pin::A);
+    let sim = if heartbeat {
+        sim
+    } else {
+        sim.stop_mb_at(MB_STOP_MS)
+    };
     sim.with_board(db, ports)
         .with_task(
             "driver",
@@ -67,21 +78,40 @@ fn a_silent_mb_trips_the_failsafe_once() {
         levels(&o.log, "db09", a1a),
         vec![(0, false), (high_at, true), (trip, false)]
     );
-    assert_eq!(duties(&o.log, "db09", a1a), vec![(last, 200), (trip, 0)]);
-    // The board told the MB (a failsafe_tripped event, payload 200 ms), once.
+    // The PWM write (function 2) set the duty when it ended.
+    let pwm_end = o
+        .records
+        .iter()
+        .find(|r| r.addr == 0x09 && r.written.first() == Some(&0x20))
+        .map(|r| r.end_ns)
+        .unwrap();
+    assert_eq!(duties(&o.log, "db09", a1a), vec![(pwm_end, 200), (trip, 0)]);
+    // The MB kept db09's failsafe fed (a heartbeat whenever nothing was sent for 200/3 ms)
+    // until it stopped: the last frame db09 heard came shortly before the stop.
+    assert!(
+        last < ms(MB_STOP_MS) && last > ms(MB_STOP_MS) - ms(67),
+        "{last}"
+    );
+    // The board tried to tell the MB (a failsafe_tripped event, payload 200 ms): the stopped MB
+    // NACKs its address, so the board made its 5 attempts (RetryPolicy::DEFAULT), then dropped
+    // the event and counted it; nothing was dropped silently.
     let tripped: Vec<_> = o
         .records
         .iter()
         .filter(|r| r.addr == 0x08 && r.written.get(1) == Some(&4))
         .collect();
-    assert_eq!(tripped.len(), 1);
-    assert_eq!(tripped[0].written[6..8], 200u16.to_le_bytes());
-    assert_eq!(o.mb.failsafe_trips, 1);
-    assert_eq!(o.board("db09").unwrap().failsafe_trips, 1);
-    assert!(o
-        .trace
-        .render()
-        .contains("db09: -> mb event failsafe_tripped seq"));
+    assert_eq!(tripped.len(), 5);
+    for r in &tripped {
+        assert_eq!(r.written[6..8], 200u16.to_le_bytes());
+        assert_eq!(r.outcome, Outcome::Nack { byte: 0 });
+    }
+    assert!(tripped[0].start_ns >= trip);
+    let db09 = o.board("db09").unwrap();
+    assert_eq!(db09.failsafe_trips, 1);
+    assert_eq!(db09.event_retries, 4);
+    assert!(db09.events_dropped >= 1);
+    // The stopped MB saw nothing of it.
+    assert_eq!(o.mb.failsafe_trips, 0);
 }
 
 #[test]

@@ -239,3 +239,35 @@ fn a_board_that_resets_mid_run_fails_calls_while_down_then_serves_again() {
         .render()
         .contains("db09: reset: firmware restarts at 0.350000"));
 }
+
+/// Figure 4.4's second module drives db09's motor; db09 resets for 2 ms between two steps, so
+/// no call fails, and comes back with its outputs in the safe state. The program re-asserts
+/// its motor at the next periodic refresh (every 25 steps), so the motor runs again without the
+/// program having noticed anything.
+#[test]
+fn a_motor_on_a_board_that_reset_is_driven_again() {
+    use x10_robots::{Program, REFRESH_STEPS};
+    let config = SimConfig {
+        duration_ms: 5_000,
+        ..SimConfig::default()
+    };
+    let o = Sim::program(Program::Fig4_4, config)
+        .reset_at("db09", 2_503, 2)
+        .run()
+        .unwrap();
+    let a1a = act(1, Pin::A);
+    let changes = levels(&o.log, "db09", a1a);
+    // low at boot; high when the light rises; low when the reset ends (safe state); high again;
+    // low when the light falls at 4 s.
+    let ends: Vec<bool> = changes.iter().map(|&(_, high)| high).collect();
+    assert_eq!(ends, vec![false, true, false, true, false], "{changes:?}");
+    let reset_end = changes[2].0;
+    assert_eq!(reset_end, ms(2_505));
+    // Driven again within one refresh period of 10 ms steps.
+    let again = changes[3].0;
+    assert!(
+        again > reset_end && again - reset_end <= ms(10 * u64::from(REFRESH_STEPS)),
+        "{changes:?}"
+    );
+    assert_eq!(o.log.level_at("db09", a1a, ms(3_000)), Some(Level::High));
+}

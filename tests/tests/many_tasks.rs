@@ -83,7 +83,7 @@ fn run(targets: &[(u8, u8)], rounds: usize) -> (SimOutcome, Calls) {
 
 #[test]
 fn eight_tasks_on_four_boards_each_get_every_reply_right() {
-    // Six tasks on three external boards (within the MB's request queue of 8) and two on the
+    // Six tasks on three external boards (fewer than the MB's 16 pending slots) and two on the
     // internal board, 100 reads each, all at once.
     let targets = [
         (9, 1),
@@ -121,9 +121,9 @@ fn eight_tasks_on_four_boards_each_get_every_reply_right() {
 
 #[test]
 fn twenty_tasks_never_get_another_tasks_reply() {
-    // 18 external tasks and 2 internal: more than the 16 pending slots and the 8-deep request
-    // queue. Some calls find no slot (`Busy`) or wait in the queue past their timeout
-    // (`Timeout`); every value that does come back is the asking task's own.
+    // 18 external tasks and 2 internal: more than the 16 pending slots. Some calls find no
+    // slot (`Busy`, and the task tries again 50 µs later); every request that gets a slot
+    // reaches its caller, with the asking task's own value.
     let mut targets = Vec::new();
     for addr in [9u8, 10, 11] {
         for port in 1..=6 {
@@ -147,8 +147,11 @@ fn twenty_tasks_never_get_another_tasks_reply() {
             Err(e) => panic!("task {i}: {e}"),
         }
     }
-    assert!(ok >= 600, "{ok}");
-    assert!(busy > 0);
+    // 16 slots for 20 tasks: in each round 4 calls find no slot; every call that gets one
+    // is queued at once (the queue has room for every slot), goes out oldest first and is
+    // answered well within its 100 ms: no timeouts, no task spinning on a full queue.
+    assert_eq!((ok, busy, timeouts), (800, 200, 0));
+    assert_eq!(o.spins, 0);
     // Every ending is counted where it happened.
     assert_eq!(o.mb.completed, ok);
     assert_eq!(o.mb.busy, busy);

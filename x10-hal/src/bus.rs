@@ -38,13 +38,36 @@ pub enum Incoming {
 /// roles inside these calls, only while the bus is idle; a port that can (STM32 I2C v2
 /// `MultiMaster`) just forwards them. Either way the caller sees one port and is the only one
 /// using it.
+///
+/// # Contract the runtimes rely on
+///
+/// * **Addressed while waiting to start.** If this port's own address is matched (another
+///   controller addresses it: STM32 `ISR.ADDR`, RP2040 `IC_STATUS.SLV_ACTIVITY` or the
+///   address-match interrupt) while a [`MultiMaster::write`] or [`MultiMaster::write_read`]
+///   of this port is still waiting for the bus, that call must give up at once with
+///   [`BusError::ArbitrationLost`] instead of waiting. The other controller's transaction is
+///   held (SCL stretched) by this very port until someone calls [`MultiMaster::listen`], so
+///   waiting for a free bus would deadlock the node against itself until the SMBus timeout
+///   (25 ms) or the driver's own timeout (1 s by default on STM32). On `ArbitrationLost` the
+///   runtimes call `listen`, serve that transaction, and retry right after it without
+///   counting the attempt. The simulator (`x10-sim`, `bus.rs`) models ports this way.
+/// * **Lost arbitration** ends the call with [`BusError::ArbitrationLost`] as soon as the
+///   port notices it; nothing of ours was delivered.
+/// * **Single-role ports** NACK their own address while they are controllers, and until
+///   their target is armed again after the call returns. Keep that role switch shorter than
+///   the daughterboards' first event retry (the `base_us` of their
+///   [`crate::retry::RetryPolicy`], 100 µs by default): the event that beat the port in
+///   arbitration is NACKed, and its first retry must find the port listening (the
+///   motherboard listens at least `MbConfig::arbitration_wait_us`, 400 µs by default, before
+///   it retries after a lost arbitration).
 #[allow(async_fn_in_trait)]
 pub trait MultiMaster {
     /// Writes `bytes` to `addr` (START, address+W, bytes, STOP).
     ///
     /// # Errors
-    /// [`BusError::Nack`], [`BusError::ArbitrationLost`], [`BusError::Timeout`],
-    /// [`BusError::Bus`].
+    /// [`BusError::Nack`], [`BusError::ArbitrationLost`] (lost on the wire, or this port was
+    /// addressed while the call waited for the bus: see the trait's contract),
+    /// [`BusError::Timeout`], [`BusError::Bus`].
     async fn write(&mut self, addr: u8, bytes: &[u8]) -> Result<(), BusError>;
 
     /// Writes `bytes` to `addr`, then reads `read.len()` bytes after a repeated START.

@@ -297,6 +297,7 @@ pub struct Sim {
     program: Option<Program>,
     tasks: Vec<(String, TaskFn)>,
     resets: Vec<ScheduledReset>,
+    mb_stop_ns: Option<Nanos>,
 }
 
 impl Sim {
@@ -317,6 +318,7 @@ impl Sim {
             program: None,
             tasks: Vec::new(),
             resets: Vec::new(),
+            mb_stop_ns: None,
         }
     }
 
@@ -400,6 +402,14 @@ impl Sim {
         self
     }
 
+    /// Stops the motherboard at `at_ms`, as a crash or a power loss would: its runtime stops
+    /// (no more dispatching, listening or keepalive) and its bus node is gone for good (it
+    /// NACKs whatever is addressed to it). Robot calls made after that never complete.
+    pub fn stop_mb_at(mut self, at_ms: u64) -> Sim {
+        self.mb_stop_ns = Some(at_ms * 1_000_000);
+        self
+    }
+
     fn check(&self) -> Result<(), SimError> {
         let mut addrs = vec![self.config.mb_address.get()];
         let mut names = vec!["mb".to_string()];
@@ -449,6 +459,7 @@ impl Sim {
             program,
             tasks,
             resets,
+            mb_stop_ns,
         } = self;
         let mut bus_cfg = BusConfig::new(config.speed);
         bus_cfg.seed = config.seed;
@@ -499,8 +510,20 @@ impl Sim {
             ex.spawn("bus", bus.engine());
             let mb_ref = &mb;
             let mb_port = bus.port(mb_node);
+            let (mb_bus, mb_clock) = (bus.clone(), clock.clone());
             ex.spawn("mb", async move {
-                mb_ref.run(mb_port).await;
+                match mb_stop_ns {
+                    None => mb_ref.run(mb_port).await,
+                    Some(at) => {
+                        embassy_futures::select::select(
+                            mb_ref.run(mb_port),
+                            mb_clock.sleep_until_ns(at),
+                        )
+                        .await;
+                        // Down for longer than any simulation runs.
+                        mb_bus.reset_node(mb_node, Nanos::MAX / 4);
+                    }
+                }
             });
             for (b, &node) in boards.iter().zip(&board_nodes) {
                 ex.spawn(b.name.clone(), b.run(bus.clone(), node, notes.clone()));

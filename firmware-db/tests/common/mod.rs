@@ -288,12 +288,16 @@ pub enum Txn {
     Overrun,
 }
 
+/// The result of one of the node's own writes, with a transaction addressed to the node that
+/// arrives when the write fails (the reason it failed).
+type WriteResult = (Result<(), BusError>, Option<Txn>);
+
 #[derive(Default)]
 struct BusInner {
     incoming: RefCell<VecDeque<Txn>>,
     listener: RefCell<Option<Waker>>,
     ops: RefCell<Vec<(u64, BusOp)>>,
-    write_results: RefCell<VecDeque<Result<(), BusError>>>,
+    write_results: RefCell<VecDeque<WriteResult>>,
 }
 
 /// A scripted bus: transactions to the node are pushed by the test, results of the node's own
@@ -323,7 +327,16 @@ impl FakeBus {
         self.inner
             .write_results
             .borrow_mut()
-            .extend(results.iter().copied());
+            .extend(results.iter().map(|r| (*r, None)));
+    }
+
+    /// The node's next write fails with `error` because a controller addresses the node with
+    /// `txn` (which the node's listener then receives).
+    pub fn script_addressed(&self, error: BusError, txn: Txn) {
+        self.inner
+            .write_results
+            .borrow_mut()
+            .push_back((Err(error), Some(txn)));
     }
 
     pub fn ops(&self) -> Vec<(u64, BusOp)> {
@@ -342,11 +355,16 @@ impl FakeBus {
 impl MultiMaster for FakeBus {
     async fn write(&mut self, addr: u8, bytes: &[u8]) -> Result<(), BusError> {
         self.record(BusOp::Write(addr, bytes.to_vec()));
-        self.inner
-            .write_results
-            .borrow_mut()
-            .pop_front()
-            .unwrap_or(Ok(()))
+        let next = self.inner.write_results.borrow_mut().pop_front();
+        match next {
+            Some((r, txn)) => {
+                if let Some(t) = txn {
+                    self.push(t);
+                }
+                r
+            }
+            None => Ok(()),
+        }
     }
 
     async fn write_read(&mut self, _: u8, _: &[u8], _: &mut [u8]) -> Result<(), BusError> {

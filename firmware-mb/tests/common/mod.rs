@@ -74,6 +74,8 @@ struct Inner {
     nodes: RefCell<BTreeMap<u8, Node>>,
     faults: RefCell<BTreeMap<u8, VecDeque<Fault>>>,
     to_mb: RefCell<VecDeque<Vec<u8>>>,
+    /// Every write to the motherboard, with its virtual time.
+    to_mb_log: RefCell<Vec<(u64, Vec<u8>)>>,
     listener: RefCell<Option<Waker>>,
     seen: RefCell<Vec<(u64, Seen)>>,
 }
@@ -108,10 +110,19 @@ impl LoopBus {
 
     /// A daughterboard writes `bytes` to the motherboard.
     pub fn to_mb(&self, bytes: Vec<u8>) {
+        self.inner
+            .to_mb_log
+            .borrow_mut()
+            .push((self.clock.now_us(), bytes.clone()));
         self.inner.to_mb.borrow_mut().push_back(bytes);
         if let Some(w) = self.inner.listener.borrow_mut().take() {
             w.wake();
         }
+    }
+
+    /// Every write to the motherboard so far (events), with its virtual time.
+    pub fn to_mb_log(&self) -> Vec<(u64, Vec<u8>)> {
+        self.inner.to_mb_log.borrow().clone()
     }
 
     pub fn seen(&self) -> Vec<(u64, Seen)> {
