@@ -23,17 +23,18 @@
 //!   [`x10_devices::HBridge`] convention (A HIGH, B LOW) and off is the bridge's stopped state
 //!   (coast: A LOW, B LOW, PWM 0), so the PWM does not stay at 100 %.
 //! * The C `||` skips the force reading while the button is pressed; so does this program.
-//! * The thesis re-sends the motor command on every pass of `loop()`. This program sends it
-//!   when the wanted speed changes, and also every [`crate::REFRESH_STEPS`] steps without a
-//!   change, and at the next step after any failed call (every call goes to the motor's
-//!   board, and a NACK or timeout may be that board resetting, which leaves the motor
-//!   coasting): the motor is driven again within [`crate::REFRESH_STEPS`] steps after a reset
-//!   nobody reported, while the bus stays free for the sensor reads in between. `setup` puts
-//!   the motor in the stopped state first (the thesis's `setup()` is empty, so the motor
-//!   starts in whatever state the pins had).
+//! * The thesis re-sends the motor command on every pass of `loop()`. Here the motor is a
+//!   [`Kept`] [`DcMotor`]: its command is sent when the wanted speed changes, and also every
+//!   [`crate::REFRESH_STEPS`] steps without a change, and at the next step after any failed
+//!   call ([`Kept::keep_or_forget`]: every call goes to the motor's board, and a NACK or
+//!   timeout may be that board resetting, which leaves the motor coasting): the motor is
+//!   driven again within [`crate::REFRESH_STEPS`] steps after a reset nobody reported, while
+//!   the bus stays free for the sensor reads in between. `setup` puts the motor in the stopped
+//!   state first (the thesis's `setup()` is empty, so the motor starts in whatever state the
+//!   pins had).
 
 use x10_devices::{
-    AnalogSensor, Button, DcMotor, Error, Link, LinkError, Pin, Refresh, Robot, Speed, SELF,
+    AnalogSensor, Button, DcMotor, Error, Kept, Link, LinkError, Pin, Robot, Speed, SELF,
 };
 
 /// The board everything is on.
@@ -52,10 +53,9 @@ pub const FORCE_THRESHOLD: u16 = 100;
 /// The Figure 4.2 program.
 #[derive(Clone, Debug)]
 pub struct SingleBoard<L> {
-    motor: DcMotor<L>,
+    motor: Kept<DcMotor<L>>,
     force: AnalogSensor<L>,
     button: Button<L>,
-    refresh: Refresh,
 }
 
 impl<L: Link + Clone> SingleBoard<L> {
@@ -64,11 +64,11 @@ impl<L: Link + Clone> SingleBoard<L> {
     /// # Errors
     /// None with these constants; the drivers' constructors check port numbers.
     pub fn new(link: L) -> Result<Self, Error> {
+        let motor = DcMotor::new(link.clone(), BOARD, MOTOR_PORT)?;
         Ok(SingleBoard {
-            motor: DcMotor::new(link.clone(), BOARD, MOTOR_PORT)?,
+            motor: Kept::new(motor, crate::REFRESH),
             force: AnalogSensor::new(link.clone(), BOARD, FORCE_PORT)?,
             button: Button::new(link, BOARD, BUTTON_PORT, BUTTON_PIN)?,
-            refresh: crate::REFRESH,
         })
     }
 }
@@ -77,39 +77,28 @@ impl<L: Link> SingleBoard<L> {
     /// The motor's last commanded speed; `None` when unknown (before `setup`, after a failed
     /// call).
     pub fn motor_speed(&self) -> Option<Speed> {
-        self.motor.speed()
+        self.motor.state()
     }
 
-    async fn control(&mut self) -> Result<(), LinkError> {
-        let pressed = self.button.is_pressed().await?;
-        let run = pressed || self.force.read_raw().await? > FORCE_THRESHOLD;
-        let want = if run {
+    /// Full speed while the button is pressed or the force is above the threshold (the force
+    /// is not read while the button is pressed).
+    async fn wanted(&mut self) -> Result<Speed, Error> {
+        let run = self.button.is_pressed().await? || self.force.read_raw().await? > FORCE_THRESHOLD;
+        Ok(if run {
             Speed::FULL_FORWARD
         } else {
             Speed::STOP
-        };
-        let due = self.refresh.tick();
-        if due || self.motor.speed() != Some(want) {
-            self.motor.set_speed(want).await?;
-            self.refresh.restart();
-        }
-        Ok(())
+        })
     }
 }
 
 impl<L: Link> Robot for SingleBoard<L> {
     async fn setup(&mut self) -> Result<(), LinkError> {
-        self.motor.stop().await?;
-        self.refresh.restart();
-        Ok(())
+        Ok(self.motor.set(Speed::STOP).await?)
     }
 
     async fn step(&mut self) -> Result<(), LinkError> {
-        let result = self.control().await;
-        if result.is_err() {
-            // The board may be resetting: send the motor command again at the next step.
-            self.motor.invalidate();
-        }
-        result
+        let wanted = self.wanted().await;
+        Ok(self.motor.keep_or_forget(wanted).await?)
     }
 }

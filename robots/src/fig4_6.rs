@@ -21,10 +21,11 @@
 //! (`setup` drives it LOW). The latch holds the decision, not the write: a condition seen once
 //! keeps the alarm wanted even if writing it failed and the temperature is back to normal.
 //!
-//! The alarm's level is written when it changes, every [`crate::REFRESH_STEPS`] steps without
-//! a change (LOW as well as HIGH: board 10 may have reset and dropped a raised alarm to its
-//! safe LOW state), and at the next step after a failed write; not on every pass as in the
-//! thesis. A failed thermistor read does not count: it is another board.
+//! The alarm is a [`Kept`] [`DigitalOutput`]: its level is written when it changes, every
+//! [`crate::REFRESH_STEPS`] steps without a change (LOW as well as HIGH: board 10 may have
+//! reset and dropped a raised alarm to its safe LOW state), and at the next step after a failed
+//! write; not on every pass as in the thesis. A failed thermistor read does not count: it is
+//! another board (so the program calls [`Kept::keep`], not [`Kept::keep_or_forget`]).
 //!
 //! ## Differences from the thesis's code
 //! * `readThermistorFarenheit(<200` does not compile; the intent is `readThermistorFahrenheit()
@@ -37,7 +38,7 @@
 //! * `setup` puts the alarm in a known state (LOW); the thesis's `setup()` is empty.
 
 use x10_devices::{
-    Actuator, Address, Error, Level, Link, LinkError, Pin, Refresh, Robot, Thermistor,
+    Address, DigitalOutput, Error, Kept, Level, Link, LinkError, Pin, Robot, Thermistor,
 };
 
 const fn addr(n: u8) -> Address {
@@ -72,12 +73,9 @@ pub const HOT_LIMIT_F: f32 = 200.0;
 pub struct TemperatureAlarm<L> {
     cold: Thermistor<L>,
     hot: Thermistor<L>,
-    alarm: Actuator<L>,
+    alarm: Kept<DigitalOutput<L>>,
     /// The latch: the condition has been seen since `setup`.
     raised: bool,
-    /// The level last written successfully; `None` when unknown.
-    level: Option<Level>,
-    refresh: Refresh,
 }
 
 impl<L: Link + Clone> TemperatureAlarm<L> {
@@ -86,13 +84,12 @@ impl<L: Link + Clone> TemperatureAlarm<L> {
     /// # Errors
     /// None with these constants; the drivers' constructors check port numbers.
     pub fn new(link: L) -> Result<Self, Error> {
+        let alarm = DigitalOutput::new(link.clone(), CONTROL_BOARD, ALARM_PORT, ALARM_PIN)?;
         Ok(TemperatureAlarm {
             cold: Thermistor::new(link.clone(), FREEZER, COLD_PORT)?,
-            hot: Thermistor::new(link.clone(), OVEN, HOT_PORT)?,
-            alarm: Actuator::new(link, CONTROL_BOARD, ALARM_PORT)?,
+            hot: Thermistor::new(link, OVEN, HOT_PORT)?,
+            alarm: Kept::new(alarm, crate::REFRESH),
             raised: false,
-            level: None,
-            refresh: crate::REFRESH,
         })
     }
 }
@@ -105,7 +102,7 @@ impl<L: Link> TemperatureAlarm<L> {
 
     /// True while the alarm is known to sound: the last write (HIGH) succeeded.
     pub fn alarm_on(&self) -> bool {
-        self.level == Some(Level::High)
+        self.alarm.state() == Some(Level::High)
     }
 
     /// The thesis's condition; an unreadable thermistor counts as "alarm" and is reported.
@@ -119,31 +116,19 @@ impl<L: Link> TemperatureAlarm<L> {
             Err(e) => (true, Some(e)),
         }
     }
-
-    /// Writes `level` to the alarm; its level is unknown if that fails.
-    async fn write(&mut self, level: Level) -> Result<(), LinkError> {
-        self.level = None;
-        self.alarm.write_digital(ALARM_PIN, level).await?;
-        self.level = Some(level);
-        self.refresh.restart();
-        Ok(())
-    }
 }
 
 impl<L: Link> Robot for TemperatureAlarm<L> {
     async fn setup(&mut self) -> Result<(), LinkError> {
         self.raised = false;
-        self.write(Level::Low).await
+        Ok(self.alarm.set(Level::Low).await?)
     }
 
     async fn step(&mut self) -> Result<(), LinkError> {
         let (wanted, fault) = self.alarm_wanted().await;
         self.raised |= wanted;
         let level = if self.raised { Level::High } else { Level::Low };
-        let due = self.refresh.tick();
-        if due || self.level != Some(level) {
-            self.write(level).await?;
-        }
+        self.alarm.keep(level).await?;
         match fault {
             Some(e) => Err(e.into()),
             None => Ok(()),

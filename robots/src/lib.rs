@@ -42,7 +42,8 @@
 //! [`REFRESH_STEPS`] steps without a change, and at the next step after a failed call to the
 //! actuator's board. A daughterboard that resets comes back in its safe state without the
 //! program noticing (its calls may not even fail); the periodic re-send restores the state
-//! within [`REFRESH_STEPS`] steps, the re-send after a failure usually at once.
+//! within [`REFRESH_STEPS`] steps, the re-send after a failure usually at once. Each robot
+//! holds its actuator as an [`x10_devices::Kept`] output and calls its `keep` once per step.
 //!
 //! Adding a module the way Figure 4.4 does is adding a `Robot` type in its own module and
 //! listing it in a program; no existing robot's code changes ([`light_motor`] explains).

@@ -24,12 +24,12 @@
 //! * Its "off" is `setDigital(LO, HI)` with the PWM left at 50 %: reverse at half power. Here
 //!   off is the H-bridge's stopped state (coast).
 //! * The light sensor is commented "force sensor"; it is an [`AnalogSensor`] here.
-//! * The motor command is sent when the wanted speed changes, every
-//!   [`crate::REFRESH_STEPS`] steps without a change, and at the next step after any failed
-//!   call to board 9 (it may be resetting), not on every pass (as in [`crate::fig4_2`]);
+//! * The motor is a [`Kept`] [`DcMotor`], as in [`crate::fig4_2`]: its command is sent when
+//!   the wanted speed changes, every [`crate::REFRESH_STEPS`] steps without a change, and at
+//!   the next step after any failed call to board 9 (it may be resetting), not on every pass;
 //!   `setup` stops the motor.
 
-use x10_devices::{Address, AnalogSensor, DcMotor, Error, Link, LinkError, Refresh, Robot, Speed};
+use x10_devices::{Address, AnalogSensor, DcMotor, Error, Kept, Link, LinkError, Robot, Speed};
 
 /// Daughterboard 9 (the thesis's `BOARD2`).
 pub const BOARD: Address = match Address::new(9) {
@@ -53,9 +53,8 @@ pub const RUN_SPEED: Speed = match Speed::new(50) {
 /// The Figure 4.4 module.
 #[derive(Clone, Debug)]
 pub struct LightMotor<L> {
-    motor: DcMotor<L>,
+    motor: Kept<DcMotor<L>>,
     light: AnalogSensor<L>,
-    refresh: Refresh,
 }
 
 impl<L: Link + Clone> LightMotor<L> {
@@ -64,10 +63,10 @@ impl<L: Link + Clone> LightMotor<L> {
     /// # Errors
     /// None with these constants; the drivers' constructors check port numbers.
     pub fn new(link: L) -> Result<Self, Error> {
+        let motor = DcMotor::new(link.clone(), BOARD, MOTOR_PORT)?;
         Ok(LightMotor {
-            motor: DcMotor::new(link.clone(), BOARD, MOTOR_PORT)?,
+            motor: Kept::new(motor, crate::REFRESH),
             light: AnalogSensor::new(link, BOARD, LIGHT_PORT)?,
-            refresh: crate::REFRESH,
         })
     }
 }
@@ -76,34 +75,24 @@ impl<L: Link> LightMotor<L> {
     /// The motor's last commanded speed; `None` when unknown (before `setup`, after a failed
     /// call).
     pub fn motor_speed(&self) -> Option<Speed> {
-        self.motor.speed()
-    }
-
-    async fn control(&mut self) -> Result<(), LinkError> {
-        let bright = self.light.read_raw().await? > LIGHT_THRESHOLD;
-        let want = if bright { RUN_SPEED } else { Speed::STOP };
-        let due = self.refresh.tick();
-        if due || self.motor.speed() != Some(want) {
-            self.motor.set_speed(want).await?;
-            self.refresh.restart();
-        }
-        Ok(())
+        self.motor.state()
     }
 }
 
 impl<L: Link> Robot for LightMotor<L> {
     async fn setup(&mut self) -> Result<(), LinkError> {
-        self.motor.stop().await?;
-        self.refresh.restart();
-        Ok(())
+        Ok(self.motor.set(Speed::STOP).await?)
     }
 
     async fn step(&mut self) -> Result<(), LinkError> {
-        let result = self.control().await;
-        if result.is_err() {
-            // Board 9 may be resetting: send the motor command again at the next step.
-            self.motor.invalidate();
-        }
-        result
+        // Half power while bright, stopped otherwise.
+        let wanted = self.light.read_raw().await.map(|light| {
+            if light > LIGHT_THRESHOLD {
+                RUN_SPEED
+            } else {
+                Speed::STOP
+            }
+        });
+        Ok(self.motor.keep_or_forget(wanted).await?)
     }
 }

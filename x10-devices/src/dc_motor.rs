@@ -5,6 +5,7 @@ use x10_microcode::Address;
 
 use crate::error::{Quantity, RangeError};
 use crate::hbridge::HBridge;
+use crate::kept::Output;
 use crate::math::ramp_next;
 use crate::units::{Direction, Percent, Speed};
 use crate::{Link, Result};
@@ -83,7 +84,7 @@ impl<L: Link> DcMotor<L> {
 
     /// Forgets the speed (sends nothing): [`DcMotor::speed`] is `None` until the next
     /// successful [`DcMotor::set_speed`], so a program that compares it with the speed it
-    /// wants sends the command again, and [`DcMotor::ramp_to`] starts from 0.
+    /// wants (as [`crate::Kept::keep`] does) sends the command again, and [`DcMotor::ramp_to`] starts from 0.
     ///
     /// Call it when the board may have lost the state without a failed motor command: after
     /// any failed call to the motor's board (a NACK or timeout may be the board resetting,
@@ -164,5 +165,21 @@ impl<L: Link> DcMotor<L> {
             current = next;
             delay.delay_ms(ramp.interval_ms).await;
         }
+    }
+}
+
+impl<L: Link> Output for DcMotor<L> {
+    type State = Speed;
+
+    fn state(&self) -> Option<Speed> {
+        self.speed
+    }
+
+    fn invalidate(&mut self) {
+        self.speed = None;
+    }
+
+    async fn set(&mut self, speed: Speed) -> Result<()> {
+        self.set_speed(speed).await
     }
 }

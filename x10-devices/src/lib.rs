@@ -10,13 +10,14 @@
 //! * the generic port drivers [`Sensor`] and [`Actuator`]: one method per microcode operation
 //!   of a port (analog read, digital read/write of each pin, PWM duty/frequency/pulse width,
 //!   pulse-in, events), ports counted from 1, the internal board as [`SELF`] (address 0);
-//! * device drivers built only from those: [`HBridge`], [`DcMotor`], [`Thermistor`], [`Servo`],
-//!   [`Button`], [`AnalogSensor`], [`Ultrasonic`]. Each is a few dozen lines; their arithmetic
+//! * device drivers built only from those: [`HBridge`], [`DcMotor`], [`DigitalOutput`],
+//!   [`Thermistor`], [`Servo`], [`Button`], [`AnalogSensor`], [`Ultrasonic`]. Each is a few dozen lines; their arithmetic
 //!   lives in [`math`], where it is tested from raw numbers.
 //!
 //! [`Refresh`] tells a control loop when to re-send an actuator state that did not change, so
 //! a board that reset (and fell back to its safe state) is driven again within a bounded number
-//! of steps.
+//! of steps; [`Kept`] wraps an [`Output`] ([`DcMotor`], [`DigitalOutput`]) and a `Refresh` into
+//! one call per step, [`Kept::keep`].
 //!
 //! Units and ranges are types ([`Speed`], [`Percent`], [`Duty`], [`Celsius`], …): an
 //! out-of-range value is a [`RangeError`] when the value is made, before anything is sent.
@@ -24,7 +25,7 @@
 //! method sends.
 //!
 //! The crate is `no_std` and never allocates. With the `testing` feature it also provides
-//! [`testing::RecordingLink`], a recording test double for this and other crates' tests.
+//! `testing::RecordingLink`, a recording test double for this and other crates' tests.
 #![no_std]
 #![cfg_attr(
     not(test),
@@ -40,8 +41,10 @@ mod analog;
 mod button;
 mod dc_motor;
 mod delay;
+mod digital_output;
 mod error;
 mod hbridge;
+mod kept;
 mod link;
 pub mod math;
 mod port;
@@ -58,8 +61,10 @@ pub use analog::AnalogSensor;
 pub use button::{Button, ButtonState};
 pub use dc_motor::{DcMotor, Ramp};
 pub use delay::ClockDelay;
+pub use digital_output::DigitalOutput;
 pub use error::{Error, Quantity, RangeError};
 pub use hbridge::HBridge;
+pub use kept::{Kept, Output};
 pub use link::{Link, LinkError, PinEvent};
 pub use math::{Calibration, Divider, SteinhartHart};
 pub use port::{Actuator, Sensor};

@@ -28,15 +28,8 @@ use crate::error::{Quantity, RangeError};
 /// assert!(!refresh.tick());
 /// ```
 ///
-/// A control step uses it as:
-///
-/// ```text
-/// let due = self.refresh.tick();
-/// if due || self.motor.speed() != Some(want) {
-///     self.motor.set_speed(want).await?; // on failure: speed unknown, sent again next step
-///     self.refresh.restart();
-/// }
-/// ```
+/// [`crate::Kept`] pairs it with an output and does this once per step: tick; if due or the
+/// wanted state differs from the last one sent, send it and restart.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Refresh {

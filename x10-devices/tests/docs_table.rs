@@ -9,8 +9,9 @@ use std::collections::BTreeSet;
 use embassy_futures::block_on;
 use x10_devices::testing::RecordingLink;
 use x10_devices::{
-    Actuator, Address, AnalogSensor, Button, DcMotor, Degrees, Duty, Edge, EventConfig, EventKind,
-    HBridge, Level, Pin, PinEvent, Ramp, Sensor, Servo, Speed, Thermistor, Ultrasonic,
+    Actuator, Address, AnalogSensor, Button, DcMotor, Degrees, DigitalOutput, Duty, Edge,
+    EventConfig, EventKind, HBridge, Kept, Level, Output, Pin, PinEvent, Ramp, Refresh, Sensor,
+    Servo, Speed, Thermistor, Ultrasonic,
 };
 
 type Link = RecordingLink<32>;
@@ -43,6 +44,8 @@ const ROWS: &[&str] = &[
     "DcMotor::stop()",
     "DcMotor::brake()",
     "DcMotor::ramp_to(Speed::FULL_FORWARD, Ramp::new(50, 10))",
+    "DigitalOutput::set(Level::High)",
+    "Kept::keep(Speed::FULL_FORWARD)",
     "Thermistor::celsius()",
     "Thermistor::fahrenheit()",
     "Thermistor::kelvin()",
@@ -125,6 +128,15 @@ fn run(call: &str, link: &Link) -> String {
             "DcMotor::ramp_to(Speed::FULL_FORWARD, Ramp::new(50, 10))" => {
                 let ramp = Ramp::new(50, 10).unwrap();
                 show!(motor.ramp_to(Speed::FULL_FORWARD, ramp, &mut NoDelay))
+            }
+            "DigitalOutput::set(Level::High)" => {
+                let mut output = DigitalOutput::new(link, db9(), 1, Pin::A).unwrap();
+                show!(output.set(Level::High))
+            }
+            "Kept::keep(Speed::FULL_FORWARD)" => {
+                // A fresh kept motor: its speed is unknown, so the first keep sends it.
+                let mut kept = Kept::new(motor, Refresh::every(25).unwrap());
+                show!(kept.keep(Speed::FULL_FORWARD))
             }
             "Thermistor::celsius()" => show!(thermistor().celsius()),
             "Thermistor::fahrenheit()" => show!(thermistor().fahrenheit()),
