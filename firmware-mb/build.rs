@@ -4,11 +4,11 @@
 //!   it becomes `$OUT_DIR/robot.rs`, which the images include, so the image runs exactly the
 //!   program the simulator runs under that name. An unknown name stops the build and lists
 //!   the programs.
-//! * link arguments, as in firmware-db's build script: `link.x` (with the workspace root's
-//!   `memory.x`; `__x10_stm32g431` selects the STM32G431 values in it), `link-rp.x` for the
-//!   Pico, `defmt.x`.
+//! * link arguments, the same as firmware-db's (one file, `x10-boards/link_args.rs`): `link.x`
+//!   (with the workspace root's `memory.x`; `__x10_stm32g431` selects the STM32G431 values in
+//!   it), `link-rp.x` for the Pico, `defmt.x`.
 
-use std::env;
+include!("../x10-boards/link_args.rs");
 
 /// Program run when `X10_ROBOT` is not set: the one that needs no daughterboard.
 #[cfg(feature = "_chip")]
@@ -18,27 +18,13 @@ fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     #[cfg(feature = "_chip")]
     robot();
-    if env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
-        return;
-    }
-    if let Some(dir) = env::var_os("CARGO_MANIFEST_DIR") {
-        let memory_x = std::path::Path::new(&dir).join("../memory.x");
-        println!("cargo:rerun-if-changed={}", memory_x.display());
-    }
-    println!("cargo:rustc-link-arg-bins=--nmagic");
-    println!("cargo:rustc-link-arg-bins=-Tlink.x");
-    if env::var_os("CARGO_FEATURE_RP2040").is_some() {
-        println!("cargo:rustc-link-arg-bins=-Tlink-rp.x");
-    }
-    if env::var_os("CARGO_FEATURE_STM32G431").is_some() {
-        println!("cargo:rustc-link-arg-bins=--defsym=__x10_stm32g431=1");
-    }
-    println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
+    link_args();
 }
 
 /// Writes `$OUT_DIR/robot.rs` for the program named by `X10_ROBOT`.
 #[cfg(feature = "_chip")]
 fn robot() {
+    use std::env;
     use std::path::PathBuf;
     use std::process::exit;
 

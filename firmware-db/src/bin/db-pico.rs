@@ -1,67 +1,21 @@
 //! Daughterboard image for the Raspberry Pi Pico: `cargo db-pico` flashes it and streams its
-//! defmt log.
+//! defmt log. The image itself (task, start-up) is `../image.rs`, shared with the other boards.
 //!
 //! Address: `X10_DB_ADDR` at build time (default 9) plus the three address-select jumpers
 //! read at boot; events go to the motherboard at `X10_MB_ADDR` (default 0x08).
 #![no_std]
 #![no_main]
 
-use defmt::{info, unwrap};
-use defmt_rtt as _;
-use embassy_executor::Spawner;
-use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_db::{Daughterboard, DbConfig, TargetConfig};
-use panic_probe as _;
-use static_cell::StaticCell;
-use x10_boards::pico::{Board, PicoBus, PicoPorts, JUMPERS};
-use x10_boards::{address, BusConfig, EmbassyClock};
-use x10_microcode::{Address, BoardKind};
+/// What the shared image needs of this board.
+mod board {
+    pub use x10_boards::pico::{init, Board, PicoBus as Bus, PicoPorts as Ports, JUMPERS};
+    use x10_microcode::BoardKind;
 
-/// The motherboard's address, checked at build time.
-const MB: u8 = match address::build_mb(option_env!("X10_MB_ADDR")) {
-    Ok(a) => a,
-    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
-};
-
-/// The base address, checked at build time for every jumper setting.
-const BASE: u8 = match address::build_base(option_env!("X10_DB_ADDR"), JUMPERS as u32, MB) {
-    Ok(b) => b,
-    Err(_) => {
-        panic!("X10_DB_ADDR plus 0..=7 (jumpers) must stay in 0x08..=0x77 and miss X10_MB_ADDR")
-    }
-};
-
-type Db = Daughterboard<NoopRawMutex, PicoPorts>;
-
-static DB: StaticCell<Db> = StaticCell::new();
-
-#[embassy_executor::task]
-async fn daughterboard(db: &'static Db, bus: PicoBus, target: TargetConfig) -> ! {
-    firmware_db::run(db, bus, EmbassyClock, target).await
+    /// What the daughterboard reports as its board.
+    pub const KIND: BoardKind = BoardKind::PICO;
+    /// The board's name in the log.
+    pub const NAME: &str = "Pico";
 }
 
-#[embassy_executor::main]
-async fn main(spawner: Spawner) {
-    let p = x10_boards::pico::init();
-    let mut own = Address::INTERNAL;
-    let board = Board::new(p, |jumpers| {
-        // BASE + 0..2^JUMPERS was checked at build time, so this cannot fail.
-        own = unwrap!(address::address(BASE, jumpers).ok());
-        BusConfig::standard(own.get())
-    });
-    // MB was checked at build time.
-    let mb = unwrap!(Address::external(MB).ok());
-    info!(
-        "X10 daughterboard on a Pico at {=u8:#04x} (base {=u8:#04x} + jumpers {=u8}), motherboard at {=u8:#04x}",
-        own.get(),
-        BASE,
-        board.jumpers,
-        mb.get()
-    );
-    let db = DB.init(Daughterboard::new(
-        board.ports,
-        DbConfig::new(own, BoardKind::PICO),
-    ));
-    // One task, spawned once: the pool (size 1) cannot be exhausted.
-    spawner.spawn(unwrap!(daughterboard(db, board.bus, TargetConfig::new(mb))));
-}
+#[path = "../image.rs"]
+mod image;

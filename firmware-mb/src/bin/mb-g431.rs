@@ -1,68 +1,19 @@
-//! Motherboard image for the STM32G431 (WeAct core board): `X10_ROBOT=fig4_4 cargo mb-g431` builds it
-//! with that robot program, flashes it and streams its defmt log.
-//!
-//! Tasks: the motherboard runtime (dispatcher, DB-interrupt listener, internal daughterboard on
-//! the G431's own ports) and one task per robot of the program. The MB listens at
-//! `X10_MB_ADDR` (default 0x08).
+//! Motherboard image for the STM32G431 (WeAct core board): `X10_ROBOT=fig4_4 cargo mb-g431`
+//! builds it with that robot program, flashes it and streams its defmt log. The image itself
+//! (tasks, start-up) is `../image.rs`, shared with the other boards.
 #![no_std]
 #![no_main]
 
-use defmt::{info, unwrap};
-use defmt_rtt as _;
-use embassy_executor::Spawner;
-use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_mb::{run_robot, MbConfig, MbHandle, Motherboard};
-use panic_probe as _;
-use static_cell::StaticCell;
-use x10_boards::g431::{init, Board, G431Bus, G431Ports};
-use x10_boards::{address, BusConfig, EmbassyClock};
-use x10_microcode::{Address, BoardKind};
-use x10_robots::{AnyRobot, MAX_ROBOTS};
+/// What the shared image needs of this board.
+mod board {
+    pub use x10_boards::g431::{init, Board, G431Bus as Bus, G431Ports as Ports};
+    use x10_microcode::BoardKind;
 
-include!(concat!(env!("OUT_DIR"), "/robot.rs"));
-
-/// The motherboard's address, checked at build time.
-const MB: u8 = match address::build_mb(option_env!("X10_MB_ADDR")) {
-    Ok(a) => a,
-    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
-};
-
-/// Period of a robot's `step`, in µs.
-const STEP_US: u64 = 20_000;
-
-type Mb = Motherboard<NoopRawMutex, G431Ports, EmbassyClock>;
-type Handle = MbHandle<'static, NoopRawMutex, G431Ports, EmbassyClock>;
-
-static MOTHERBOARD: StaticCell<Mb> = StaticCell::new();
-
-#[embassy_executor::task]
-async fn motherboard(mb: &'static Mb, bus: G431Bus) -> ! {
-    mb.run(bus).await
+    /// What the internal daughterboard reports as its board.
+    pub const KIND: BoardKind = BoardKind::G431;
+    /// The board's name in the log.
+    pub const NAME: &str = "G431";
 }
 
-#[embassy_executor::task(pool_size = MAX_ROBOTS)]
-async fn robot(robot: AnyRobot<Handle>) -> ! {
-    info!("robot {} starts", robot.name());
-    run_robot(robot, EmbassyClock, STEP_US).await
-}
-
-#[embassy_executor::main]
-async fn main(spawner: Spawner) {
-    let board = Board::new(init(), |_jumpers| BusConfig::standard(MB));
-    // MB was checked at build time.
-    let own = unwrap!(Address::external(MB).ok());
-    let mut config = MbConfig::new(own);
-    config.internal.board = BoardKind::G431;
-    let mb = MOTHERBOARD.init(Motherboard::new(config, EmbassyClock, board.ports));
-    info!(
-        "X10 motherboard on a G431 at {=u8:#04x}, robot program {=str}",
-        own.get(),
-        PROGRAM.name()
-    );
-    // One motherboard task and at most MAX_ROBOTS robots: the pools (sizes 1 and
-    // MAX_ROBOTS) cannot be exhausted, and the program's constant wiring cannot fail.
-    spawner.spawn(unwrap!(motherboard(mb, board.bus)));
-    for r in unwrap!(PROGRAM.build(mb.handle()).ok()) {
-        spawner.spawn(unwrap!(robot(r)));
-    }
-}
+#[path = "../image.rs"]
+mod image;

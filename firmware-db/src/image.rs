@@ -1,0 +1,75 @@
+//! The daughterboard image, shared by every board: each bin (`src/bin/db-*.rs`) names its board
+//! in a `mod board` and includes this file as `#[path = "../image.rs"] mod image;`. It is not a
+//! module of the library, which stays free of chip code.
+//!
+//! What a bin's `board` module provides:
+//! * `init()`, the HAL start-up, and `Board`, whose `new` takes its parts (bus, ports) and
+//!   reads the address-select jumpers;
+//! * `Bus` and `Ports`, the board's bus adapter and ports;
+//! * `JUMPERS`, how many address-select jumpers the board has;
+//! * `KIND`, the `x10_microcode::BoardKind` the daughterboard reports;
+//! * `NAME`, the board's name in the log.
+//!
+//! Address: `X10_DB_ADDR` at build time (default 9) plus the jumpers read at boot; events go to
+//! the motherboard at `X10_MB_ADDR` (default 0x08).
+
+use defmt::{info, unwrap};
+use defmt_rtt as _;
+use embassy_executor::Spawner;
+use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+use firmware_db::{Daughterboard, DbConfig, TargetConfig};
+use panic_probe as _;
+use static_cell::StaticCell;
+use x10_boards::{address, BusConfig, EmbassyClock};
+use x10_microcode::Address;
+
+use crate::board::{init, Board, Bus, Ports, JUMPERS, KIND, NAME};
+
+/// The motherboard's address, checked at build time.
+const MB: u8 = match address::build_mb(option_env!("X10_MB_ADDR")) {
+    Ok(a) => a,
+    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
+};
+
+/// The base address, checked at build time for every jumper setting.
+const BASE: u8 = match address::build_base(option_env!("X10_DB_ADDR"), JUMPERS as u32, MB) {
+    Ok(b) => b,
+    Err(_) if JUMPERS == 0 => {
+        panic!("X10_DB_ADDR must be in 0x08..=0x77 and differ from X10_MB_ADDR")
+    }
+    Err(_) => panic!(
+        "X10_DB_ADDR plus every jumper setting (0..2^jumpers) must stay in 0x08..=0x77 and miss X10_MB_ADDR"
+    ),
+};
+
+type Db = Daughterboard<NoopRawMutex, Ports>;
+
+static DB: StaticCell<Db> = StaticCell::new();
+
+#[embassy_executor::task]
+async fn daughterboard(db: &'static Db, bus: Bus, target: TargetConfig) -> ! {
+    firmware_db::run(db, bus, EmbassyClock, target).await
+}
+
+#[embassy_executor::main]
+async fn main(spawner: Spawner) {
+    let mut own = Address::INTERNAL;
+    let board = Board::new(init(), |jumpers| {
+        // BASE + 0..2^JUMPERS was checked at build time, so this cannot fail.
+        own = unwrap!(address::address(BASE, jumpers).ok());
+        BusConfig::standard(own.get())
+    });
+    // MB was checked at build time.
+    let mb = unwrap!(Address::external(MB).ok());
+    info!(
+        "X10 daughterboard on a {=str} at {=u8:#04x} (base {=u8:#04x} + jumpers {=u8}), motherboard at {=u8:#04x}",
+        NAME,
+        own.get(),
+        BASE,
+        board.jumpers,
+        mb.get()
+    );
+    let db = DB.init(Daughterboard::new(board.ports, DbConfig::new(own, KIND)));
+    // One task, spawned once: the pool (size 1) cannot be exhausted.
+    spawner.spawn(unwrap!(daughterboard(db, board.bus, TargetConfig::new(mb))));
+}
