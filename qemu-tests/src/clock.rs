@@ -42,6 +42,10 @@ impl QemuClock {
             p.SYST.clear_current();
             p.SYST.enable_interrupt();
             p.SYST.enable_counter();
+            // SysTick's current value reads 0 until the counter first reloads: wait for that,
+            // or the first `now()` would read as (almost) a whole millisecond and the clock
+            // would go backwards once.
+            while cortex_m::peripheral::SYST::get_current() == 0 {}
         }
         QemuClock
     }
