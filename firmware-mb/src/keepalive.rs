@@ -139,6 +139,12 @@ impl Keepalives {
         }
     }
 
+    /// True when `board` has an entry (a failsafe kept alive, reserved or stopped): only
+    /// then does [`Keepalives::sent`] record anything.
+    pub(crate) fn tracks(&self, board: Address) -> bool {
+        self.entries.iter().any(|e| e.board == board)
+    }
+
     /// Something was sent to `board` (a transaction it acknowledged) at `now`.
     pub(crate) fn sent(&mut self, board: Address, now: Instant) {
         if let Some(e) = self.find(board) {

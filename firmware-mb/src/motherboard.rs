@@ -303,12 +303,18 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
             ticket,
             armed: true,
         };
-        let mut buf = [0u8; MAX_FRAME_LEN];
         let req = Request { db, seq, op };
+        // The frame is encoded in place, into as many bytes as it needs (a request too long
+        // for any board fails in `emit` as it would in a full-size buffer).
+        let mut frame: Vec<u8, MAX_FRAME_LEN> = Vec::new();
+        let _ = frame.resize(
+            (req.buffer_len() + usize::from(pec_on)).min(MAX_FRAME_LEN),
+            0,
+        );
         let emitted = if pec_on {
-            req.emit_with_pec(&mut buf)
+            req.emit_with_pec(&mut frame)
         } else {
-            req.emit(&mut buf)
+            req.emit(&mut frame)
         };
         let len = match emitted {
             Ok(n) => n,
@@ -317,7 +323,7 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                 return Err(LinkError::Invalid(e));
             }
         };
-        let bytes = buf.get(..len).unwrap_or(&[]);
+        frame.truncate(len);
         let meta = JobMeta {
             ticket,
             db,
@@ -330,14 +336,11 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
             },
         };
         if db.is_internal() {
-            let internal = self.call_internal(&meta, bytes);
+            let internal = self.call_internal(&meta, &frame);
             if let Either::Second(()) = select(internal, self.clock.sleep_until(deadline)).await {
                 return guard.expire();
             }
         } else {
-            let mut frame = Vec::new();
-            // `bytes` is at most MAX_FRAME_LEN long.
-            let _ = frame.extend_from_slice(bytes);
             // Never full: every queued job holds one of the MAX_PENDING slots, and a job
             // leaves the queue when its slot is released.
             if self.with(|t| t.enqueue(Job { meta, frame })).is_err() {
@@ -394,11 +397,8 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// the bus error after every retry.
     pub(crate) fn finish_transfer(&self, meta: &JobMeta, r: Result<Option<&[u8]>, BusError>) {
         let replied = matches!(r, Ok(Some(_)));
-        if r.is_ok() {
-            // The board saw a transaction: that keeps its failsafe alive.
-            let now = self.clock.now();
-            self.with(|t| t.keepalive.sent(meta.db, now));
-        }
+        // The board saw a transaction: that keeps its failsafe alive (recorded below).
+        let acked = r.is_ok();
         let outcome = match r {
             Ok(None) => Outcome::Complete(Ok(Payload::new())),
             Ok(Some(read)) => match Reply::parse_read(meta.db, meta.pec, read) {
@@ -437,20 +437,26 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
             },
             Err(e) => Outcome::Complete(Err(link_error(e))),
         };
-        self.with(|t| match outcome {
-            Outcome::Defer => {
-                if !t.defer(meta.ticket) {
-                    bump(&mut t.diag.late_replies);
-                }
+        self.with(|t| {
+            // The clock is read only for a board whose failsafe is kept alive.
+            if acked && t.keepalive.tracks(meta.db) {
+                t.keepalive.sent(meta.db, self.clock.now());
             }
-            Outcome::Complete(r) => {
-                if t.complete(meta.ticket, &r) {
-                    if let Some(s) = self.done.get(meta.ticket.index) {
-                        s.signal(r);
+            match outcome {
+                Outcome::Defer => {
+                    if !t.defer(meta.ticket) {
+                        bump(&mut t.diag.late_replies);
                     }
-                } else if replied {
-                    // The caller gave up while the transfer was on the bus.
-                    bump(&mut t.diag.late_replies);
+                }
+                Outcome::Complete(r) => {
+                    if t.complete(meta.ticket, &r) {
+                        if let Some(s) = self.done.get(meta.ticket.index) {
+                            s.signal(r);
+                        }
+                    } else if replied {
+                        // The caller gave up while the transfer was on the bus.
+                        bump(&mut t.diag.late_replies);
+                    }
                 }
             }
         });

@@ -2,8 +2,13 @@
 //! the per-board sequence counters, the ring of recently ended requests that classifies stray
 //! replies, the event waiters and the queue of unclaimed pin events. Pure bookkeeping: no
 //! waiting, no I/O. The motherboard keeps it behind one blocking mutex.
+//!
+//! The ring of recently ended requests is a fixed array written round-robin (the oldest entry
+//! is overwritten, nothing moves). A count per bucket of (board, sequence number) pairs that
+//! are pending or in the ring lets `alloc` take the board's next sequence number without
+//! looking through the slots and the ring when no pair in its bucket is held.
 
-use heapless::Vec;
+use heapless::{Deque, Vec};
 use x10_devices::{LinkError, PinEvent};
 use x10_microcode::{Address, PinRef, MAX_FRAME_LEN};
 
@@ -42,6 +47,20 @@ pub(crate) struct Job {
 
 /// Boards the table tracks: every 7-bit address.
 const BOARDS: usize = 128;
+
+/// Buckets of the held-pair counts (see [`held_bucket`]). At most
+/// `MAX_PENDING + RECENT_LEN` pairs are held at a time, so a count never exceeds 32.
+const HELD_BUCKETS: usize = 64;
+
+/// The bucket of the pair (`board`, `seq`): for one board, 64 consecutive sequence numbers
+/// fall in 64 different buckets; the board's part (times 37, odd) spreads the runs of
+/// neighbouring addresses apart.
+fn held_bucket(board: u8, seq: u8) -> usize {
+    usize::from(seq.wrapping_add(board.wrapping_mul(37))) % HELD_BUCKETS
+}
+
+/// A recently ended request: its board, its sequence number and how it ended.
+type RecentEntry = Option<(u8, u8, Ended)>;
 
 /// Where a request is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -117,14 +136,21 @@ pub(crate) struct Table {
     slots: [Slot; MAX_PENDING],
     generation: u32,
     next_seq: [u8; BOARDS],
-    recent: Vec<(u8, u8, Ended), RECENT_LEN>,
-    pec: u128,
+    /// The last [`RECENT_LEN`] ended requests, written round-robin at `recent_next`.
+    recent: [RecentEntry; RECENT_LEN],
+    /// Where the next ended request goes (the oldest entry once the ring is full).
+    recent_next: usize,
+    /// Per bucket ([`held_bucket`]), the (board, seq) pairs that are pending (slot not free) or
+    /// in `recent`: a sequence number whose bucket count is 0 is free.
+    held: [u8; HELD_BUCKETS],
+    /// PEC negotiated, one bit per board (32 boards per word: no 128-bit shifts on the M0).
+    pec: [u32; BOARDS / 32],
     pub(crate) diag: MbDiagnostics,
     waiters: [WaiterSlot; MAX_EVENT_WAITERS],
     unclaimed: Vec<PinEvent, UNCLAIMED_EVENTS>,
-    /// Requests for the dispatcher, oldest first. Each holds a slot, so the queue never
-    /// overflows; releasing the slot takes the job out.
-    queue: Vec<Job, MAX_PENDING>,
+    /// Requests for the dispatcher, oldest first (a ring: taking the oldest moves nothing).
+    /// Each holds a slot, so the queue never overflows; releasing the slot takes the job out.
+    queue: Deque<Job, MAX_PENDING>,
     /// The failsafes the motherboard keeps alive.
     pub(crate) keepalive: Keepalives,
     /// A failsafe setting changed (the keepalive task must look again).
@@ -141,8 +167,10 @@ impl Table {
             slots: [FREE_SLOT; MAX_PENDING],
             generation: 0,
             next_seq: [0; BOARDS],
-            recent: Vec::new(),
-            pec: 0,
+            recent: [None; RECENT_LEN],
+            recent_next: 0,
+            held: [0; HELD_BUCKETS],
+            pec: [0; BOARDS / 32],
             diag: MbDiagnostics {
                 requests: 0,
                 completed: 0,
@@ -181,7 +209,7 @@ impl Table {
                 state: Waiter::Free,
             }; MAX_EVENT_WAITERS],
             unclaimed: Vec::new(),
-            queue: Vec::new(),
+            queue: Deque::new(),
             keepalive: Keepalives::new(),
             keepalive_changed: false,
         }
@@ -205,37 +233,45 @@ impl Table {
     /// # Errors
     /// The job back if the queue is full (it cannot be while each job holds a slot).
     pub(crate) fn enqueue(&mut self, job: Job) -> Result<(), Job> {
-        self.queue.push(job)
+        self.queue.push_back(job)
     }
 
     /// The oldest queued job.
     pub(crate) fn pop_job(&mut self) -> Option<Job> {
-        if self.queue.is_empty() {
-            None
-        } else {
-            Some(self.queue.remove(0))
-        }
+        self.queue.pop_front()
     }
 
     /// True when PEC is negotiated with `board`.
     pub(crate) fn pec(&self, board: Address) -> bool {
-        self.pec >> board_index(board) & 1 != 0
+        let i = board_index(board);
+        self.pec.get(i / 32).is_some_and(|w| w >> (i % 32) & 1 != 0)
     }
 
     pub(crate) fn set_pec(&mut self, board: Address, on: bool) {
-        let bit = 1u128 << board_index(board);
-        if on {
-            self.pec |= bit;
-        } else {
-            self.pec &= !bit;
+        let i = board_index(board);
+        let bit = 1u32 << (i % 32);
+        if let Some(w) = self.pec.get_mut(i / 32) {
+            if on {
+                *w |= bit;
+            } else {
+                *w &= !bit;
+            }
         }
     }
 
+    /// True when (`board`, `seq`) is pending or among the recently ended. Looks through the
+    /// slots and the ring only when a pair in its bucket is held.
     fn seq_in_use(&self, board: u8, seq: u8) -> bool {
+        if self.held.get(held_bucket(board, seq)).copied().unwrap_or(1) == 0 {
+            return false;
+        }
         self.slots
             .iter()
             .any(|s| s.state != SlotState::Free && s.board == board && s.seq == seq)
-            || self.recent.iter().any(|&(b, s, _)| b == board && s == seq)
+            || self
+                .recent
+                .iter()
+                .any(|r| matches!(*r, Some((b, s, _)) if b == board && s == seq))
     }
 
     /// Claims a slot and the next free sequence number of `board` (skipping numbers still
@@ -270,12 +306,17 @@ impl Table {
         }
         let b = board.get();
         let start = self.next_seq.get(board_index(board)).copied().unwrap_or(0);
-        let Some(seq) = (0..=u8::MAX)
-            .map(|i| start.wrapping_add(i))
-            .find(|&s| !self.seq_in_use(b, s))
-        else {
-            bump(&mut self.diag.busy);
-            return Err(LinkError::Busy);
+        let mut candidate = start;
+        let seq = loop {
+            if !self.seq_in_use(b, candidate) {
+                break candidate;
+            }
+            candidate = candidate.wrapping_add(1);
+            if candidate == start {
+                // All 256 numbers are pending or recently ended.
+                bump(&mut self.diag.busy);
+                return Err(LinkError::Busy);
+            }
         };
         if let Some(n) = self.next_seq.get_mut(board_index(board)) {
             *n = seq.wrapping_add(1);
@@ -293,6 +334,10 @@ impl Table {
             pec_change,
             failsafe_change,
         };
+        // Never wraps: at most MAX_PENDING + RECENT_LEN pairs are held.
+        if let Some(h) = self.held.get_mut(held_bucket(b, seq)) {
+            *h = h.wrapping_add(1);
+        }
         bump(&mut self.diag.requests);
         Ok((Ticket { index, generation }, seq))
     }
@@ -363,18 +408,28 @@ impl Table {
     }
 
     /// Frees a slot, takes its job out of the queue if it is still there, and remembers how
-    /// its request ended.
+    /// its request ended (in place of the oldest remembered one when the ring is full).
     pub(crate) fn release(&mut self, t: Ticket, ended: Ended) {
-        self.queue.retain(|j| j.meta.ticket != t);
+        if !self.queue.is_empty() {
+            self.queue.retain(|j| j.meta.ticket != t);
+        }
         let Some(s) = self.slot_mut(t) else {
             return;
         };
         let (board, seq) = (s.board, s.seq);
         s.state = SlotState::Free;
-        if self.recent.is_full() {
-            self.recent.remove(0);
+        // The pair stays held: it moves from the slot to the ring. The entry it replaces is
+        // no longer held.
+        let at = self.recent_next;
+        self.recent_next = if at + 1 >= RECENT_LEN { 0 } else { at + 1 };
+        let Some(entry) = self.recent.get_mut(at) else {
+            return;
+        };
+        if let Some((b, s, _)) = entry.replace((board, seq, ended)) {
+            if let Some(h) = self.held.get_mut(held_bucket(b, s)) {
+                *h = h.wrapping_sub(1);
+            }
         }
-        let _ = self.recent.push((board, seq, ended));
     }
 
     /// The deferred request `(board, seq)`, if one waits.
@@ -392,12 +447,16 @@ impl Table {
     /// Counts a reply that matches no waiting request: late (its request gave up), duplicate
     /// (its request already completed) or unknown.
     pub(crate) fn stray(&mut self, board: Address, seq: u8) {
-        let ended = self
-            .recent
+        // Newest first: the entries before `recent_next` (backwards), then those from it on.
+        let (before, after) = self.recent.split_at(self.recent_next.min(RECENT_LEN));
+        let ended = before
             .iter()
             .rev()
-            .find(|&&(b, s, _)| b == board.get() && s == seq)
-            .map(|&(_, _, e)| e);
+            .chain(after.iter().rev())
+            .find_map(|r| match *r {
+                Some((b, s, e)) if b == board.get() && s == seq => Some(e),
+                _ => None,
+            });
         let d = &mut self.diag;
         match ended {
             Some(Ended::GaveUp) => bump(&mut d.late_replies),
@@ -480,5 +539,222 @@ impl Table {
             }
             _ => false,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn addr(a: u8) -> Address {
+        Address::new(a).unwrap()
+    }
+
+    fn alloc(t: &mut Table, board: u8) -> Result<(Ticket, u8), LinkError> {
+        t.alloc(addr(board), None, None, Instant(0))
+    }
+
+    /// (late, duplicate, unknown) after classifying one stray reply.
+    fn classify(t: &mut Table, board: u8, seq: u8) -> (u32, u32, u32) {
+        let before = (
+            t.diag.late_replies,
+            t.diag.duplicate_replies,
+            t.diag.unknown_replies,
+        );
+        t.stray(addr(board), seq);
+        (
+            t.diag.late_replies - before.0,
+            t.diag.duplicate_replies - before.1,
+            t.diag.unknown_replies - before.2,
+        )
+    }
+
+    /// The held counts recomputed from the slots and the ring.
+    fn held_from_scratch(t: &Table) -> [u8; HELD_BUCKETS] {
+        let mut held = [0u8; HELD_BUCKETS];
+        for s in t.slots.iter().filter(|s| s.state != SlotState::Free) {
+            held[held_bucket(s.board, s.seq)] += 1;
+        }
+        for &(b, s, _) in t.recent.iter().flatten() {
+            held[held_bucket(b, s)] += 1;
+        }
+        held
+    }
+
+    #[test]
+    fn sequence_numbers_skip_pending_and_recent_and_wrap() {
+        let mut t = Table::new();
+        let (kept, seq) = alloc(&mut t, 9).unwrap();
+        assert_eq!(seq, 0);
+        let mut seen = [0u8; 300];
+        for s in seen.iter_mut() {
+            let (ticket, seq) = alloc(&mut t, 9).unwrap();
+            *s = seq;
+            t.release(ticket, Ended::Completed);
+        }
+        // 1..=255, then 0 is still pending: 1, 2, ... again once they left the ring.
+        let want: [u8; 300] = core::array::from_fn(|i| {
+            if i < 255 {
+                i as u8 + 1
+            } else {
+                (i - 254) as u8
+            }
+        });
+        assert_eq!(seen, want);
+        // The pending 0 and the last 16 ended (30..=45) are skipped by the next number.
+        t.next_seq[9] = 30;
+        assert_eq!(alloc(&mut t, 9).unwrap().1, 46);
+        t.next_seq[9] = 0;
+        assert_eq!(alloc(&mut t, 9).unwrap().1, 1);
+        t.release(kept, Ended::GaveUp);
+        assert_eq!(t.held, held_from_scratch(&t));
+    }
+
+    #[test]
+    fn the_ring_keeps_the_last_16_ended_requests() {
+        let mut t = Table::new();
+        for _ in 0..RECENT_LEN + 4 {
+            let (ticket, seq) = alloc(&mut t, 0x20).unwrap();
+            let ended = if seq % 2 == 0 {
+                Ended::Completed
+            } else {
+                Ended::GaveUp
+            };
+            t.release(ticket, ended);
+        }
+        // 0..=3 were pushed out by 16..=19.
+        for seq in 0..4 {
+            assert_eq!(classify(&mut t, 0x20, seq), (0, 0, 1), "seq {seq}");
+        }
+        for seq in 4..20 {
+            let want = if seq % 2 == 0 { (0, 1, 0) } else { (1, 0, 0) };
+            assert_eq!(classify(&mut t, 0x20, seq), want, "seq {seq}");
+        }
+        // Another board, or a number never used: unknown.
+        assert_eq!(classify(&mut t, 0x21, 5), (0, 0, 1));
+        assert_eq!(classify(&mut t, 0x20, 20), (0, 0, 1));
+        // A pending request is not in the ring: a stray with its number is unknown.
+        let (_, seq) = alloc(&mut t, 0x20).unwrap();
+        assert_eq!(seq, 20);
+        assert_eq!(classify(&mut t, 0x20, 20), (0, 0, 1));
+    }
+
+    #[test]
+    fn pec_bits_per_board() {
+        let mut t = Table::new();
+        for b in [0u8, 8, 31, 32, 63, 64, 0x77] {
+            t.set_pec(addr(b), true);
+        }
+        for b in (0..=127u8).filter(|&b| Address::new(b).is_ok()) {
+            assert_eq!(
+                t.pec(addr(b)),
+                matches!(b, 0 | 8 | 31 | 32 | 63 | 64 | 0x77),
+                "board {b}"
+            );
+        }
+        t.set_pec(addr(32), false);
+        assert!(!t.pec(addr(32)));
+        assert!(t.pec(addr(31)) && t.pec(addr(63)));
+    }
+
+    /// The table against the plain rules it replaces: a list of the last 16 ended requests
+    /// (oldest dropped first) and a search of every slot and that list for the board's next
+    /// free number. Boards 0 and 64 share every bucket, 9 and 0x77 share some.
+    #[test]
+    fn matches_the_plain_model_over_random_operations() {
+        const BOARDS_USED: [u8; 4] = [0, 64, 9, 0x77];
+        let mut t = Table::new();
+        let mut pending: [Option<(Ticket, u8, u8)>; MAX_PENDING] = [None; MAX_PENDING];
+        let mut recent: Vec<(u8, u8, Ended), RECENT_LEN> = Vec::new();
+        let mut next = [0u8; BOARDS];
+        let mut rng: u32 = 0x1234_5678;
+        let mut draw = |n: u32| {
+            rng = rng.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (rng >> 8) % n
+        };
+        let (mut allocs, mut busy, mut skipped) = (0, 0, 0);
+        for _ in 0..20_000 {
+            let board = BOARDS_USED[draw(4) as usize];
+            match draw(8) {
+                // Allocate (more often than release, so the slots fill up at times).
+                0..=3 => {
+                    let free = pending.iter().position(Option::is_none);
+                    let r = alloc(&mut t, board);
+                    let Some(index) = free else {
+                        assert_eq!(r, Err(LinkError::Busy));
+                        busy += 1;
+                        continue;
+                    };
+                    let in_use = |s: u8| {
+                        pending
+                            .iter()
+                            .flatten()
+                            .any(|&(_, b, q)| b == board && q == s)
+                            || recent.iter().any(|&(b, q, _)| b == board && q == s)
+                    };
+                    let start = next[usize::from(board)];
+                    let want = (0..=255u8)
+                        .map(|i| start.wrapping_add(i))
+                        .find(|&s| !in_use(s))
+                        .unwrap();
+                    if want != start {
+                        skipped += 1;
+                    }
+                    next[usize::from(board)] = want.wrapping_add(1);
+                    let (ticket, seq) = r.unwrap();
+                    assert_eq!((ticket.index, seq), (index, want));
+                    pending[index] = Some((ticket, board, seq));
+                    allocs += 1;
+                }
+                // Release a random pending request (those in the first 4 slots rarely, so
+                // that some stay pending while their board's numbers wrap).
+                4..=6 => {
+                    let i = draw(MAX_PENDING as u32) as usize;
+                    if i < 4 && draw(32) != 0 {
+                        continue;
+                    }
+                    if let Some((ticket, b, s)) = pending[i].take() {
+                        let ended = if draw(2) == 0 {
+                            Ended::Completed
+                        } else {
+                            Ended::GaveUp
+                        };
+                        t.release(ticket, ended);
+                        // Released twice: nothing happens.
+                        t.release(ticket, Ended::GaveUp);
+                        if recent.is_full() {
+                            recent.remove(0);
+                        }
+                        recent.push((b, s, ended)).unwrap();
+                    }
+                }
+                // Move the board's next number back a little, onto numbers just used.
+                7 if draw(4) == 0 => {
+                    let n = next[usize::from(board)].wrapping_sub(draw(40) as u8);
+                    next[usize::from(board)] = n;
+                    t.next_seq[usize::from(board)] = n;
+                }
+                // A stray reply near the board's current numbers.
+                _ => {
+                    let seq = next[usize::from(board)].wrapping_sub(draw(24) as u8);
+                    let want = match recent
+                        .iter()
+                        .rev()
+                        .find(|&&(b, s, _)| b == board && s == seq)
+                    {
+                        Some((_, _, Ended::GaveUp)) => (1, 0, 0),
+                        Some((_, _, Ended::Completed)) => (0, 1, 0),
+                        None => (0, 0, 1),
+                    };
+                    assert_eq!(classify(&mut t, board, seq), want);
+                }
+            }
+            assert_eq!(t.held, held_from_scratch(&t));
+        }
+        // The run went through every case.
+        assert!(
+            allocs > 4_000 && busy > 1_000 && skipped > 100,
+            "{allocs} {busy} {skipped}"
+        );
     }
 }
