@@ -1,7 +1,7 @@
 //! Work a daughterboard does between requests: pulse-in measurements, event sampling and the
 //! failsafe. All timing comes from the [`Clock`] given to [`Daughterboard::run_background`].
 
-use embassy_futures::join::{join, join3};
+use embassy_futures::join::join3;
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::RawMutex;
 use heapless::Vec;
@@ -10,7 +10,7 @@ use x10_microcode::{EventConfig, EventKind, Pin, PinRef, Port, Status};
 
 use crate::daughterboard::{bump, port_status, Daughterboard, MAX_EVENT_PINS};
 use crate::event::OutEvent;
-use x10_hal::ports::Ports;
+use x10_hal::ports::{PortError, Ports};
 
 impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// Runs the board's background work; never returns. Call once, next to the transport.
@@ -20,7 +20,14 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     ///
     /// * pulse-in measurements accepted with `pending` run ([`crate::DEFERRED_WORKERS`] at a
     ///   time, on different pins); each result goes out as a `deferred_reply` event with the
-    ///   request's sequence number;
+    ///   request's sequence number and pin. A measurement's timeout counts from its
+    ///   acceptance (the time is taken when this task is first polled after the accepting
+    ///   write, in the same executor pass), not from when a worker becomes free: a job that
+    ///   waited gets what is left of its timeout (rounded up to whole ms), and one whose
+    ///   timeout passed while it waited is answered `timeout` at once without measuring. So
+    ///   the deferred reply is queued no later than acceptance + timeout + 1 ms (plus however
+    ///   long the port overruns its timeout), inside the motherboard's deadline for the request
+    ///   (its request timeout + the pulse timeout, counted from before the request was sent);
     /// * every `sample_interval_us` (on a fixed grid from the moment events were enabled) the
     ///   pins with events enabled are sampled: a digital level that changed in an enabled
     ///   direction queues a `pin_change` event (payload: new level); an analog value queues an
@@ -38,7 +45,11 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         let (never, _, _) = join3(
             self.failsafe_loop(&clock),
             self.sample_loop(&clock),
-            join(self.pulse_worker(), self.pulse_worker()),
+            join3(
+                self.stamp_pulse_jobs(&clock),
+                self.pulse_worker(&clock),
+                self.pulse_worker(&clock),
+            ),
         )
         .await;
         never
@@ -177,13 +188,34 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         }
     }
 
-    async fn pulse_worker(&self) -> ! {
+    /// Stamps each accepted pulse-in with the time it was accepted and hands it to the
+    /// workers.
+    async fn stamp_pulse_jobs<C: Clock>(&self, clock: &C) -> ! {
         loop {
-            let job = self.jobs.receive().await;
-            let r = self
-                .ports()
-                .pulse_in(job.pin, job.edge, job.timeout_ms)
-                .await;
+            let mut job = self.jobs.receive().await;
+            job.accepted = Some(clock.now());
+            // Never waits: at most DEFERRED_QUEUE_LEN jobs are accepted and unfinished.
+            self.stamped.send(job).await;
+        }
+    }
+
+    async fn pulse_worker<C: Clock>(&self, clock: &C) -> ! {
+        loop {
+            let job = self.stamped.receive().await;
+            // What is left of the timeout counted from acceptance, in whole ms, rounded up: a
+            // job a worker starts at once gets its whole timeout (a few µs pass between the
+            // stamp and the start), and no measurement ends more than 1 ms after acceptance +
+            // timeout, well inside the MB's deadline (its request timeout + the pulse timeout).
+            let waited_us = job
+                .accepted
+                .map_or(0, |at| clock.now().0.saturating_sub(at.0));
+            let left_ms = (u64::from(job.timeout_ms) * 1000)
+                .saturating_sub(waited_us)
+                .div_ceil(1000);
+            let r = match u16::try_from(left_ms).unwrap_or(job.timeout_ms) {
+                0 => Err(PortError::Timeout),
+                ms => self.ports().pulse_in(job.pin, job.edge, ms).await,
+            };
             self.with(|s| s.pulse_pins.retain(|p| *p != job.pin));
             let ev = match r {
                 Ok(us) => OutEvent::new(

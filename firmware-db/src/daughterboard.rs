@@ -20,7 +20,9 @@ use x10_hal::ports::{PortError, Ports};
 
 /// Events the queue holds before it overflows.
 pub const EVENT_QUEUE_LEN: usize = 16;
-/// Pulse-in measurements accepted but not yet finished (queued or running).
+/// Pulse-in measurements accepted but not yet finished (queued or running). A measurement's
+/// timeout runs from its acceptance, not from the moment a worker starts it, so a deferred
+/// reply never comes later than acceptance + timeout + 1 ms (plus the end of a measurement under way).
 pub const DEFERRED_QUEUE_LEN: usize = 4;
 /// Pulse-in measurements that run at the same time (on different pins).
 pub const DEFERRED_WORKERS: usize = 2;
@@ -119,6 +121,9 @@ pub(crate) struct Watch {
 /// A pulse-in accepted with `pending`, waiting for a worker.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PulseJob {
+    /// When the board accepted it (stamped by the background work, see
+    /// [`Daughterboard::run_background`]); `None` until then.
+    pub(crate) accepted: Option<x10_hal::time::Instant>,
     pub(crate) seq: u8,
     pub(crate) pin: PinRef,
     pub(crate) edge: Edge,
@@ -166,6 +171,9 @@ pub struct Daughterboard<M: RawMutex, P: Ports> {
     state: Mutex<M, RefCell<State>>,
     events: Channel<M, OutEvent, EVENT_QUEUE_LEN>,
     pub(crate) jobs: Channel<M, PulseJob, DEFERRED_QUEUE_LEN>,
+    /// Accepted pulse-ins with their acceptance time, for the workers. Never full: a job is in
+    /// `jobs` or here only while its pin is in `pulse_pins` (at most [`DEFERRED_QUEUE_LEN`]).
+    pub(crate) stamped: Channel<M, PulseJob, DEFERRED_QUEUE_LEN>,
     /// Signalled after every transaction addressed to the board (failsafe).
     pub(crate) heard: Signal<M, ()>,
     /// Signalled when event enables change (sampler).
@@ -192,6 +200,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             })),
             events: Channel::new(),
             jobs: Channel::new(),
+            stamped: Channel::new(),
             heard: Signal::new(),
             watch_changed: Signal::new(),
         }
@@ -627,6 +636,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
 
     fn start_pulse(&self, seq: u8, pin: PinRef, edge: Edge, timeout_ms: Option<u16>) -> Done {
         let job = PulseJob {
+            accepted: None,
             seq,
             pin,
             edge,

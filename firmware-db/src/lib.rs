@@ -38,6 +38,6 @@ pub use daughterboard::{
     REPLY_BUF_LEN,
 };
 pub use event::{OutEvent, EVENT_PAYLOAD_LEN};
-pub use target::{run, run_target, MAX_EVENT_YIELDS};
+pub use target::{run, run_target, MAX_EVENT_YIELDS, MB_GONE_RETRY_US};
 /// The board's ports (defined in `x10-hal`, so that board crates need not depend on this one).
 pub use x10_hal::ports::{self, PortError, Ports, SafeState};

@@ -21,12 +21,20 @@ use x10_hal::ports::Ports;
 /// lowest on the bus).
 pub const MAX_EVENT_YIELDS: u8 = 16;
 
+/// While the motherboard is taken to be gone (see [`run_target`]), the head event is tried
+/// once every this many µs (100 ms): delivery resumes when the MB is back even if it never
+/// addresses the board, and a dead MB sees at most ten short writes a second.
+pub const MB_GONE_RETRY_US: u64 = 100_000;
+
 /// Serves the bus for `db`; never returns.
 ///
-/// While no event is waiting the port listens at the board's address: a write is executed
-/// ([`Daughterboard::handle_write`]), a write-then-read is executed and answered in the same
-/// transaction, a plain read gets the held reply ([`Daughterboard::take_reply`]). A listen
-/// error (a write too long for the buffer) counts as `bad_length`.
+/// While no event is waiting the port waits to be addressed at the board's address
+/// ([`MultiMaster::addressed`], the only bus call ever raced against something else); once
+/// addressed, the transaction is received ([`MultiMaster::listen`]) and served to the end, an
+/// event queued meanwhile waits: a write is executed ([`Daughterboard::handle_write`]), a
+/// write-then-read is executed and answered in the same transaction, a plain read gets the
+/// held reply ([`Daughterboard::take_reply`]). A listen error (a write too long for the
+/// buffer) counts as `bad_length`.
 ///
 /// When an event is queued the port becomes a brief master and writes it to
 /// `config.mb_address` (with PEC when negotiated). A failed attempt waits while listening (the
@@ -49,10 +57,13 @@ pub const MAX_EVENT_YIELDS: u8 = 16;
 /// `events_dropped` and reported by an overflow event.
 ///
 /// After an event has been dropped this way the MB is taken to be gone (reset, crashed,
-/// unpowered): the board sends nothing more and only listens, so a dead MB does not turn into
-/// a bus flooded with retries. Events meanwhile wait in the queue (and what does not fit is
-/// counted in `events_dropped`); the first transaction addressed to the board shows the MB is
-/// back, and delivery resumes with the queued events and the overflow report.
+/// unpowered, or a single-role MB busy as controller for longer than the retries last). The
+/// board then listens, and tries the head event of its queue (the overflow report, usually)
+/// once every [`MB_GONE_RETRY_US`], each try counted in `event_retries`: no burst of retries,
+/// so a dead MB does not turn into a flooded bus. Other events wait in the queue (what does
+/// not fit is counted in `events_dropped`). The first of those tries that is delivered, or the
+/// first transaction addressed to the board, shows the MB is back, and delivery resumes with
+/// the full retry policy.
 ///
 /// Run it next to [`Daughterboard::run_background`] (or use [`run`], which joins both).
 pub async fn run_target<M, P, B, C>(
@@ -70,24 +81,80 @@ where
     let mut rx = [0u8; MAX_FRAME_LEN];
     let mut tx = [0u8; MAX_FRAME_LEN];
     let mut sent: u32 = 0;
-    // False once an event could not be delivered, until the MB addresses this board again.
+    // False once an event could not be delivered, until the MB shows it is back.
     let mut mb_present = true;
+    // The head event, taken out of the queue while the MB is gone.
+    let mut held: Option<OutEvent> = None;
+    let mut retry_at = clock.now();
     loop {
         if !mb_present {
-            let incoming = bus.listen(&mut rx).await;
-            mb_present = serve(db, &mut bus, incoming, &rx, &mut tx).await;
+            match held.as_ref() {
+                None => match select(bus.addressed(), db.next_event()).await {
+                    Either::First(a) => {
+                        mb_present = receive(db, &mut bus, a, &mut rx, &mut tx).await;
+                    }
+                    Either::Second(ev) => {
+                        held = Some(ev);
+                        retry_at = clock.now().plus_us(MB_GONE_RETRY_US);
+                    }
+                },
+                Some(ev) => match select(bus.addressed(), clock.sleep_until(retry_at)).await {
+                    Either::First(a) => {
+                        mb_present = receive(db, &mut bus, a, &mut rx, &mut tx).await;
+                    }
+                    Either::Second(()) => {
+                        db.with(|s| bump(&mut s.diag.event_retries));
+                        if try_once(db, &mut bus, &config, ev, &mut tx).await {
+                            held = None;
+                            mb_present = true;
+                        } else {
+                            retry_at = clock.now().plus_us(MB_GONE_RETRY_US);
+                        }
+                    }
+                },
+            }
             continue;
         }
-        let r = select(bus.listen(&mut rx), db.next_event()).await;
-        match r {
-            Either::First(incoming) => {
-                serve(db, &mut bus, incoming, &rx, &mut tx).await;
+        let ev = match held.take() {
+            Some(ev) => ev,
+            None => match select(bus.addressed(), db.next_event()).await {
+                Either::First(a) => {
+                    receive(db, &mut bus, a, &mut rx, &mut tx).await;
+                    continue;
+                }
+                Either::Second(ev) => ev,
+            },
+        };
+        sent = sent.wrapping_add(1);
+        mb_present = deliver(db, &mut bus, &clock, &config, &ev, sent, &mut rx, &mut tx).await;
+    }
+}
+
+/// One attempt to write `ev` to the MB, while it is taken to be gone. True when delivered
+/// (counted in `events_sent`).
+async fn try_once<M: RawMutex, P: Ports, B: MultiMaster>(
+    db: &Daughterboard<M, P>,
+    bus: &mut B,
+    config: &TargetConfig,
+    ev: &OutEvent,
+    frame: &mut [u8],
+) -> bool {
+    let len = db.encode_event(ev, config.mb_address, frame);
+    let Some(bytes) = frame.get(..len).filter(|b| !b.is_empty()) else {
+        // Cannot be encoded: nothing to retry.
+        db.event_lost();
+        return true;
+    };
+    match bus.write(config.mb_address.get(), bytes).await {
+        Ok(()) => {
+            db.with(|s| bump(&mut s.diag.events_sent));
+            true
+        }
+        Err(e) => {
+            if e == BusError::ArbitrationLost {
+                db.with(|s| bump(&mut s.diag.arbitration_lost));
             }
-            Either::Second(ev) => {
-                sent = sent.wrapping_add(1);
-                mb_present =
-                    deliver(db, &mut bus, &clock, &config, &ev, sent, &mut rx, &mut tx).await;
-            }
+            false
         }
     }
 }
@@ -107,6 +174,22 @@ where
     )
     .await;
     never
+}
+
+/// After [`MultiMaster::addressed`] returned: receives that transaction and serves it, never
+/// raced. True when one addressed to the board was served (see [`serve`]).
+async fn receive<M: RawMutex, P: Ports, B: MultiMaster>(
+    db: &Daughterboard<M, P>,
+    bus: &mut B,
+    addressed: Result<(), BusError>,
+    rx: &mut [u8],
+    tx: &mut [u8],
+) -> bool {
+    let incoming = match addressed {
+        Ok(()) => bus.listen(rx).await,
+        Err(e) => Err(e),
+    };
+    serve(db, bus, incoming, rx, tx).await
 }
 
 /// Serves one transaction; true when it was addressed to the board (including a write too
@@ -216,10 +299,11 @@ async fn listen_until<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
 ) -> bool {
     let mut served = false;
     loop {
-        let r = select(bus.listen(rx), clock.sleep_until(until)).await;
+        let r = select(bus.addressed(), clock.sleep_until(until)).await;
         match r {
-            Either::First(incoming) => {
-                served |= serve(db, bus, incoming, rx, tx).await;
+            Either::First(addressed) => {
+                // Past `until` if need be: a transaction under way is received whole.
+                served |= receive(db, bus, addressed, rx, tx).await;
                 if served && stop_when_addressed {
                     return true;
                 }

@@ -303,3 +303,68 @@ fn analog_window_reports_first_sample_and_crossings() {
     assert_eq!(evs[0].payload[..], [0xE9, 0x03, 0]);
     assert_eq!(evs[0].seq, 2);
 }
+
+/// A pulse-in's timeout counts from its acceptance, not from the moment a worker is free: a
+/// queued job gets what is left of it, and one whose time ran out while it waited is answered
+/// `timeout` at once, so no deferred reply comes later than acceptance + timeout.
+#[test]
+fn a_queued_pulse_in_times_out_counted_from_its_acceptance() {
+    let clock = TestClock::new();
+    let db = board(&clock);
+    db.ports()
+        .pulses
+        .borrow_mut()
+        .extend([(30_000, Ok(11)), (45_000, Ok(22))]);
+    let got = run(&clock, async {
+        let script = async {
+            clock.sleep_until(Instant(100)).await;
+            // Four pulse-ins accepted at t = 100 (two workers): S1.A, S1.B, S2.A (50 ms)
+            // and S2.B (40 ms).
+            for (port, seq, ms) in [
+                (0x80u8, 1u8, 50u8),
+                (0x81, 2, 50),
+                (0x82, 3, 50),
+                (0x83, 4, 40),
+            ] {
+                db.handle_write(&[0x13, 0x09, port, seq, ms, 0], true).await;
+                assert_eq!(take_reply(&db), [seq, 0x01, 0x00]);
+            }
+            let _boot = db.next_event().await;
+            let mut got = Vec::new();
+            for _ in 0..4 {
+                let ev = db.next_event().await;
+                got.push((ev.seq, ev.pin.to_byte(), ev.status, clock.now()));
+            }
+            got
+        };
+        match embassy_futures::select::select(script, db.run_background(&clock)).await {
+            embassy_futures::select::Either::First(v) => v,
+            embassy_futures::select::Either::Second(_) => unreachable!(),
+        }
+    });
+    assert_eq!(
+        got,
+        [
+            (1, 0x80, Status::Ok, Instant(30_100)),
+            (2, 0x81, Status::Ok, Instant(45_100)),
+            // S2.B waited until t = 45_100, past its 40 ms: timeout at once, not measured.
+            (4, 0x83, Status::Timeout, Instant(45_100)),
+            // S2.A started at t = 30_100 with the 20 ms left: ends at 100 + 50 ms.
+            (3, 0x82, Status::Timeout, Instant(50_100)),
+        ]
+    );
+    let pulses: Vec<PortOp> = db
+        .ports()
+        .take_log()
+        .into_iter()
+        .filter(|op| matches!(op, PortOp::PulseIn(..)))
+        .collect();
+    assert_eq!(
+        pulses,
+        [
+            PortOp::PulseIn(PinRef::from_byte(0x80), Edge::Rising, 50),
+            PortOp::PulseIn(PinRef::from_byte(0x81), Edge::Rising, 50),
+            PortOp::PulseIn(PinRef::from_byte(0x82), Edge::Rising, 20),
+        ]
+    );
+}

@@ -4,7 +4,7 @@ mod common;
 
 use common::{run_until, BusOp, FakeBus, FakePorts, TestClock, Txn};
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_db::{run, Daughterboard, DbConfig, TargetConfig};
+use firmware_db::{run, Daughterboard, DbConfig, TargetConfig, MB_GONE_RETRY_US};
 use x10_hal::bus::BusError;
 use x10_hal::retry::RetryPolicy;
 use x10_microcode::{pec, Address, BoardKind, Diagnostics};
@@ -167,34 +167,79 @@ fn forgiven_attempts_are_bounded_and_a_dropped_event_is_still_reported() {
 #[test]
 fn an_undeliverable_event_is_dropped_counted_and_reported() {
     let (clock, db, bus, tcfg) = setup();
-    bus.script_writes(&[Err(BusError::Nack); 3]);
+    // Three failed attempts at the boot event, then four failed slow retries.
+    bus.script_writes(&[Err(BusError::Nack); 7]);
     let fut = run(&db, bus.clone(), &clock, tcfg);
     let mut fut = core::pin::pin!(fut);
     run_until(&clock, 10_000, fut.as_mut());
     let ops = bus.take_ops();
-    // three attempts at the boot event; then the MB is taken to be gone: nothing more is sent
+    // three attempts at the boot event; then the MB is taken to be gone
     assert_eq!(ops.len(), 3, "{ops:?}");
+    // the last attempt is followed by a listening wait of `base_us` (100 µs), then the drop
+    let gone_at = ops[2].0 + 100;
     let d = db.diagnostics();
     assert_eq!(
         (d.events_sent, d.event_retries, d.events_dropped),
         (0, 2, 1)
     );
-    // Still silent much later: a dead MB does not get a bus flooded with retries.
-    run_until(&clock, 500_000, fut.as_mut());
-    assert_eq!(bus.take_ops(), vec![]);
-    // The MB is back (it sends a heartbeat): the overflow report (counter 1, one dropped) goes.
-    bus.push(Txn::Write(vec![0x02, 0x09, 0x00, 0x05]));
-    run_until(&clock, 510_000, fut.as_mut());
-    let ops = bus.take_ops();
-    assert_eq!(ops.len(), 1, "{ops:?}");
+    // A dead MB gets one write of the head event (the overflow report: counter 1, one
+    // dropped) every MB_GONE_RETRY_US, no more.
+    let report = BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00]);
+    run_until(&clock, gone_at + 450_000, fut.as_mut());
+    let expect: Vec<_> = (1..=4)
+        .map(|k| (gone_at + k * MB_GONE_RETRY_US, report.clone()))
+        .collect();
+    assert_eq!(bus.take_ops(), expect);
+    let d = db.diagnostics();
     assert_eq!(
-        ops[0].1,
-        BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00])
+        (d.events_sent, d.event_retries, d.events_dropped),
+        (0, 6, 1)
+    );
+    // The MB is back without ever addressing the board: the fifth slow try is delivered and
+    // the board is back to normal delivery (a new event goes at once).
+    run_until(&clock, gone_at + 550_000, fut.as_mut());
+    assert_eq!(
+        bus.take_ops(),
+        vec![(gone_at + 5 * MB_GONE_RETRY_US, report.clone())]
     );
     let d = db.diagnostics();
     assert_eq!(
         (d.events_sent, d.event_retries, d.events_dropped),
-        (1, 2, 1)
+        (1, 7, 1)
+    );
+    // a refused output (actuator port 5 of 2) gives a rejected event, sent at once
+    bus.push(Txn::Write(vec![0x12, 0x09, 0x08, 0x02]));
+    run_until(&clock, gone_at + 560_000, fut.as_mut());
+    let ops = bus.take_ops();
+    assert_eq!(ops.len(), 1, "{ops:?}");
+    assert_eq!(ops[0].0, gone_at + 550_000);
+}
+
+#[test]
+fn a_board_that_took_the_mb_for_gone_delivers_as_soon_as_it_is_addressed() {
+    let (clock, db, bus, tcfg) = setup();
+    bus.script_writes(&[Err(BusError::Nack); 4]);
+    let fut = run(&db, bus.clone(), &clock, tcfg);
+    let mut fut = core::pin::pin!(fut);
+    run_until(&clock, 150_000, fut.as_mut());
+    let ops = bus.take_ops();
+    // three attempts at the boot event, one failed slow retry of the overflow report
+    assert_eq!(ops.len(), 4, "{ops:?}");
+    assert_eq!(ops[3].0, ops[2].0 + 100 + MB_GONE_RETRY_US);
+    // The MB is back (it sends a heartbeat): the report goes right after it.
+    bus.push(Txn::Write(vec![0x02, 0x09, 0x00, 0x05]));
+    run_until(&clock, 160_000, fut.as_mut());
+    assert_eq!(
+        bus.take_ops(),
+        vec![(
+            150_000,
+            BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00])
+        )]
+    );
+    let d = db.diagnostics();
+    assert_eq!(
+        (d.events_sent, d.event_retries, d.events_dropped),
+        (1, 3, 1)
     );
 }
 

@@ -17,9 +17,12 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// The dispatcher and the DB-interrupt listener on `bus`; never returns. Part of
     /// [`Motherboard::run`].
     ///
-    /// Idle, it listens at the motherboard's address (polled before the request queue, so a
-    /// transaction already under way is never cut): writes are events or deferred replies and
-    /// are routed; reads get nothing. A request from the queue goes out as one `write`
+    /// Idle, it waits to be addressed at the motherboard's address
+    /// ([`MultiMaster::addressed`], polled before the request queue; the only bus call that is
+    /// ever raced). Once addressed, the transaction is received ([`MultiMaster::listen`]) and
+    /// served to the end before anything else, so a transfer under way is never cut by a
+    /// request, a timer or anything else: writes are events or deferred replies and are
+    /// routed; reads get nothing. A request from the queue goes out as one `write`
     /// (outputs) or one `write_read` with a repeated START (inputs, reading the reply header,
     /// the operation's reply capacity and the PEC byte if negotiated). After a NACK or a lost
     /// arbitration the listener runs again (the winner of the arbitration is usually a
@@ -39,15 +42,37 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         let mut rx = [0u8; MAX_FRAME_LEN];
         let mut nth: u32 = 0;
         loop {
-            let r = select(bus.listen(&mut rx), self.next_job()).await;
+            let r = select(bus.addressed(), self.next_job()).await;
             match r {
-                Either::First(incoming) => self.serve_listener(&mut bus, incoming, &rx).await,
+                Either::First(addressed) => {
+                    self.receive(&mut bus, addressed, &mut rx).await;
+                }
                 Either::Second(job) => {
                     nth = nth.wrapping_add(1);
                     self.dispatch(&mut bus, &job, nth, &mut rx).await;
                 }
             }
         }
+    }
+
+    /// After [`MultiMaster::addressed`] returned: receives and serves that transaction, never
+    /// raced. The source (first byte) of a write, if one was received.
+    async fn receive<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        addressed: Result<(), BusError>,
+        rx: &mut [u8],
+    ) -> Option<u8> {
+        let incoming = match addressed {
+            Ok(()) => bus.listen(rx).await,
+            Err(e) => Err(e),
+        };
+        let source = match incoming {
+            Ok(Incoming::Write(n)) if n > 0 => rx.first().copied(),
+            _ => None,
+        };
+        self.serve_listener(bus, incoming, rx).await;
+        source
     }
 
     async fn serve_listener<B: MultiMaster>(
@@ -76,14 +101,11 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         wanted: impl Fn(u8) -> bool,
     ) -> bool {
         loop {
-            let r = select(bus.listen(rx), self.clock.sleep_until(until)).await;
+            let r = select(bus.addressed(), self.clock.sleep_until(until)).await;
             match r {
-                Either::First(incoming) => {
-                    let source = match incoming {
-                        Ok(Incoming::Write(n)) if n > 0 => rx.first().copied(),
-                        _ => None,
-                    };
-                    self.serve_listener(bus, incoming, rx).await;
+                Either::First(addressed) => {
+                    // Past `until` if need be: a transaction under way is received whole.
+                    let source = self.receive(bus, addressed, rx).await;
                     if source.is_some_and(&wanted) {
                         return true;
                     }

@@ -268,7 +268,12 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// and never reaches the bus.
     ///
     /// Dropping the future gives the request up: its slot is freed and a reply that still
-    /// comes is counted as late and dropped.
+    /// comes is counted as late and dropped. A deferred request (pulse-in) given up after
+    /// its `pending` answer keeps its slot and sequence number until the board's deadline
+    /// for it (the time of `pending` + [`Motherboard::timeout_us`]) has passed, so its late
+    /// deferred reply can never complete another request; while kept, the slot counts
+    /// against [`crate::MAX_PENDING`]. A `set_pec` or `set_failsafe` the board acknowledged
+    /// takes effect on the motherboard's side too, even when its caller gave up meanwhile.
     ///
     /// # Errors
     /// [`LinkError::Invalid`] (nothing sent: the operation does not encode, or `db` is the
@@ -292,7 +297,7 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         let now = self.clock.now();
         let deadline = now.plus_us(timeout_us);
         let (ticket, seq, pec_on) = self.with(|t| {
-            let (ticket, seq) = t.alloc(db, pec_change(&op), failsafe_change(&op), now)?;
+            let (ticket, seq) = t.alloc(db, failsafe_change(&op), now)?;
             if let Some(s) = self.done.get(ticket.index) {
                 s.reset();
             }
@@ -334,6 +339,15 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
             } else {
                 0
             },
+            // The board answers a pulse-in no later than acceptance + its pulse timeout
+            // (firmware-db counts it from acceptance), and acceptance is before the `pending`
+            // answer: the request timeout on top leaves room for the event's delivery.
+            deferred: match op {
+                Op::PulseIn { pin, .. } => Some((pin, self.timeout_us(&op))),
+                _ => None,
+            },
+            pec_change: pec_change(&op),
+            failsafe_change: failsafe_change(&op),
         };
         if db.is_internal() {
             let internal = self.call_internal(&meta, &frame);
@@ -421,7 +435,8 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                         Ok(p) => Outcome::Complete(Ok(p)),
                         Err(_) => Outcome::Complete(Err(LinkError::BadReply)),
                     },
-                    Status::Pending => Outcome::Defer,
+                    Status::Pending if meta.deferred.is_some() => Outcome::Defer,
+                    Status::Pending => Outcome::Complete(Err(LinkError::BadReply)),
                     Status::PecMismatch if !meta.pec => {
                         // Only a board that checks PEC answers this: it has PEC on (its
                         // boot event was older than our set_pec, or ours was lost).
@@ -444,11 +459,15 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
             }
             match outcome {
                 Outcome::Defer => {
-                    if !t.defer(meta.ticket) {
+                    if !t.defer(meta, self.clock.now()) {
                         bump(&mut t.diag.late_replies);
                     }
                 }
                 Outcome::Complete(r) => {
+                    if r.is_ok() {
+                        // The board applied it, whether or not the caller still waits.
+                        t.applied(meta.db, meta, || self.clock.now());
+                    }
                     if t.complete(meta.ticket, &r) {
                         if let Some(s) = self.done.get(meta.ticket.index) {
                             s.signal(r);
@@ -514,8 +533,9 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         self.with(|t| bump(&mut t.diag.events));
         match ev.kind {
             EventKind::DeferredReply => self.with(|t| {
-                let Some(ticket) = t.find_deferred(ev.source, ev.seq) else {
-                    t.stray(ev.source, ev.seq);
+                // Matched by board, sequence number and pin; a reply for a request that gave
+                // up is counted as late (see `Table::take_deferred`).
+                let Some(ticket) = t.take_deferred(ev.source, ev.seq, ev.pin) else {
                     return;
                 };
                 let r = match ev.status {

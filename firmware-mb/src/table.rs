@@ -3,6 +3,12 @@
 //! replies, the event waiters and the queue of unclaimed pin events. Pure bookkeeping: no
 //! waiting, no I/O. The motherboard keeps it behind one blocking mutex.
 //!
+//! A deferred request whose caller gave up keeps its slot (state `Abandoned`) until the
+//! board's own deadline for it has passed: its (board, sequence number) pair cannot be reused
+//! while the board may still send the deferred reply, and a deferred reply must also name the
+//! request's pin. So a late deferred reply is counted as late and never completes another
+//! request, however many requests the board's sequence counter went through meanwhile.
+//!
 //! The ring of recently ended requests is a fixed array written round-robin (the oldest entry
 //! is overwritten, nothing moves). A count per bucket of (board, sequence number) pairs that
 //! are pending or in the ring lets `alloc` take the board's next sequence number without
@@ -36,6 +42,14 @@ pub(crate) struct JobMeta {
     pub(crate) pec: bool,
     /// Bytes to read after a repeated START (0: the request is a single write).
     pub(crate) read_len: usize,
+    /// A deferred operation (pulse-in): the pin its deferred reply names and how long after
+    /// the `pending` answer the board may still send it, in µs. Only such a request may be
+    /// answered `pending`.
+    pub(crate) deferred: Option<(PinRef, u64)>,
+    /// PEC setting the request asks for (a `set_pec`), applied once the board has it.
+    pub(crate) pec_change: Option<bool>,
+    /// Failsafe timeout the request sets (a `set_failsafe`), kept alive once the board has it.
+    pub(crate) failsafe_change: Option<u16>,
 }
 
 /// A request for the dispatcher: its frame, ready to go on the bus.
@@ -70,6 +84,9 @@ pub(crate) enum SlotState {
     Queued,
     /// Answered `pending`: waiting for the deferred-reply event.
     Deferred,
+    /// Answered `pending`, then given up by its caller: nobody waits, but the pair (board,
+    /// sequence number) stays held until `until`, the latest the board may still answer.
+    Abandoned,
     /// Ended; the result is in the slot's signal for the caller to take.
     Done,
 }
@@ -80,10 +97,13 @@ struct Slot {
     board: u8,
     seq: u8,
     state: SlotState,
-    /// PEC setting the request asks for (a `set_pec`), applied when it succeeds.
-    pec_change: Option<bool>,
-    /// Failsafe timeout the request sets (a `set_failsafe`), kept alive when it succeeds.
+    /// Failsafe timeout the request sets (a `set_failsafe`): its keepalive entry is in use
+    /// while the request is.
     failsafe_change: Option<u16>,
+    /// Deferred or abandoned: the pin the deferred reply must name.
+    pin: PinRef,
+    /// Deferred or abandoned: the latest the board may send the deferred reply.
+    until: Instant,
 }
 
 const FREE_SLOT: Slot = Slot {
@@ -91,8 +111,9 @@ const FREE_SLOT: Slot = Slot {
     board: 0,
     seq: 0,
     state: SlotState::Free,
-    pec_change: None,
     failsafe_change: None,
+    pin: PinRef::from_byte(0),
+    until: Instant(0),
 };
 
 /// One request's claim on a slot.
@@ -274,20 +295,35 @@ impl Table {
                 .any(|r| matches!(*r, Some((b, s, _)) if b == board && s == seq))
     }
 
+    /// Frees the abandoned deferred requests whose board can no longer answer (`until` is
+    /// past); their pairs go to the ring as given up.
+    fn expire_abandoned(&mut self, now: Instant) {
+        for index in 0..MAX_PENDING {
+            let expired = self
+                .slots
+                .get(index)
+                .is_some_and(|s| s.state == SlotState::Abandoned && s.until.0 <= now.0);
+            if expired {
+                self.retire(index, Ended::GaveUp);
+            }
+        }
+    }
+
     /// Claims a slot and the next free sequence number of `board` (skipping numbers still
-    /// pending or recently ended). A request that sets a failsafe (`failsafe_change` non-zero)
-    /// also claims room to keep it alive.
+    /// pending, held by an abandoned deferred request, or recently ended). A request that sets
+    /// a failsafe (`failsafe_change` non-zero) also claims room to keep it alive.
     ///
     /// # Errors
-    /// [`LinkError::Busy`] when every slot is in use, or every sequence number of the board,
-    /// or (for a failsafe) [`crate::MAX_KEEPALIVES`] boards already have one.
+    /// [`LinkError::Busy`] when every slot is in use (abandoned deferred requests included),
+    /// or every sequence number of the board, or (for a failsafe)
+    /// [`crate::MAX_KEEPALIVES`] boards already have one.
     pub(crate) fn alloc(
         &mut self,
         board: Address,
-        pec_change: Option<bool>,
         failsafe_change: Option<u16>,
         now: Instant,
     ) -> Result<(Ticket, u8), LinkError> {
+        self.expire_abandoned(now);
         let Some(index) = self.slots.iter().position(|s| s.state == SlotState::Free) else {
             bump(&mut self.diag.busy);
             return Err(LinkError::Busy);
@@ -331,8 +367,9 @@ impl Table {
             board: b,
             seq,
             state: SlotState::Queued,
-            pec_change,
             failsafe_change,
+            pin: PinRef::from_byte(0),
+            until: Instant(0),
         };
         // Never wraps: at most MAX_PENDING + RECENT_LEN pairs are held.
         if let Some(h) = self.held.get_mut(held_bucket(b, seq)) {
@@ -358,19 +395,44 @@ impl Table {
         self.slot(t).map_or(SlotState::Free, |s| s.state)
     }
 
-    /// Marks a queued request as answered `pending`. False if it is no longer queued.
-    pub(crate) fn defer(&mut self, t: Ticket) -> bool {
-        match self.slot_mut(t) {
-            Some(s) if s.state == SlotState::Queued => {
+    /// Marks the queued deferred request `meta` as answered `pending` at `now`: it waits for
+    /// a deferred reply naming its pin until its hold time has passed. False if its caller
+    /// already gave up: then the pair is held by a free slot as abandoned all the same (when
+    /// one is free), since the board measures and will answer.
+    pub(crate) fn defer(&mut self, meta: &JobMeta, now: Instant) -> bool {
+        let Some((pin, hold_us)) = meta.deferred else {
+            return false;
+        };
+        let until = now.plus_us(hold_us);
+        if let Some(s) = self.slot_mut(meta.ticket) {
+            if s.state == SlotState::Queued {
                 s.state = SlotState::Deferred;
-                true
+                s.pin = pin;
+                s.until = until;
+                return true;
             }
-            _ => false,
         }
+        let Some(slot) = self.slots.iter_mut().find(|s| s.state == SlotState::Free) else {
+            return false;
+        };
+        self.generation = self.generation.wrapping_add(1);
+        *slot = Slot {
+            generation: self.generation,
+            board: meta.db.get(),
+            seq: meta.seq,
+            state: SlotState::Abandoned,
+            failsafe_change: None,
+            pin,
+            until,
+        };
+        if let Some(h) = self.held.get_mut(held_bucket(meta.db.get(), meta.seq)) {
+            *h = h.wrapping_add(1);
+        }
+        false
     }
 
     /// Ends a queued or deferred request with `result` (the caller signals it). Counts the
-    /// outcome and applies a successful `set_pec`. False if the request already ended.
+    /// outcome. False if the request already ended.
     pub(crate) fn complete(
         &mut self,
         t: Ticket,
@@ -383,19 +445,9 @@ impl Table {
             return false;
         }
         s.state = SlotState::Done;
-        let (board, pec_change, failsafe_change) = (s.board, s.pec_change, s.failsafe_change);
         let d = &mut self.diag;
         match result {
-            Ok(_) => {
-                bump(&mut d.completed);
-                if let (Some(on), Ok(a)) = (pec_change, Address::new(board)) {
-                    self.set_pec(a, on);
-                }
-                if let (Some(ms), Ok(a)) = (failsafe_change, Address::new(board)) {
-                    self.keepalive.set(a, ms);
-                    self.keepalive_changed = true;
-                }
-            }
+            Ok(_) => bump(&mut d.completed),
             Err(LinkError::Timeout) => bump(&mut d.timeouts),
             Err(LinkError::Nack) => bump(&mut d.nacks),
             Err(LinkError::ArbitrationLost) => bump(&mut d.arbitration_failures),
@@ -407,13 +459,63 @@ impl Table {
         true
     }
 
-    /// Frees a slot, takes its job out of the queue if it is still there, and remembers how
-    /// its request ended (in place of the oldest remembered one when the ring is full).
+    /// Applies what a request the board acknowledged changes on the motherboard's side: the
+    /// PEC setting of a `set_pec`, the failsafe kept alive of a `set_failsafe`. Done when the
+    /// transfer ends, whether or not the caller still waits (the board applied it either way).
+    /// `now` gives the end of the transfer (read only for a `set_failsafe`).
+    pub(crate) fn applied(
+        &mut self,
+        board: Address,
+        meta: &JobMeta,
+        now: impl FnOnce() -> Instant,
+    ) {
+        if let Some(on) = meta.pec_change {
+            self.set_pec(board, on);
+        }
+        if let Some(ms) = meta.failsafe_change {
+            if ms > 0 && !self.keepalive.tracks(board) {
+                // The caller gave up while it was on the bus and the reserved entry went to
+                // another board meanwhile: take one again (none free: nothing to keep alive
+                // with, as when the reservation failed).
+                let slots = &self.slots;
+                let in_flight = |b: Address| {
+                    slots.iter().any(|s| {
+                        s.state != SlotState::Free
+                            && s.board == b.get()
+                            && s.failsafe_change.is_some()
+                    })
+                };
+                let _ = self.keepalive.reserve(board, now(), in_flight);
+            }
+            self.keepalive.set(board, ms);
+            self.keepalive_changed = true;
+        }
+    }
+
+    /// The caller is done with a request: frees its slot, takes its job out of the queue if it
+    /// is still there, and remembers how the request ended (in place of the oldest remembered
+    /// one when the ring is full). A deferred request given up keeps its slot as `Abandoned`
+    /// until the board can no longer answer it.
     pub(crate) fn release(&mut self, t: Ticket, ended: Ended) {
         if !self.queue.is_empty() {
             self.queue.retain(|j| j.meta.ticket != t);
         }
         let Some(s) = self.slot_mut(t) else {
+            return;
+        };
+        if s.state == SlotState::Deferred && ended == Ended::GaveUp {
+            s.state = SlotState::Abandoned;
+            return;
+        }
+        if s.state == SlotState::Abandoned {
+            return;
+        }
+        self.retire(t.index, ended);
+    }
+
+    /// Frees slot `index` and moves its pair to the ring.
+    fn retire(&mut self, index: usize, ended: Ended) {
+        let Some(s) = self.slots.get_mut(index) else {
             return;
         };
         let (board, seq) = (s.board, s.seq);
@@ -432,16 +534,29 @@ impl Table {
         }
     }
 
-    /// The deferred request `(board, seq)`, if one waits.
-    pub(crate) fn find_deferred(&self, board: Address, seq: u8) -> Option<Ticket> {
-        self.slots.iter().enumerate().find_map(|(index, s)| {
-            (s.state == SlotState::Deferred && s.board == board.get() && s.seq == seq).then_some(
-                Ticket {
-                    index,
-                    generation: s.generation,
-                },
-            )
-        })
+    /// The deferred request a deferred reply from `board` with `seq` for `pin` answers, if its
+    /// caller still waits. A reply for an abandoned request is counted as late and frees its
+    /// slot; any other reply that matches no waiting request is classified as a stray.
+    pub(crate) fn take_deferred(&mut self, board: Address, seq: u8, pin: PinRef) -> Option<Ticket> {
+        let found = self.slots.iter().enumerate().find_map(|(index, s)| {
+            (matches!(s.state, SlotState::Deferred | SlotState::Abandoned)
+                && s.board == board.get()
+                && s.seq == seq
+                && s.pin == pin)
+                .then_some((index, s.generation, s.state))
+        });
+        match found {
+            Some((index, generation, SlotState::Deferred)) => Some(Ticket { index, generation }),
+            Some((index, _, _)) => {
+                bump(&mut self.diag.late_replies);
+                self.retire(index, Ended::GaveUp);
+                None
+            }
+            None => {
+                self.stray(board, seq);
+                None
+            }
+        }
     }
 
     /// Counts a reply that matches no waiting request: late (its request gave up), duplicate
@@ -551,7 +666,7 @@ mod tests {
     }
 
     fn alloc(t: &mut Table, board: u8) -> Result<(Ticket, u8), LinkError> {
-        t.alloc(addr(board), None, None, Instant(0))
+        t.alloc(addr(board), None, Instant(0))
     }
 
     /// (late, duplicate, unknown) after classifying one stray reply.
@@ -637,6 +752,107 @@ mod tests {
         let (_, seq) = alloc(&mut t, 0x20).unwrap();
         assert_eq!(seq, 20);
         assert_eq!(classify(&mut t, 0x20, 20), (0, 0, 1));
+    }
+
+    fn pin(byte: u8) -> PinRef {
+        PinRef::from_byte(byte)
+    }
+
+    /// A pulse-in's metadata: its deferred reply names `pin`, up to `hold_us` after `pending`.
+    fn pulse_meta(ticket: Ticket, board: u8, seq: u8, pin: PinRef, hold_us: u64) -> JobMeta {
+        JobMeta {
+            ticket,
+            db: addr(board),
+            seq,
+            pec: false,
+            read_len: 3,
+            deferred: Some((pin, hold_us)),
+            pec_change: None,
+            failsafe_change: None,
+        }
+    }
+
+    #[test]
+    fn a_deferred_reply_must_name_the_requests_pin() {
+        let mut t = Table::new();
+        let (ticket, seq) = alloc(&mut t, 9).unwrap();
+        assert!(t.defer(&pulse_meta(ticket, 9, seq, pin(0x80), 1_000), Instant(100)));
+        // Same board and number, another pin: not this request's reply.
+        assert_eq!(t.take_deferred(addr(9), seq, pin(0x82)), None);
+        assert_eq!(t.state(ticket), SlotState::Deferred);
+        assert_eq!(t.diag.unknown_replies, 1);
+        assert_eq!(t.take_deferred(addr(9), seq, pin(0x80)), Some(ticket));
+    }
+
+    #[test]
+    fn a_given_up_deferred_request_holds_its_number_until_the_boards_deadline() {
+        let mut t = Table::new();
+        let (ticket, seq) = alloc(&mut t, 9).unwrap();
+        assert_eq!(seq, 0);
+        // `pending` at 100; the board may answer until 1 100.
+        assert!(t.defer(&pulse_meta(ticket, 9, seq, pin(0x80), 1_000), Instant(100)));
+        t.release(ticket, Ended::GaveUp);
+        assert_eq!(t.state(ticket), SlotState::Abandoned);
+        assert_eq!(t.held, held_from_scratch(&t));
+        // More than RECENT_LEN requests later, and with the counter back at 0, 0 is held.
+        for _ in 0..RECENT_LEN + 1 {
+            let (tk, s) = t.alloc(addr(9), None, Instant(1_099)).unwrap();
+            assert_ne!(s, 0);
+            t.release(tk, Ended::Completed);
+        }
+        // (1 has left the ring; 0 has not, being held by its slot.)
+        t.next_seq[9] = 0;
+        let (tk, s) = t.alloc(addr(9), None, Instant(1_099)).unwrap();
+        assert_eq!(s, 1);
+        t.release(tk, Ended::Completed);
+        assert_eq!(t.state(ticket), SlotState::Abandoned);
+        // At the deadline the slot is freed; the pair goes to the ring as given up.
+        t.next_seq[9] = 0;
+        let (tk, s) = t.alloc(addr(9), None, Instant(1_100)).unwrap();
+        assert_eq!(t.state(ticket), SlotState::Free);
+        // 0 and 1 are the newest entries of the ring: not reused yet, and a reply is late.
+        assert_eq!(s, 2);
+        t.release(tk, Ended::Completed);
+        assert_eq!(classify(&mut t, 9, 0), (1, 0, 0));
+        assert_eq!(t.held, held_from_scratch(&t));
+    }
+
+    #[test]
+    fn a_late_deferred_reply_within_the_hold_is_counted_late_and_frees_the_slot() {
+        let mut t = Table::new();
+        let (ticket, seq) = alloc(&mut t, 9).unwrap();
+        assert!(t.defer(&pulse_meta(ticket, 9, seq, pin(0x80), 1_000), Instant(100)));
+        t.release(ticket, Ended::GaveUp);
+        assert_eq!(t.take_deferred(addr(9), seq, pin(0x80)), None);
+        assert_eq!(t.diag.late_replies, 1);
+        assert_eq!(t.state(ticket), SlotState::Free);
+        // The pair is in the ring: a duplicate of the same reply is late again.
+        assert_eq!(t.take_deferred(addr(9), seq, pin(0x80)), None);
+        assert_eq!(t.diag.late_replies, 2);
+        assert_eq!(t.held, held_from_scratch(&t));
+    }
+
+    #[test]
+    fn pending_for_a_request_already_given_up_holds_its_number_all_the_same() {
+        let mut t = Table::new();
+        let (ticket, seq) = alloc(&mut t, 9).unwrap();
+        // The caller gave up while the request was on the bus; the board answered `pending`.
+        t.release(ticket, Ended::GaveUp);
+        assert!(!t.defer(&pulse_meta(ticket, 9, seq, pin(0x80), 1_000), Instant(100)));
+        assert_eq!(
+            t.slots
+                .iter()
+                .filter(|s| s.state == SlotState::Abandoned)
+                .count(),
+            1
+        );
+        assert!(t.seq_in_use(9, seq));
+        assert_eq!(t.held, held_from_scratch(&t));
+        // Its reply is late and ends the hold.
+        assert_eq!(t.take_deferred(addr(9), seq, pin(0x80)), None);
+        assert_eq!(t.diag.late_replies, 1);
+        assert!(t.slots.iter().all(|s| s.state == SlotState::Free));
+        assert_eq!(t.held, held_from_scratch(&t));
     }
 
     #[test]

@@ -85,6 +85,12 @@ impl MultiMaster for End<'_> {
         Ok(())
     }
 
+    async fn addressed(&mut self) -> Result<(), BusError> {
+        // Waits for a transfer in the inbox without taking it out.
+        self.wire.inbox[self.me].ready_to_receive().await;
+        Ok(())
+    }
+
     async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
         let t = self.wire.inbox[self.me].receive().await;
         let n = t.bytes.len();

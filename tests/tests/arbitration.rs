@@ -130,6 +130,9 @@ fn check(r: &Run, role: &str) {
         0,
         "{role}"
     );
+    // No node dropped a transfer it had started to receive (the simulator loses such a
+    // transfer, as the boards' ports do).
+    assert_eq!(o.bus.lost_transfers, 0, "{role}");
     let sent = u32::from(db.events_sent) + u32::from(o.board("db0a").unwrap().events_sent);
     assert_eq!(
         sent + 1,
@@ -274,10 +277,14 @@ fn events_survive_back_to_back_polling_of_the_same_board() {
     assert!(*reads.borrow() > 3_000, "{}", reads.borrow());
     let d = o.board("db09").unwrap();
     assert_eq!(d.events_dropped, 0);
-    // Its writes did give up for requests addressed to it (22 times), and each such event
-    // went out on the one retry right after serving the request.
-    assert!(d.arbitration_lost >= 20, "{}", d.arbitration_lost);
+    // An event queued while a request to db09 is being received waits for the end of that
+    // transaction (a transfer under way is never cut) and then goes out first. Only 4 times
+    // did its write find the bus taken by a request addressed to it (its address already
+    // matched); each such event went out on the one retry right after serving the request.
+    assert_eq!(d.arbitration_lost, 4);
     assert_eq!(d.event_retries, d.arbitration_lost);
+    // No node dropped a transfer it had started to receive.
+    assert_eq!(o.bus.lost_transfers, 0);
     // Boot and 39 pin events from db09, and the internal board's boot.
     assert_eq!((d.events_sent, o.mb.events), (40, 41));
     assert_eq!(o.mb.overflows + o.mb.events_dropped + o.mb.bad_events, 0);

@@ -106,10 +106,29 @@ fn a_silent_mb_trips_the_failsafe_once() {
         assert_eq!(r.outcome, Outcome::Nack { byte: 0 });
     }
     assert!(tripped[0].start_ns >= trip);
+    // Then the MB is taken to be gone: no burst of retries, only the head event (the overflow
+    // report: counter 2, one event dropped) tried once every 100 ms (MB_GONE_RETRY_US),
+    // counted from the end of the previous try (the last attempt's 100 µs wait, then each
+    // NACKed address: 25 µs at 400 kHz), five times until the run ends at 1 s.
+    let reports: Vec<_> = o
+        .records
+        .iter()
+        .filter(|r| r.addr == 0x08 && r.start_ns > tripped[4].start_ns)
+        .collect();
+    assert_eq!(reports.len(), 5);
+    for r in &reports {
+        assert_eq!(r.written, [0x09, 0x06, 0x00, 0x02, 0x00, 0x02, 0x01, 0x00]);
+        assert_eq!(r.outcome, Outcome::Nack { byte: 0 });
+    }
+    assert_eq!(reports[0].start_ns - tripped[4].start_ns, ms(100) + 125_000);
+    for w in reports.windows(2) {
+        assert_eq!(w[1].start_ns - w[0].start_ns, ms(100) + 25_000);
+    }
     let db09 = o.board("db09").unwrap();
     assert_eq!(db09.failsafe_trips, 1);
-    assert_eq!(db09.event_retries, 4);
-    assert!(db09.events_dropped >= 1);
+    // 4 retries of the tripped event, 5 slow tries of the report.
+    assert_eq!(db09.event_retries, 9);
+    assert_eq!((db09.events_sent, db09.events_dropped), (1, 1));
     // The stopped MB saw nothing of it.
     assert_eq!(o.mb.failsafe_trips, 0);
 }

@@ -6,7 +6,10 @@
 //!   busy-waits (synchronously) while another master holds the bus, so a write while the bus
 //!   is BUSY, or while this node is being addressed, fails at once with
 //!   [`BusError::ArbitrationLost`] and the runtime retries with its backoff; and the driver's
-//!   own timeout is the short one from [`BusConfig`].
+//!   own timeout is the short one from [`BusConfig`] (a timeout of that wait while this node is
+//!   addressed is reported as arbitration lost too). Target side: `addressed` is the driver's
+//!   `listen` (ADDR seen, left set, SCL stretched, cancel-safe), kept for the adapter's
+//!   `listen`, which receives the transfer (`respond_to_write`, never raced by the runtimes).
 //! * [`G431Ports`]: digital pins are `Flex` pins (input with pull-down, or push-pull output),
 //!   PWM pins are channels 1 and 2 of one timer per actuator port, analog inputs are on ADC1
 //!   (12 bits), pulse-in samples its pin (see [`crate::pulse`]).
@@ -146,7 +149,7 @@ macro_rules! g431_build {
                     )).started(), [Output::OFF; 2])),
                 } ),* ];
                 Board {
-                    bus: G431Bus { i2c },
+                    bus: G431Bus { i2c, matched: None },
                     ports: G431Ports {
                         adc: Lock::new(adc::Adc::new(p.ADC1, Default::default())),
                         sensors,
@@ -230,6 +233,9 @@ fn output_low(pin: Peri<'static, embassy_stm32::gpio::AnyPin>) -> Flex<'static> 
 /// [`MultiMaster`] on the STM32G431's I2C v2 block (see the module doc).
 pub struct G431Bus {
     i2c: I2c<'static, Async, i2c::MultiMaster>,
+    /// The address match [`MultiMaster::addressed`] saw (ADDR still set, SCL stretched),
+    /// for the following `listen`.
+    matched: Option<SlaveCommandKind>,
 }
 
 /// Longest reply that gets padded: a controller reading past the reply gets 0xFF, as the
@@ -257,15 +263,30 @@ impl G431Bus {
             Ok(())
         }
     }
+
+    /// A controller call's result. embassy-stm32 spins (synchronously) while BUSY before it
+    /// starts; a master that began between [`G431Bus::bus_free`] and that spin and addresses
+    /// this node keeps BUSY set (ADDR stretches SCL) until the spin times out: that is this
+    /// node being addressed, not a dead bus, so it is reported as `ArbitrationLost` and the
+    /// runtime serves the transaction and retries.
+    fn controller_result(r: Result<(), i2c::Error>) -> Result<(), BusError> {
+        match r {
+            Err(i2c::Error::Timeout) if i2c_regs().isr().read().addr() => {
+                Err(BusError::ArbitrationLost)
+            }
+            r => r.map_err(bus_error),
+        }
+    }
 }
 
 impl MultiMaster for G431Bus {
     /// # Errors
     /// As the trait; [`BusError::ArbitrationLost`] at once when the bus is taken (see the
-    /// module doc); an empty write is [`BusError::Bus`].
+    /// module doc), or when the driver's BUSY wait timed out while this node was being
+    /// addressed; an empty write is [`BusError::Bus`].
     async fn write(&mut self, addr: u8, bytes: &[u8]) -> Result<(), BusError> {
         Self::bus_free()?;
-        self.i2c.write(addr, bytes).await.map_err(bus_error)
+        Self::controller_result(self.i2c.write(addr, bytes).await)
     }
 
     /// # Errors
@@ -277,15 +298,25 @@ impl MultiMaster for G431Bus {
         read: &mut [u8],
     ) -> Result<(), BusError> {
         Self::bus_free()?;
-        self.i2c
-            .write_read(addr, bytes, read)
-            .await
-            .map_err(bus_error)
+        Self::controller_result(self.i2c.write_read(addr, bytes, read).await)
+    }
+
+    /// embassy-stm32's `listen`: waits for ADDR and leaves it set (SCL stays stretched), so
+    /// dropping it loses nothing. The match is kept for [`G431Bus::listen`].
+    async fn addressed(&mut self) -> Result<(), BusError> {
+        if self.matched.is_none() {
+            let cmd = self.i2c.listen().await.map_err(bus_error)?;
+            self.matched = Some(cmd.kind);
+        }
+        Ok(())
     }
 
     async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
-        let cmd = self.i2c.listen().await.map_err(bus_error)?;
-        if cmd.kind == SlaveCommandKind::Read {
+        let kind = match self.matched.take() {
+            Some(kind) => kind,
+            None => self.i2c.listen().await.map_err(bus_error)?.kind,
+        };
+        if kind == SlaveCommandKind::Read {
             return Ok(Incoming::Read);
         }
         // The driver acknowledges and drops bytes past its buffer: one byte more than the

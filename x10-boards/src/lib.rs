@@ -6,7 +6,8 @@
 //! * the pin map, one table per board ([`pins::PICO`], [`pins::G431`]), also shown in
 //!   `docs/boards.md` (a host test keeps the two equal);
 //! * the bus: [`x10_hal::bus::MultiMaster`] for the RP2040 (`pico::PicoBus`, switching the I2C
-//!   block between controller and target, only while the bus is idle) and for the STM32G431
+//!   block between controller and target only while its own target side is idle: it cannot
+//!   see another master's transfer to another node, see `docs/boards.md`) and for the STM32G431
 //!   (`g431::G431Bus`, one I2C v2 `MultiMaster` handle);
 //! * the ports: [`x10_hal::ports::Ports`] for each board (`pico::PicoPorts`,
 //!   `g431::G431Ports`), used by a DB image and by the internal daughterboard of an MB image;
@@ -15,8 +16,8 @@
 //!
 //! Retries, backoff, timeouts and the choice of when to be controller or target belong to the
 //! runtimes and `x10-hal`; the adapters here only translate calls and errors, and refuse to
-//! take the controller role while the bus is in use (which the runtimes see as arbitration
-//! lost, and retry).
+//! take the controller role while the bus is in use as far as the chip can tell (which the
+//! runtimes see as arbitration lost, and retry).
 //!
 //! The images themselves (`main`, tasks, defmt-rtt, panic-probe) are the bins of firmware-mb
 //! and firmware-db.

@@ -8,7 +8,11 @@
 //!   node (no target activity, nothing received and unread, no read request pending);
 //!   otherwise `write` fails at once with [`BusError::ArbitrationLost`] and the runtime
 //!   listens, then retries with its backoff. While it is a controller the node NACKs its own
-//!   address: the other side retries too.
+//!   address: the other side retries too. `addressed` arms the target and polls its state
+//!   (address matched and active, bytes received, or a read request) every
+//!   [`ADDRESSED_POLL_US`] without reading anything, so dropping it loses nothing; `listen`
+//!   then drains the transfer with embassy-rp's `I2cSlave::listen` (never raced by the
+//!   runtimes: the bytes it has drained live in its locals).
 //! * [`PicoPorts`]: digital pins are `Flex` pins (input with pull-down, or output), PWM pins are
 //!   channels A/B of one slice per actuator port, analog inputs are ADC0–ADC2, pulse-in uses the
 //!   GPIO edge interrupts.
@@ -19,7 +23,7 @@ use embassy_rp::gpio::{Flex, Input, Pull};
 use embassy_rp::{adc, bind_interrupts, i2c, i2c_slave, pac, peripherals, pwm, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::mutex::Mutex;
-use embassy_time::{with_deadline, with_timeout, Duration, Instant};
+use embassy_time::{with_deadline, with_timeout, Duration, Instant, Timer};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{PortError, Ports};
 use x10_microcode::{Edge, Level, PinRef, Port, PortKind};
@@ -268,6 +272,12 @@ fn controller_error(e: i2c::Error) -> BusError {
     }
 }
 
+/// How often [`PicoBus`]'s `addressed` looks at the target side, in µs. The block ACKs its
+/// address and fills its 16-byte receive FIFO by itself (then stretches SCL), so a match is
+/// never missed; this only bounds the delay before the transfer is drained (16 bytes take
+/// 1.4 ms at 100 kHz, 360 µs at 400 kHz).
+pub const ADDRESSED_POLL_US: u64 = 20;
+
 impl MultiMaster for PicoBus {
     /// # Errors
     /// As the trait; also [`BusError::ArbitrationLost`] when the target side is busy (see the
@@ -301,6 +311,15 @@ impl MultiMaster for PicoBus {
         )
         .await;
         self.finish(r)
+    }
+
+    async fn addressed(&mut self) -> Result<(), BusError> {
+        // Armed once; an armed target is not rebuilt, so nothing it received is reset.
+        self.target();
+        while !Self::target_busy() {
+            Timer::after_micros(ADDRESSED_POLL_US).await;
+        }
+        Ok(())
     }
 
     async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {

@@ -41,6 +41,11 @@ pub enum Incoming {
 ///
 /// # Contract the runtimes rely on
 ///
+/// * **Waiting versus receiving.** [`MultiMaster::addressed`] is the cancel-safe wait (it
+///   consumes nothing); [`MultiMaster::listen`] and [`MultiMaster::respond`] are never
+///   cancelled once a transaction has been announced. A real port cannot give back bytes it
+///   already took off the wire, so a `listen` dropped mid-transfer loses it (the simulator
+///   counts such losses in its `BusStats::lost_transfers`).
 /// * **Addressed while waiting to start.** If this port's own address is matched (another
 ///   controller addresses it: STM32 `ISR.ADDR`, RP2040 `IC_STATUS.SLV_ACTIVITY` or the
 ///   address-match interrupt) while a [`MultiMaster::write`] or [`MultiMaster::write_read`]
@@ -49,8 +54,8 @@ pub enum Incoming {
 ///   held (SCL stretched) by this very port until someone calls [`MultiMaster::listen`], so
 ///   waiting for a free bus would deadlock the node against itself until the SMBus timeout
 ///   (25 ms) or the driver's own timeout (1 s by default on STM32). On `ArbitrationLost` the
-///   runtimes call `listen`, serve that transaction, and retry right after it without
-///   counting the attempt. The simulator (`x10-sim`, `bus.rs`) models ports this way.
+///   runtimes wait on `addressed`, serve that transaction with `listen`, and retry right
+///   after it without counting the attempt. The simulator (`x10-sim`, `bus.rs`) models ports this way.
 /// * **Lost arbitration** ends the call with [`BusError::ArbitrationLost`] as soon as the
 ///   port notices it; nothing of ours was delivered.
 /// * **Single-role ports** NACK their own address while they are controllers, and until
@@ -77,14 +82,33 @@ pub trait MultiMaster {
     async fn write_read(&mut self, addr: u8, bytes: &[u8], read: &mut [u8])
         -> Result<(), BusError>;
 
-    /// Waits until a controller addresses this node at its own address, and receives what it
-    /// writes into `buf`.
+    /// Waits until a controller has addressed this node at its own address (address matched;
+    /// the port holds the transaction, SCL stretched or bytes queued in its receive FIFO, until
+    /// [`MultiMaster::listen`] takes it). Returns at once when such a transaction is already
+    /// waiting.
     ///
-    /// Cancel safety: dropping the future before a transaction addressed to this node has
-    /// started loses nothing; the caller does so to take the controller role.
+    /// Consumes nothing. Cancel safety: the future may be dropped at any time and loses
+    /// nothing; this is the call the runtimes race against their other work (a queued request,
+    /// a timer, an event to send). Once it has returned `Ok`, the caller must go on with
+    /// [`MultiMaster::listen`] (and [`MultiMaster::respond`] for a read) before anything else:
+    /// the other controller's transaction is held until then.
     ///
     /// # Errors
-    /// [`BusError::Overrun`] when a write does not fit `buf`, [`BusError::Bus`].
+    /// [`BusError::Bus`] when the port's target side failed.
+    async fn addressed(&mut self) -> Result<(), BusError>;
+
+    /// Receives the transaction [`MultiMaster::addressed`] announced (or, called without it,
+    /// waits for the next one addressed to this node): the bytes written go into `buf`.
+    ///
+    /// Never race it: once a transaction addressed to this node has started, dropping this
+    /// future loses the transfer (the bytes already received, and on some ports the bus
+    /// itself, which stays stretched until the port is reset). Callers that must also wait
+    /// for something else select on [`MultiMaster::addressed`] and, when it wins, await
+    /// `listen` (and `respond`) to completion.
+    ///
+    /// # Errors
+    /// [`BusError::Overrun`] when a write does not fit `buf`, [`BusError::Bus`],
+    /// [`BusError::Timeout`] when the controller stopped clocking mid-transfer.
     async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError>;
 
     /// Answers the read part of the last [`Incoming::Read`] or [`Incoming::WriteRead`].

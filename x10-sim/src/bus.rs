@@ -16,6 +16,14 @@
 //!   when the node is [`Role::SingleRole`] (RP2040-like) and inside its controller window: from
 //!   the START of its own transaction (it switches roles only once the bus is idle, as
 //!   `PLATFORM-FACTS.md` prescribes) until its call returned plus the role-switch time.
+//! * **Addressed, then received**: a node's [`SimPort`] reports the address match through
+//!   `addressed` (its controller is stretched at the address ACK until the node calls
+//!   `listen`, or a `listen` was already waiting). From the first data bit on, the transfer
+//!   belongs to that `listen` future: dropping it before it returned loses the transfer, as
+//!   on the real ports (the bytes the RP2040 driver already drained are gone; the STM32 one
+//!   leaves SCL stretched). The bytes still play out on the wire, the node never sees them;
+//!   each loss is counted in [`BusStats::lost_transfers`] and noted in the transaction's
+//!   record (`faults`: "lost: listen dropped"), so a runtime that races `listen` shows in tests.
 //! * **Stretching**: an addressed target that has no `listen` waiting holds SCL low until one is,
 //!   and a target asked for a read holds SCL low until it calls `respond`; past the configured
 //!   stretch timeout the controller gets [`BusError::Timeout`]. While a node is stretched
@@ -42,6 +50,9 @@ use x10_hal::bus::{BusError, Incoming, MultiMaster};
 
 use crate::exec::{Nanos, Rng, SimClock};
 use crate::timing::{Speed, Timing};
+
+/// Noted in a record's `faults` when its target lost it (see [`BusStats::lost_transfers`]).
+pub const LOST_NOTE: &str = "lost: listen dropped";
 
 /// Index of a node on the bus, in the order nodes were added.
 pub type NodeId = usize;
@@ -281,6 +292,9 @@ pub struct BusStats {
     /// Controller calls given up at once (as `ArbitrationLost`) because the node was being
     /// addressed by another master at the time.
     pub yielded: u64,
+    /// Transfers lost by their target because its `listen` future was dropped after the
+    /// transfer had started (see the module doc).
+    pub lost_transfers: u64,
 }
 
 #[derive(Debug)]
@@ -314,6 +328,7 @@ enum DeliveryKind {
 
 #[derive(Debug)]
 struct Delivery {
+    txn: u64,
     kind: DeliveryKind,
     bytes: Vec<u8>,
     ready_at: Nanos,
@@ -340,6 +355,13 @@ struct Node {
     waiters: Vec<Waker>,
     inbox: VecDeque<Delivery>,
     respond: RespondState,
+    /// The engine holds a transaction to this node at the address ACK, waiting for `listen`.
+    addressed: bool,
+    /// A transaction whose data phase started with this node's `listen` armed, until it is
+    /// delivered to the inbox.
+    receiving: Option<u64>,
+    /// A transaction lost by a dropped `listen`: its delivery is thrown away.
+    discard: Option<u64>,
 }
 
 impl Node {
@@ -363,6 +385,8 @@ struct BusInner {
     records: Vec<BusRecord>,
     yields: Vec<Yield>,
     stats: BusStats,
+    /// Transactions lost by a dropped `listen` before their record was made.
+    lost: Vec<u64>,
 }
 
 impl BusInner {
@@ -407,7 +431,41 @@ impl BusInner {
         if !self.cfg.record_wire {
             rec.wire = Vec::new();
         }
+        if let Some(k) = self.lost.iter().position(|&t| t == rec.txn) {
+            self.lost.swap_remove(k);
+            rec.faults.push(LOST_NOTE.to_string());
+            self.stats.lost_transfers += 1;
+        }
         self.records.push(rec);
+    }
+
+    /// The `listen` future of `node` was dropped: a transfer it had started receiving is lost
+    /// (counted when it ends on the wire), one received but not returned yet is lost now.
+    fn listen_dropped(&mut self, node: NodeId) {
+        let Some(n) = self.nodes.get_mut(node) else {
+            return;
+        };
+        n.listen_cap = None;
+        if let Some(txn) = n.receiving.take() {
+            n.discard = Some(txn);
+            return;
+        }
+        let Some(txn) = n.inbox.front().map(|d| d.txn) else {
+            return;
+        };
+        n.inbox.retain(|d| d.txn != txn);
+        self.count_lost(txn);
+    }
+
+    /// Counts `txn` as lost once it has ended on the wire (a transfer cut only by the end of
+    /// the simulation is not counted).
+    fn count_lost(&mut self, txn: u64) {
+        if let Some(rec) = self.records.iter_mut().rev().find(|r| r.txn == txn) {
+            rec.faults.push(LOST_NOTE.to_string());
+            self.stats.lost_transfers += 1;
+        } else {
+            self.lost.push(txn);
+        }
     }
 
     fn has_waiting(&self) -> bool {
@@ -438,6 +496,7 @@ impl BusInner {
             n.alive_from = now.saturating_add(down_ns);
             n.generation += 1;
             n.inbox.clear();
+            n.receiving = None;
             n.respond = match n.respond {
                 RespondState::Awaiting { txn } | RespondState::Given { txn, .. } => {
                     RespondState::Expired { txn }
@@ -474,6 +533,7 @@ impl SimBus {
                 rng: Rng::new(cfg.seed ^ 0x05ee_db05),
                 records: Vec::new(),
                 yields: Vec::new(),
+                lost: Vec::new(),
                 stats: BusStats::default(),
             })),
             clock,
@@ -503,6 +563,9 @@ impl SimBus {
             waiters: Vec::new(),
             inbox: VecDeque::new(),
             respond: RespondState::Idle,
+            addressed: false,
+            receiving: None,
+            discard: None,
         });
         b.nodes.len() - 1
     }
@@ -714,10 +777,19 @@ impl SimBus {
         end
     }
 
-    fn deliver(&self, node: NodeId, kind: DeliveryKind, bytes: Vec<u8>, ready_at: Nanos) {
+    fn deliver(&self, node: NodeId, txn: u64, kind: DeliveryKind, bytes: Vec<u8>, ready_at: Nanos) {
         let mut b = self.inner.borrow_mut();
         if let Some(n) = b.nodes.get_mut(node) {
+            if n.receiving == Some(txn) {
+                n.receiving = None;
+            }
+            if n.discard == Some(txn) {
+                n.discard = None;
+                b.count_lost(txn);
+                return;
+            }
             n.inbox.push_back(Delivery {
+                txn,
                 kind,
                 bytes,
                 ready_at,
@@ -923,6 +995,11 @@ impl SimBus {
         self.clock.sleep_until_ns(cursor).await;
         let stretch_deadline = cursor.saturating_add(self.config().stretch_timeout_ns);
         let clock = self.clock.clone();
+        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(target) {
+            // `addressed` returns now; the transfer waits for `listen`.
+            n.addressed = true;
+            n.wake();
+        }
         let armed = self
             .wait_until(stretch_deadline, |b| {
                 b.yield_requests_of(target, clock.now_ns());
@@ -934,6 +1011,9 @@ impl SimBus {
         let now = self.clock.now_ns();
         rec.stretch_ns = now.saturating_sub(cursor);
         cursor = now;
+        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(target) {
+            n.addressed = false;
+        }
         if !armed {
             rec.outcome = Outcome::Timeout;
             self.close(
@@ -946,12 +1026,15 @@ impl SimBus {
             return;
         }
         let (cap, gone) = {
-            let b = self.inner.borrow();
-            let n = b.nodes.get(target);
-            (
-                n.and_then(|n| n.listen_cap).unwrap_or(0),
-                n.is_none_or(|n| n.alive_from > now),
-            )
+            let mut b = self.inner.borrow_mut();
+            let n = b.nodes.get_mut(target);
+            let gone = n.as_ref().is_none_or(|n| n.alive_from > now);
+            let cap = n.as_ref().and_then(|n| n.listen_cap).unwrap_or(0);
+            if let Some(n) = n.filter(|_| !gone) {
+                // From here on the transfer belongs to the armed `listen`.
+                n.receiving = Some(txn);
+            }
+            (cap, gone)
         };
         let data_start = cursor;
 
@@ -1023,7 +1106,7 @@ impl SimBus {
                 BusError::Nack,
             );
             if !gone {
-                self.deliver(target, kind, received, end);
+                self.deliver(target, txn, kind, received, end);
             }
             return;
         }
@@ -1037,7 +1120,7 @@ impl SimBus {
                 &racing,
                 BusError::Nack,
             );
-            self.deliver(target, DeliveryKind::Write, received, end);
+            self.deliver(target, txn, DeliveryKind::Write, received, end);
             return;
         };
 
@@ -1047,6 +1130,11 @@ impl SimBus {
             cursor += t.repeated_start_ns();
             push_byte(&mut rec.wire, &mut cursor, (addr << 1) | 1, t);
             if self.inner.borrow().is_deaf(target, cursor) {
+                if let Some(n) = self.inner.borrow_mut().nodes.get_mut(target) {
+                    if n.receiving == Some(txn) {
+                        n.receiving = None;
+                    }
+                }
                 push_bit(&mut rec.wire, &mut cursor, true, t);
                 rec.outcome = Outcome::Nack {
                     byte: write.len() + 1,
@@ -1064,6 +1152,7 @@ impl SimBus {
         }
         self.deliver(
             target,
+            txn,
             if plain_read {
                 DeliveryKind::Read
             } else {
@@ -1262,6 +1351,65 @@ impl SimPort {
         &self.bus
     }
 
+    /// `listen` without its guard.
+    async fn receive(&self, buf: &mut [u8]) -> Result<Incoming, BusError> {
+        let inner = &self.bus.inner;
+        let clock = &self.bus.clock;
+        let node = self.node;
+        loop {
+            let next_ready = {
+                let mut b = inner.borrow_mut();
+                let now = clock.now_ns();
+                let alive = b.nodes.get(node).is_some_and(|n| n.alive_from <= now);
+                let Some(n) = b.nodes.get_mut(node) else {
+                    return Err(BusError::Bus);
+                };
+                let cap = alive.then_some(buf.len());
+                let newly_armed = n.listen_cap.is_none() && cap.is_some();
+                n.listen_cap = cap;
+                if newly_armed {
+                    // Tell a stretching engine that a listener is here.
+                    b.wake_engine();
+                }
+                let Some(n) = b.nodes.get_mut(node) else {
+                    return Err(BusError::Bus);
+                };
+                match n.inbox.front() {
+                    Some(d) if d.ready_at <= now => {
+                        let Some(d) = n.inbox.pop_front() else {
+                            return Err(BusError::Bus);
+                        };
+                        n.listen_cap = None;
+                        let len = d.bytes.len();
+                        let Some(dst) = buf.get_mut(..len) else {
+                            return Err(BusError::Overrun);
+                        };
+                        dst.copy_from_slice(&d.bytes);
+                        return match d.kind {
+                            DeliveryKind::Write => Ok(Incoming::Write(len)),
+                            DeliveryKind::WriteRead => Ok(Incoming::WriteRead(len)),
+                            DeliveryKind::Read => Ok(Incoming::Read),
+                            DeliveryKind::Overrun => Err(BusError::Overrun),
+                        };
+                    }
+                    Some(d) => Some(d.ready_at),
+                    None => (!alive).then(|| b.nodes.get(node).map_or(0, |n| n.alive_from)),
+                }
+            };
+            let wait = NodeWait {
+                inner,
+                node,
+                armed: false,
+            };
+            match next_ready {
+                Some(at) => {
+                    select(clock.sleep_until_ns(at), wait).await;
+                }
+                None => wait.await,
+            }
+        }
+    }
+
     async fn transact(
         &mut self,
         addr: u8,
@@ -1376,17 +1524,23 @@ impl Drop for RequestGuard<'_> {
     }
 }
 
-/// Arms a node's target side for the listen future's lifetime.
+/// Arms a node's target side for the listen future's lifetime; dropped before `done`, it
+/// loses the transfer the future had started to receive.
 struct ListenGuard<'a> {
     inner: &'a Rc<RefCell<BusInner>>,
     node: NodeId,
+    done: bool,
 }
 
 impl Drop for ListenGuard<'_> {
     fn drop(&mut self) {
         if let Ok(mut b) = self.inner.try_borrow_mut() {
-            if let Some(n) = b.nodes.get_mut(self.node) {
-                n.listen_cap = None;
+            if self.done {
+                if let Some(n) = b.nodes.get_mut(self.node) {
+                    n.listen_cap = None;
+                }
+            } else {
+                b.listen_dropped(self.node);
             }
         }
     }
@@ -1406,63 +1560,34 @@ impl MultiMaster for SimPort {
         self.transact(addr, bytes, Some(read)).await
     }
 
-    async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
+    async fn addressed(&mut self) -> Result<(), BusError> {
         let inner = &self.bus.inner;
-        let clock = &self.bus.clock;
         let node = self.node;
-        let _guard = ListenGuard { inner, node };
-        loop {
-            let next_ready = {
-                let mut b = inner.borrow_mut();
-                let now = clock.now_ns();
-                let alive = b.nodes.get(node).is_some_and(|n| n.alive_from <= now);
-                let Some(n) = b.nodes.get_mut(node) else {
-                    return Err(BusError::Bus);
-                };
-                let cap = alive.then_some(buf.len());
-                let newly_armed = n.listen_cap.is_none() && cap.is_some();
-                n.listen_cap = cap;
-                if newly_armed {
-                    // Tell a stretching engine that a listener is here.
-                    b.wake_engine();
-                }
-                let Some(n) = b.nodes.get_mut(node) else {
-                    return Err(BusError::Bus);
-                };
-                match n.inbox.front() {
-                    Some(d) if d.ready_at <= now => {
-                        let Some(d) = n.inbox.pop_front() else {
-                            return Err(BusError::Bus);
-                        };
-                        n.listen_cap = None;
-                        let len = d.bytes.len();
-                        let Some(dst) = buf.get_mut(..len) else {
-                            return Err(BusError::Overrun);
-                        };
-                        dst.copy_from_slice(&d.bytes);
-                        return match d.kind {
-                            DeliveryKind::Write => Ok(Incoming::Write(len)),
-                            DeliveryKind::WriteRead => Ok(Incoming::WriteRead(len)),
-                            DeliveryKind::Read => Ok(Incoming::Read),
-                            DeliveryKind::Overrun => Err(BusError::Overrun),
-                        };
-                    }
-                    Some(d) => Some(d.ready_at),
-                    None => (!alive).then(|| b.nodes.get(node).map_or(0, |n| n.alive_from)),
-                }
+        poll_fn(|cx| {
+            let mut b = inner.borrow_mut();
+            let Some(n) = b.nodes.get_mut(node) else {
+                return Poll::Ready(Err(BusError::Bus));
             };
-            let wait = NodeWait {
-                inner,
-                node,
-                armed: false,
-            };
-            match next_ready {
-                Some(at) => {
-                    select(clock.sleep_until_ns(at), wait).await;
-                }
-                None => wait.await,
+            if n.addressed || !n.inbox.is_empty() {
+                Poll::Ready(Ok(()))
+            } else {
+                register(&mut n.waiters, cx.waker());
+                Poll::Pending
             }
-        }
+        })
+        .await
+    }
+
+    async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
+        let this = &*self;
+        let mut guard = ListenGuard {
+            inner: &this.bus.inner,
+            node: this.node,
+            done: false,
+        };
+        let r = this.receive(buf).await;
+        guard.done = true;
+        r
     }
 
     async fn respond(&mut self, bytes: &[u8]) -> Result<(), BusError> {

@@ -557,3 +557,106 @@ fn injected_reset_takes_a_resettable_node_down() {
     assert_eq!(f.bus.records()[0].faults, vec!["reset db".to_string()]);
     assert_eq!(f.bus.stats().injected, 1);
 }
+
+#[test]
+fn addressed_announces_the_transfer_and_listen_then_receives_it_whole() {
+    let done = RefCell::new(Vec::new());
+    let got = RefCell::new(Vec::new());
+    let mut f = fixture(Speed::Standard);
+    let mb = f.bus.add_node(NodeConfig::new("mb", None));
+    let db = f.bus.add_node(NodeConfig::new("db", Some(0x09)));
+    let mut q = f.bus.port(db);
+    let clock = f.ex.clock();
+    let g = &got;
+    f.ex.spawn("db", async move {
+        // A wait on `addressed` raced against a timer and dropped loses nothing.
+        let early = select(q.addressed(), clock.sleep_ns(10_000)).await;
+        g.borrow_mut().push((clock.now_ns(), format!("{early:?}")));
+        let r = q.addressed().await;
+        g.borrow_mut().push((clock.now_ns(), format!("{r:?}")));
+        // Announced, not consumed: a second call returns at once.
+        let r = q.addressed().await;
+        g.borrow_mut().push((clock.now_ns(), format!("{r:?}")));
+        let mut buf = [0u8; 4];
+        let r = q.listen(&mut buf).await;
+        g.borrow_mut()
+            .push((clock.now_ns(), format!("{r:?} {buf:?}")));
+    });
+    let mut p = f.bus.port(mb);
+    let clock = f.ex.clock();
+    let d = &done;
+    f.ex.spawn("mb", async move {
+        clock.sleep_ns(50_000).await;
+        let r = p.write(0x09, &[5, 6]).await;
+        d.borrow_mut().push((clock.now_ns(), r));
+    });
+    f.ex.run_until_ns(10_000_000).unwrap();
+    let ack_end = 50_000 + T100.start_ns() + T100.byte_ns();
+    let end = 50_000 + T100.write_ns(2);
+    assert_eq!(*done.borrow(), vec![(end, Ok(()))]);
+    assert_eq!(
+        *got.borrow(),
+        vec![
+            (10_000, "Second(())".to_string()),
+            (ack_end, "Ok(())".to_string()),
+            (ack_end, "Ok(())".to_string()),
+            (end, "Ok(Write(2)) [5, 6, 0, 0]".to_string()),
+        ]
+    );
+    assert_eq!(f.bus.records()[0].stretch_ns, 0);
+    assert_eq!(f.bus.stats().lost_transfers, 0);
+}
+
+#[test]
+fn a_listen_dropped_mid_transfer_loses_it_counted_and_noted() {
+    let done = RefCell::new(Vec::new());
+    let got = RefCell::new(Vec::new());
+    let mut f = fixture(Speed::Standard);
+    let mb = f.bus.add_node(NodeConfig::new("mb", None));
+    let db = f.bus.add_node(NodeConfig::new("db", Some(0x09)));
+    let mut q = f.bus.port(db);
+    let clock = f.ex.clock();
+    let g = &got;
+    f.ex.spawn("db", async move {
+        let mut buf = [0u8; 8];
+        // Cut 100 µs into the 4-byte write (which lasts ~460 µs at 100 kHz).
+        q.addressed().await.unwrap();
+        let cut = select(q.listen(&mut buf), clock.sleep_ns(100_000)).await;
+        g.borrow_mut().push((clock.now_ns(), format!("{cut:?}")));
+        // The next listen does not get the tail of the lost one, only the next transfer.
+        let r = q.listen(&mut buf).await;
+        g.borrow_mut()
+            .push((clock.now_ns(), format!("{r:?} {:?}", &buf[..2])));
+    });
+    let mut p = f.bus.port(mb);
+    let clock = f.ex.clock();
+    let d = &done;
+    f.ex.spawn("mb", async move {
+        let r = p.write(0x09, &[1, 2, 3, 4]).await;
+        d.borrow_mut().push((clock.now_ns(), r));
+        clock.sleep_ns(1_000_000).await;
+        let r = p.write(0x09, &[7, 8]).await;
+        d.borrow_mut().push((clock.now_ns(), r));
+    });
+    f.ex.run_until_ns(10_000_000).unwrap();
+    let ack_end = T100.start_ns() + T100.byte_ns();
+    let first_end = T100.write_ns(4);
+    let second_start = first_end + 1_000_000;
+    let second_end = second_start + T100.write_ns(2);
+    // The controller saw every byte ACKed; the target lost them.
+    assert_eq!(
+        *done.borrow(),
+        vec![(first_end, Ok(())), (second_end, Ok(()))]
+    );
+    assert_eq!(
+        *got.borrow(),
+        vec![
+            (ack_end + 100_000, "Second(())".to_string()),
+            (second_end, "Ok(Write(2)) [7, 8]".to_string()),
+        ]
+    );
+    assert_eq!(f.bus.stats().lost_transfers, 1);
+    let recs = f.bus.records();
+    assert_eq!(recs[0].faults, vec![LOST_NOTE.to_string()]);
+    assert!(recs[1].faults.is_empty());
+}

@@ -371,6 +371,18 @@ impl MultiMaster for FakeBus {
         Err(BusError::Bus)
     }
 
+    async fn addressed(&mut self) -> Result<(), BusError> {
+        poll_fn(|cx| {
+            if self.inner.incoming.borrow().is_empty() {
+                *self.inner.listener.borrow_mut() = Some(cx.waker().clone());
+                Poll::Pending
+            } else {
+                Poll::Ready(Ok(()))
+            }
+        })
+        .await
+    }
+
     async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
         poll_fn(|cx| match self.inner.incoming.borrow_mut().pop_front() {
             Some(Txn::Write(b)) => {

@@ -252,6 +252,18 @@ impl MultiMaster for LoopBus {
         }
     }
 
+    async fn addressed(&mut self) -> Result<(), BusError> {
+        poll_fn(|cx| {
+            if self.inner.to_mb.borrow().is_empty() {
+                *self.inner.listener.borrow_mut() = Some(cx.waker().clone());
+                Poll::Pending
+            } else {
+                Poll::Ready(Ok(()))
+            }
+        })
+        .await
+    }
+
     async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
         poll_fn(|cx| match self.inner.to_mb.borrow_mut().pop_front() {
             Some(b) if b.len() > buf.len() => Poll::Ready(Err(BusError::Overrun)),
