@@ -235,15 +235,17 @@ async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
     tx: &mut [u8],
 ) -> bool {
     let mut frame = [0u8; MAX_FRAME_LEN];
-    let len = db.encode_event(ev, config.mb_address, &mut frame);
-    let Some(bytes) = frame.get(..len).filter(|b| !b.is_empty()) else {
-        db.event_lost();
-        return true;
-    };
     let seed = (u32::from(db.address().get()) << 24) ^ nth;
     let mut backoff = Backoff::new(config.retry, seed);
     let mut yields: u8 = 0;
     loop {
+        // Encoded for each attempt: the MB may switch PEC (set_pec, served while this event
+        // waited) between two attempts, and the event must go out as the MB now expects it.
+        let len = db.encode_event(ev, config.mb_address, &mut frame);
+        let Some(bytes) = frame.get(..len).filter(|b| !b.is_empty()) else {
+            db.event_lost();
+            return true;
+        };
         let e = match bus.write(config.mb_address.get(), bytes).await {
             Ok(()) => {
                 db.with(|s| bump(&mut s.diag.events_sent));

@@ -272,3 +272,30 @@ fn events_carry_pec_when_negotiated_and_overruns_count_as_bad_length() {
     };
     assert_eq!(d, expect);
 }
+
+#[test]
+fn an_event_retried_after_the_mb_turned_pec_on_goes_out_with_pec() {
+    let (clock, db, bus, tcfg) = setup();
+    // The boot event's first attempt is NACKed; while the board waits to retry, the MB turns
+    // PEC on. The retry must carry the PEC byte the MB now expects.
+    bus.script_writes(&[Err(BusError::Nack)]);
+    let fut = run(&db, bus.clone(), &clock, tcfg);
+    let mut fut = core::pin::pin!(fut);
+    run_until(&clock, 0, fut.as_mut());
+    bus.push(Txn::Write(vec![0x07, 0x09, 0x00, 0x01, 0x01])); // set_pec(1)
+    run_until(&clock, 10_000, fut.as_mut());
+    let plain = boot_frame(&db);
+    let mut with_pec = plain.clone();
+    with_pec.push(pec::compute(MB << 1, &plain));
+    let writes: Vec<Vec<u8>> = bus
+        .take_ops()
+        .into_iter()
+        .filter_map(|(_, op)| match op {
+            BusOp::Write(MB, bytes) => Some(bytes),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(writes, vec![plain, with_pec]);
+    assert!(db.pec_enabled());
+    assert_eq!(db.diagnostics().events_sent, 1);
+}

@@ -49,7 +49,9 @@ pub struct MbDiagnostics {
     pub unknown_replies: u32,
     /// Events received (bus and internal board).
     pub events: u32,
-    /// Writes to the motherboard that were not a valid event (length, PEC, source).
+    /// Writes to the motherboard that were not a valid event (length, source, a wrong PEC
+    /// byte, or none from a board with PEC on unless it is a `boot` event), or an event of
+    /// unknown kind.
     pub bad_events: u32,
     /// Pin events that no task claimed and that were pushed out of the unclaimed queue.
     pub events_dropped: u32,

@@ -11,8 +11,10 @@
 //! motherboard sends the same `SetFailsafe` again. Only a motherboard that stopped running
 //! (or lost the bus) leaves the board silent for the full timeout, and then it trips.
 
+use embassy_futures::join::join_array;
 use embassy_futures::select::select;
 use embassy_sync::blocking_mutex::raw::RawMutex;
+use embassy_sync::signal::Signal;
 use firmware_db::Ports;
 use heapless::Vec;
 use x10_devices::LinkError;
@@ -26,6 +28,10 @@ use crate::motherboard::Motherboard;
 /// non-zero timeout to one more board is refused with `LinkError::Busy` before it is sent.
 pub const MAX_KEEPALIVES: usize = 16;
 
+/// Keepalives on their way at the same time (heartbeats or failsafes set again, each to its
+/// own board): a board that does not answer holds one of them, not the others.
+pub(crate) const KEEPALIVE_WORKERS: usize = 4;
+
 /// One board's failsafe as the motherboard keeps it.
 #[derive(Clone, Copy, Debug)]
 struct Entry {
@@ -38,13 +44,15 @@ struct Entry {
     not_before: Instant,
     /// The board rebooted: its failsafe must be set again.
     resend: bool,
+    /// A keepalive to the board is on its way (taken by one worker).
+    in_flight: bool,
 }
 
 /// What the keepalive task does next.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Next {
-    /// Send `op` to `board` now.
-    Send(Address, KeepaliveOp),
+    /// Send `op` to `board` now, giving up after `timeout_us` (see [`keepalive_timeout_us`]).
+    Send(Address, KeepaliveOp, u64),
     /// Nothing before this instant.
     At(Instant),
     /// No failsafe to keep alive.
@@ -80,6 +88,16 @@ pub(crate) struct Keepalives {
 /// A third of `timeout_ms`, in µs.
 fn interval_us(timeout_ms: u16) -> u64 {
     u64::from(timeout_ms) * 1_000 / 3
+}
+
+/// How long a keepalive to a board with failsafe `timeout_ms` may take in all (queueing and
+/// bus retries): half the keepalive interval (a sixth of the failsafe), at most
+/// `request_timeout_us`. A keepalive is a single write; one to a board that does not answer
+/// gives up by then, and the dispatcher stops retrying it, so it holds the bus queue only
+/// that long (and only its retries when they end sooner, as after NACKs with
+/// `RetryPolicy::DEFAULT`).
+pub(crate) fn keepalive_timeout_us(timeout_ms: u16, request_timeout_us: u64) -> u64 {
+    (interval_us(timeout_ms) / 2).min(request_timeout_us)
 }
 
 impl Keepalives {
@@ -127,6 +145,7 @@ impl Keepalives {
                 last: now,
                 not_before: now,
                 resend: false,
+                in_flight: false,
             })
             .map_err(|_| ())
     }
@@ -167,28 +186,35 @@ impl Keepalives {
 
     /// What to do at `now`: the board whose keepalive is due first (a re-send at once, a
     /// heartbeat a third of the timeout after the last transaction), or when to look again.
-    pub(crate) fn next(&self, now: Instant) -> Next {
+    /// Boards with a keepalive on its way are left out. A board returned in [`Next::Send`] is
+    /// taken: it is left out too until [`Keepalives::done`].
+    pub(crate) fn claim(&mut self, now: Instant, request_timeout_us: u64) -> Next {
         let due = self
             .entries
-            .iter()
-            .filter(|e| e.timeout_ms > 0)
+            .iter_mut()
+            .filter(|e| e.timeout_ms > 0 && !e.in_flight)
             .map(|e| {
-                if e.resend {
-                    (
-                        e.not_before,
-                        e.board,
-                        KeepaliveOp::SetFailsafe(e.timeout_ms),
-                    )
+                let at = if e.resend {
+                    e.not_before
                 } else {
-                    let at = e.last.plus_us(interval_us(e.timeout_ms));
-                    (at.max(e.not_before), e.board, KeepaliveOp::Heartbeat)
-                }
+                    e.last.plus_us(interval_us(e.timeout_ms)).max(e.not_before)
+                };
+                (at, e)
             })
-            .min_by_key(|(at, _, _)| *at);
+            .min_by_key(|(at, _)| *at);
         match due {
             None => Next::Idle,
-            Some((at, board, op)) if at <= now => Next::Send(board, op),
-            Some((at, _, _)) => Next::At(at),
+            Some((at, e)) if at <= now => {
+                e.in_flight = true;
+                let op = if e.resend {
+                    KeepaliveOp::SetFailsafe(e.timeout_ms)
+                } else {
+                    KeepaliveOp::Heartbeat
+                };
+                let timeout_us = keepalive_timeout_us(e.timeout_ms, request_timeout_us);
+                Next::Send(e.board, op, timeout_us)
+            }
+            Some((at, _)) => Next::At(at),
         }
     }
 
@@ -204,6 +230,9 @@ impl Keepalives {
         now: Instant,
         diag: &mut MbDiagnostics,
     ) {
+        if let Some(e) = self.find(board) {
+            e.in_flight = false;
+        }
         if outcome == Outcome::Sent {
             // Already recorded by `sent` at the end of the transfer; this only guarantees
             // that the next one is never due at once.
@@ -250,22 +279,37 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// The failsafe keepalive (see the module docs); never returns. Part of
     /// [`Motherboard::run`].
     ///
-    /// It sends through [`Motherboard::call`] like any robot task: a heartbeat takes a
-    /// pending slot and a sequence number, and queues behind the requests already waiting.
+    /// It sends through [`Motherboard::call_with_timeout`] like any robot task: a heartbeat
+    /// takes a pending slot and a sequence number, and queues behind the requests already
+    /// waiting. Up to four keepalives (each to its own board) are on their way at once, so
+    /// a board that does not answer, or whose heartbeat waits in the queue, does not hold
+    /// back the heartbeats of the others; each gives up after half the board's keepalive
+    /// interval (at most the request timeout), and the dispatcher then stops retrying it.
     /// Heartbeats sent are counted in [`MbDiagnostics::keepalives`], failsafes set again
     /// after a boot in [`MbDiagnostics::failsafe_resends`], failed attempts in
     /// [`MbDiagnostics::keepalive_failures`] (and in the request counters).
     pub async fn run_keepalive(&self) -> ! {
+        let workers = self
+            .keepalive_changed
+            .each_ref()
+            .map(|changed| self.keepalive_worker(changed));
+        let [never, ..] = join_array(workers).await;
+        never
+    }
+
+    /// One keepalive worker: takes the keepalive due first, sends it, and records how it
+    /// ended; sleeps until the next one is due or `changed` is signalled.
+    async fn keepalive_worker(&self, changed: &Signal<M, ()>) -> ! {
         loop {
             let now = self.clock.now();
-            match self.with(|t| t.keepalive.next(now)) {
-                Next::Send(board, op) => {
-                    let r = match op {
-                        KeepaliveOp::Heartbeat => self.call(board, Op::Heartbeat).await,
-                        KeepaliveOp::SetFailsafe(timeout_ms) => {
-                            self.call(board, Op::SetFailsafe { timeout_ms }).await
-                        }
+            let timeout = self.config.request_timeout_us;
+            match self.with(|t| t.keepalive.claim(now, timeout)) {
+                Next::Send(board, op, timeout_us) => {
+                    let op_sent = match op {
+                        KeepaliveOp::Heartbeat => Op::Heartbeat,
+                        KeepaliveOp::SetFailsafe(timeout_ms) => Op::SetFailsafe { timeout_ms },
                     };
+                    let r = self.call_with_timeout(board, op_sent, timeout_us).await;
                     let outcome = match r {
                         Ok(_) => Outcome::Sent,
                         Err(LinkError::Busy) => Outcome::Busy,
@@ -276,12 +320,21 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                     };
                     let now = self.clock.now();
                     self.with(|t| t.keepalive.done(board, op, outcome, now, &mut t.diag));
+                    // The board can be taken again: wake the workers that left it out.
+                    self.wake_keepalive_workers();
                 }
                 Next::At(at) => {
-                    select(self.clock.sleep_until(at), self.keepalive_changed.wait()).await;
+                    select(self.clock.sleep_until(at), changed.wait()).await;
                 }
-                Next::Idle => self.keepalive_changed.wait().await,
+                Next::Idle => changed.wait().await,
             }
+        }
+    }
+
+    /// Wakes every keepalive worker to look at the table again.
+    pub(crate) fn wake_keepalive_workers(&self) {
+        for s in &self.keepalive_changed {
+            s.signal(());
         }
     }
 

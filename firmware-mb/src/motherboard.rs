@@ -15,13 +15,13 @@ use x10_devices::{LinkError, PinEvent};
 use x10_hal::bus::{BusError, MultiMaster};
 use x10_hal::time::Clock;
 use x10_microcode::{
-    Address, Event, EventFrame, EventKind, Op, Payload, PinRef, Reply, Request, Status,
-    MAX_FRAME_LEN, REPLY_HEADER_LEN,
+    Address, Event, EventKind, Op, Payload, PinRef, Reply, Request, Status, MAX_FRAME_LEN,
+    REPLY_HEADER_LEN,
 };
 
 use crate::config::MbConfig;
 use crate::diag::{bump, MbDiagnostics};
-use crate::keepalive::failsafe_change;
+use crate::keepalive::{failsafe_change, KEEPALIVE_WORKERS};
 use crate::table::{
     Ended, Job, JobMeta, SlotState, Table, Ticket, WaiterTicket, MAX_EVENT_WAITERS, MAX_PENDING,
 };
@@ -44,8 +44,9 @@ pub struct Motherboard<M: RawMutex, P: Ports, C: Clock> {
     internal_lock: Mutex<M, ()>,
     /// Signalled when a job is queued (the dispatcher takes it from the table).
     job_ready: Signal<M, ()>,
-    /// Signalled when a failsafe kept alive changes (set, stopped, board rebooted).
-    pub(crate) keepalive_changed: Signal<M, ()>,
+    /// Signalled (one per keepalive worker) when a failsafe kept alive changes (set,
+    /// stopped, board rebooted) or a keepalive ended.
+    pub(crate) keepalive_changed: [Signal<M, ()>; KEEPALIVE_WORKERS],
     table: BlockingMutex<M, RefCell<Table>>,
     done: [Signal<M, Result<Payload, LinkError>>; MAX_PENDING],
     waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
@@ -165,7 +166,7 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
             internal: Daughterboard::new(internal_ports, internal),
             internal_lock: Mutex::new(()),
             job_ready: Signal::new(),
-            keepalive_changed: Signal::new(),
+            keepalive_changed: [const { Signal::new() }; KEEPALIVE_WORKERS],
             table: BlockingMutex::new(RefCell::new(Table::new())),
             done: [const { Signal::new() }; MAX_PENDING],
             waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
@@ -485,7 +486,7 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// Wakes the keepalive task when a failsafe setting changed.
     fn notify_keepalive(&self) {
         if self.with(Table::take_keepalive_changed) {
-            self.keepalive_changed.signal(());
+            self.wake_keepalive_workers();
         }
     }
 
@@ -507,17 +508,30 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         }
     }
 
-    /// Parses a write to the motherboard's own address as an event (with a PEC byte if it is
-    /// one byte longer than the frame) and routes it. Anything else is counted in
-    /// `bad_events` and dropped.
+    /// Parses a write to the motherboard's own address as an event and routes it. Anything
+    /// else is counted in `bad_events` and dropped.
+    ///
+    /// From a board with PEC negotiated ([`Motherboard::pec_enabled`]) an event must carry a
+    /// valid PEC byte, with one exception: a `boot` event without PEC is accepted (a board
+    /// that just restarted has PEC off) and turns PEC off for that board. From a board with
+    /// PEC off, the frame is parsed without PEC first and, if that fails, with PEC: a board
+    /// that has just executed a `set_pec(true)` the motherboard has not recorded yet sends
+    /// its events with PEC. The two readings never both succeed: the LEN byte fixes the
+    /// frame's length, and the PEC byte makes it exactly one longer.
     pub(crate) fn route_event_bytes(&self, bytes: &[u8]) {
-        let parsed = EventFrame::new_checked(bytes).and_then(|f| {
-            if f.frame_len() == bytes.len() {
-                Event::parse(bytes)
-            } else {
-                Event::parse_with_pec(self.config.address, bytes)
-            }
-        });
+        let pec_on = bytes
+            .first()
+            .and_then(|&b| Address::new(b).ok())
+            .is_some_and(|source| self.with(|t| t.pec(source)));
+        let with_pec = || Event::parse_with_pec(self.config.address, bytes);
+        let parsed = if pec_on {
+            with_pec().or_else(|e| match Event::parse(bytes) {
+                Ok(ev) if ev.kind == EventKind::Boot => Ok(ev),
+                _ => Err(e),
+            })
+        } else {
+            Event::parse(bytes).or_else(|_| with_pec())
+        };
         match parsed {
             Ok(ev) if !ev.source.is_internal() => self.route_event(&ev),
             _ => {

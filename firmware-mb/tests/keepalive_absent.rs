@@ -1,0 +1,175 @@
+//! The keepalive of one board does not wait for another's: with a board gone (every
+//! transaction NACKed), the other board's heartbeat goes out as soon as the absent board's
+//! heartbeat has used up its bus retries, ahead of anything queued after it was due, and its
+//! failsafe never trips.
+
+// `common` re-exports helpers this file does not use.
+#[allow(unused_imports)]
+mod common;
+
+use std::rc::Rc;
+
+use common::{db, mb_address, sim, Db, FakePorts, LoopBus, Node, Seen, TestClock};
+use embassy_futures::join::join;
+use embassy_futures::select::select;
+use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+use firmware_mb::{MbConfig, Motherboard};
+use x10_devices::LinkError;
+use x10_hal::time::{Clock, Instant};
+use x10_microcode::{Address, Op, Port};
+
+type Mb = Motherboard<NoopRawMutex, FakePorts, TestClock>;
+
+/// One transfer on the loopback bus takes 100 µs.
+const T: u64 = common::TRANSFER_US;
+
+fn addr(b: u8) -> Address {
+    Address::external(b).unwrap()
+}
+
+/// `heartbeat` to `board` with sequence number `seq`.
+fn heartbeat(board: u8, seq: u8) -> Vec<u8> {
+    vec![0x02, board, 0x00, seq]
+}
+
+/// The writes to `board` (start time, bytes).
+fn writes_to(bus: &LoopBus, board: u8) -> Vec<(u64, Vec<u8>)> {
+    bus.seen()
+        .into_iter()
+        .filter_map(|(t, s)| match s {
+            Seen::Write(b, bytes) if b == board => Some((t, bytes)),
+            _ => None,
+        })
+        .collect()
+}
+
+struct World {
+    clock: TestClock,
+    mb: Mb,
+    bus: LoopBus,
+    db9: Rc<Db>,
+}
+
+/// DB 9 (present) and board 10, each with a 300 ms failsafe set by a program (board 10 first,
+/// at 1 000 µs), after which board 10 goes away; `program` runs beside until 1 s.
+fn run(program: impl Fn(&World) -> Box<dyn std::future::Future<Output = ()> + '_>) -> World {
+    let clock = TestClock::new();
+    let w = World {
+        mb: Motherboard::new(
+            MbConfig::new(mb_address()),
+            clock.clone(),
+            FakePorts::new(clock.clone(), 2, 2),
+        ),
+        bus: LoopBus::new(&clock),
+        db9: Rc::new(db(&clock, 9)),
+        clock,
+    };
+    w.bus.attach(9, Node::Db(w.db9.clone()));
+    w.bus
+        .attach(10, Node::Script(Box::new(|_| (0, Vec::new()))));
+    w.bus.attach(0x20, Node::Silent);
+    sim(
+        &w.clock,
+        join(w.mb.run(w.bus.clone()), w.bus.run_dbs()),
+        async {
+            w.clock.sleep_until(Instant(1_000)).await;
+            for b in [10, 9] {
+                w.mb.call(addr(b), Op::SetFailsafe { timeout_ms: 300 })
+                    .await
+                    .unwrap();
+            }
+            // board 10 goes away: every transaction to it is NACKed from now on
+            w.bus.attach(10, Node::Absent);
+            select(
+                Box::into_pin(program(&w)),
+                w.clock.sleep_until(Instant(1_000_000)),
+            )
+            .await;
+        },
+    );
+    w
+}
+
+/// Checks the common outcome: every heartbeat to DB 9 starts right after the last NACKed
+/// attempt of board 10's heartbeat of the same round (which was due first), nine rounds of
+/// five attempts each; DB 9 never trips. Returns DB 9's heartbeat start times.
+fn check(w: &World) -> Vec<u64> {
+    let to9 = w.writes_to_9();
+    let to10 = writes_to(&w.bus, 10);
+    assert_eq!(to9.len(), 10);
+    assert_eq!(to10.len(), 1 + 9 * 5);
+    for (k, (at, bytes)) in to9.iter().enumerate().skip(1) {
+        assert_eq!(bytes, &heartbeat(9, k as u8));
+        let last_nacked = &to10[k * 5];
+        assert_eq!(last_nacked.1, heartbeat(10, k as u8));
+        assert_eq!(*at, last_nacked.0 + T, "round {k}");
+    }
+    let d = w.mb.diagnostics();
+    assert_eq!(
+        (d.keepalives, d.keepalive_failures, d.nacks, d.nacked),
+        (9, 9, 9, 45)
+    );
+    let dd = w.db9.diagnostics();
+    assert_eq!((dd.failsafe_trips, dd.frames_ok), (0, 10));
+    to9.iter().map(|(t, _)| *t).collect()
+}
+
+impl World {
+    fn writes_to_9(&self) -> Vec<(u64, Vec<u8>)> {
+        writes_to(&self.bus, 9)
+    }
+}
+
+#[test]
+fn an_absent_board_costs_another_boards_heartbeat_only_its_retries() {
+    let w = run(|_| Box::new(std::future::pending()));
+    let times = check(&w);
+    // Board 10's heartbeat is due 100 µs before DB 9's each round and takes 2.3 to 2.6 ms of
+    // NACKed attempts and backoff (`RetryPolicy::DEFAULT`); DB 9's follows at once, so the
+    // gaps stay within 100 ms + 2.6 ms, far inside its 300 ms failsafe.
+    assert_eq!(
+        times,
+        [1_100, 103_502, 205_746, 308_133, 410_472, 512_938, 615_094, 717_557, 819_773, 922_139]
+    );
+}
+
+#[test]
+fn a_heartbeat_is_queued_when_due_not_after_another_boards_heartbeat_ended() {
+    // A program keeps the bus busy with reads of a board that stretches the clock (25 ms
+    // each, then `Timeout`). DB 9's heartbeat, due while board 10's waits behind a read,
+    // is queued at once: it goes out right after board 10's NACKs, before the program's
+    // next read (a keepalive that waited for board 10's heartbeat to end would have queued
+    // it behind that read, 25 ms later).
+    let s1 = Port::sensor(1).unwrap();
+    let w = run(|w| {
+        Box::new(async move {
+            loop {
+                let r = w.mb.call(addr(0x20), Op::AnalogRead(s1)).await;
+                assert_eq!(r, Err(LinkError::Timeout));
+            }
+        })
+    });
+    let times = check(&w);
+    assert_eq!(
+        times,
+        [1_100, 104_116, 207_060, 309_793, 412_538, 515_269, 618_183, 721_310, 823_997, 926_634]
+    );
+    // the program's read that was queued when DB 9's heartbeat was due follows it
+    let after: Vec<_> = w
+        .bus
+        .seen()
+        .into_iter()
+        .filter(|(t, _)| (104_016..=104_216).contains(t))
+        .collect();
+    assert_eq!(
+        after,
+        [
+            (104_016, Seen::Write(10, heartbeat(10, 1))),
+            (104_116, Seen::Write(9, heartbeat(9, 1))),
+            (
+                104_216,
+                Seen::WriteRead(0x20, vec![0x30, 0x20, 0x80, 0x04], 5)
+            ),
+        ]
+    );
+}
