@@ -28,9 +28,14 @@ use crate::motherboard::Motherboard;
 /// non-zero timeout to one more board is refused with `LinkError::Busy` before it is sent.
 pub const MAX_KEEPALIVES: usize = 16;
 
-/// Keepalives on their way at the same time (heartbeats or failsafes set again, each to its
-/// own board): a board that does not answer holds one of them, not the others.
-pub(crate) const KEEPALIVE_WORKERS: usize = 4;
+/// Keepalives on their way at the same time (heartbeats or failsafes set again). Each worker
+/// holds a whole call future (about 540 bytes on a Cortex-M0), and with more than one the
+/// motherboard and a daughterboard no longer fit the 16 KiB of the QEMU Cortex-M0 suite, so
+/// there is one: a keepalive waits for the one before it, which gives up after a sixth of its
+/// board's failsafe timeout at most (an absent board costs only its NACK retries, about
+/// 2.5 ms). Heartbeats are due at a third of the timeout, so a few silent boards cannot make a
+/// live one's failsafe trip.
+pub(crate) const KEEPALIVE_WORKERS: usize = 1;
 
 /// One board's failsafe as the motherboard keeps it.
 #[derive(Clone, Copy, Debug)]
@@ -281,10 +286,10 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     ///
     /// It sends through [`Motherboard::call_with_timeout`] like any robot task: a heartbeat
     /// takes a pending slot and a sequence number, and queues behind the requests already
-    /// waiting. Up to four keepalives (each to its own board) are on their way at once, so
-    /// a board that does not answer, or whose heartbeat waits in the queue, does not hold
-    /// back the heartbeats of the others; each gives up after half the board's keepalive
-    /// interval (at most the request timeout), and the dispatcher then stops retrying it.
+    /// waiting. Keepalives go out one at a time (see `KEEPALIVE_WORKERS`); each gives up
+    /// after half the board's keepalive interval (at most the request timeout), and the
+    /// dispatcher then stops retrying it, so a board that does not answer holds back the
+    /// heartbeats of the others by its NACK retries, or by that give-up time at most.
     /// Heartbeats sent are counted in [`MbDiagnostics::keepalives`], failsafes set again
     /// after a boot in [`MbDiagnostics::failsafe_resends`], failed attempts in
     /// [`MbDiagnostics::keepalive_failures`] (and in the request counters).

@@ -134,12 +134,14 @@ fn an_absent_board_costs_another_boards_heartbeat_only_its_retries() {
 }
 
 #[test]
-fn a_heartbeat_is_queued_when_due_not_after_another_boards_heartbeat_ended() {
+fn a_heartbeat_waits_for_an_absent_board_and_one_stalled_read_at_most() {
     // A program keeps the bus busy with reads of a board that stretches the clock (25 ms
-    // each, then `Timeout`). DB 9's heartbeat, due while board 10's waits behind a read,
-    // is queued at once: it goes out right after board 10's NACKs, before the program's
-    // next read (a keepalive that waited for board 10's heartbeat to end would have queued
-    // it behind that read, 25 ms later).
+    // each, then `Timeout`). Heartbeats go out one at a time (one keepalive worker: each
+    // holds a whole call future, and RAM on a Cortex-M0 is the limit): DB 9's, due while
+    // board 10's is being NACKed, is queued once board 10's gave up, behind the program's
+    // read queued meanwhile. So it waits for both, 25 ms in all, far inside its 300 ms
+    // failsafe: heartbeats are due at a third of the timeout, and each keepalive gives up
+    // after a sixth.
     let s1 = Port::sensor(1).unwrap();
     let w = run(|w| {
         Box::new(async move {
@@ -149,27 +151,41 @@ fn a_heartbeat_is_queued_when_due_not_after_another_boards_heartbeat_ended() {
             }
         })
     });
-    let times = check(&w);
+    let to9 = w.writes_to_9();
+    let times: Vec<u64> = to9.iter().map(|(t, _)| *t).collect();
     assert_eq!(
         times,
-        [1_100, 104_116, 207_060, 309_793, 412_538, 515_269, 618_183, 721_310, 823_997, 926_634]
+        [1_100, 129_216, 232_160, 334_893, 437_638, 540_369, 643_283, 746_410, 849_097, 951_734]
     );
-    // the program's read that was queued when DB 9's heartbeat was due follows it
-    let after: Vec<_> = w
+    for (k, (_, bytes)) in to9.iter().enumerate().skip(1) {
+        assert_eq!(bytes, &heartbeat(9, k as u8));
+    }
+    // Round 1: board 10's heartbeat NACKed five times, then the program's read, then DB 9's.
+    let round1: Vec<_> = w
         .bus
         .seen()
         .into_iter()
-        .filter(|(t, _)| (104_016..=104_216).contains(t))
+        .filter(|(t, _)| (101_600..=129_316).contains(t))
         .collect();
     assert_eq!(
-        after,
+        round1,
         [
+            (101_600, Seen::Write(10, heartbeat(10, 1))),
+            (101_806, Seen::Write(10, heartbeat(10, 1))),
+            (102_197, Seen::Write(10, heartbeat(10, 1))),
+            (102_726, Seen::Write(10, heartbeat(10, 1))),
             (104_016, Seen::Write(10, heartbeat(10, 1))),
-            (104_116, Seen::Write(9, heartbeat(9, 1))),
             (
-                104_216,
+                104_116,
                 Seen::WriteRead(0x20, vec![0x30, 0x20, 0x80, 0x04], 5)
+            ),
+            (129_216, Seen::Write(9, heartbeat(9, 1))),
+            (
+                129_316,
+                Seen::WriteRead(0x20, vec![0x30, 0x20, 0x80, 0x05], 5)
             ),
         ]
     );
+    let dd = w.db9.diagnostics();
+    assert_eq!((dd.failsafe_trips, dd.frames_ok), (0, 10));
 }
