@@ -679,10 +679,10 @@ impl SimBus {
             if self.clock.now_ns() >= deadline {
                 return false;
             }
-            let notified = Notified {
-                inner: &self.inner,
-                armed: false,
-            };
+            let inner = &self.inner;
+            let notified = WakeOnce::new(|w: &Waker| {
+                inner.borrow_mut().engine_waker = Some(w.clone());
+            });
             if deadline == Nanos::MAX {
                 notified.await;
             } else {
@@ -1315,13 +1315,23 @@ fn push_bit(wire: &mut Vec<(Nanos, WireSym)>, cursor: &mut Nanos, value: bool, t
     *cursor += t.bit_ns;
 }
 
-/// Completes on its second poll; registers the engine's waker on the first.
-struct Notified<'a> {
-    inner: &'a Rc<RefCell<BusInner>>,
+/// Completes on its second poll; on the first it hands the task's waker to `register` (the
+/// engine's waker slot, or a node's waiters) and yields.
+struct WakeOnce<F: FnMut(&Waker)> {
+    register: F,
     armed: bool,
 }
 
-impl Future for Notified<'_> {
+impl<F: FnMut(&Waker)> WakeOnce<F> {
+    fn new(register: F) -> Self {
+        WakeOnce {
+            register,
+            armed: false,
+        }
+    }
+}
+
+impl<F: FnMut(&Waker) + Unpin> Future for WakeOnce<F> {
     type Output = ();
 
     fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<()> {
@@ -1329,7 +1339,7 @@ impl Future for Notified<'_> {
             return Poll::Ready(());
         }
         self.armed = true;
-        self.inner.borrow_mut().engine_waker = Some(cx.waker().clone());
+        (self.register)(cx.waker());
         Poll::Pending
     }
 }
@@ -1396,11 +1406,11 @@ impl SimPort {
                     None => (!alive).then(|| b.nodes.get(node).map_or(0, |n| n.alive_from)),
                 }
             };
-            let wait = NodeWait {
-                inner,
-                node,
-                armed: false,
-            };
+            let wait = WakeOnce::new(|w: &Waker| {
+                if let Some(n) = inner.borrow_mut().nodes.get_mut(node) {
+                    register(&mut n.waiters, w);
+                }
+            });
             match next_ready {
                 Some(at) => {
                     select(clock.sleep_until_ns(at), wait).await;
@@ -1639,28 +1649,6 @@ impl MultiMaster for SimPort {
         .await;
         clock.sleep_until_ns(at).await;
         result
-    }
-}
-
-/// Completes on its second poll; registers on the node's waiters on the first.
-struct NodeWait<'a> {
-    inner: &'a Rc<RefCell<BusInner>>,
-    node: NodeId,
-    armed: bool,
-}
-
-impl Future for NodeWait<'_> {
-    type Output = ();
-
-    fn poll(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<()> {
-        if self.armed {
-            return Poll::Ready(());
-        }
-        self.armed = true;
-        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(self.node) {
-            register(&mut n.waiters, cx.waker());
-        }
-        Poll::Pending
     }
 }
 
