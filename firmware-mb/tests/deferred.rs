@@ -4,56 +4,11 @@
 
 mod common;
 
-use std::rc::Rc;
-
-use common::{db, mb_address, sim, Db, FakePorts, LoopBus, Node, PortOp, Seen, TestClock};
-use embassy_futures::join::join;
-use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_mb::{MbConfig, Motherboard};
+use common::{PortOp, Seen, World};
 use x10_devices::LinkError;
-use x10_hal::time::{Clock, Instant};
 use x10_microcode::{Address, Edge, Op, Pin, Port};
 
-type Mb = Motherboard<NoopRawMutex, FakePorts, TestClock>;
-
-struct World {
-    clock: TestClock,
-    mb: Mb,
-    bus: LoopBus,
-    db9: Rc<Db>,
-}
-
-fn world() -> World {
-    let clock = TestClock::new();
-    let mb = Motherboard::new(
-        MbConfig::new(mb_address()),
-        clock.clone(),
-        FakePorts::new(clock.clone(), 2, 2),
-    );
-    let bus = LoopBus::new(&clock);
-    let db9 = Rc::new(db(&clock, 9));
-    bus.attach(9, Node::Db(db9.clone()));
-    World {
-        clock,
-        mb,
-        bus,
-        db9,
-    }
-}
-
 impl World {
-    fn sim<T>(&self, body: impl std::future::Future<Output = T>) -> T {
-        sim(
-            &self.clock,
-            join(self.mb.run(self.bus.clone()), self.bus.run_dbs()),
-            body,
-        )
-    }
-
-    async fn at(&self, t: u64) {
-        self.clock.sleep_until(Instant(t)).await;
-    }
-
     /// The sequence numbers of the pulse-ins sent to DB 9, in order.
     fn pulse_in_seqs(&self) -> Vec<u8> {
         self.bus
@@ -85,7 +40,7 @@ fn pulse_in(port: u8) -> Op<'static> {
 /// counted as late.
 #[test]
 fn a_late_deferred_reply_never_completes_a_request_after_the_sequence_counter_wraps() {
-    let w = world();
+    let w = World::new();
     // A's measurement ends after 500 ms with 77 µs; B's after 600 ms with 999 µs.
     w.db9
         .ports()
@@ -133,7 +88,7 @@ fn a_late_deferred_reply_never_completes_a_request_after_the_sequence_counter_wr
 /// motherboard keeps it alive all the same.
 #[test]
 fn a_failsafe_acknowledged_after_its_caller_gave_up_is_kept_alive() {
-    let w = world();
+    let w = World::new();
     w.sim(async {
         w.at(1_000).await;
         // The transfer takes 100 µs; the caller waits 50.
@@ -154,7 +109,7 @@ fn a_failsafe_acknowledged_after_its_caller_gave_up_is_kept_alive() {
 /// does the motherboard for it.
 #[test]
 fn pec_acknowledged_after_its_caller_gave_up_is_on_for_the_motherboard_too() {
-    let w = world();
+    let w = World::new();
     let ping = w.sim(async {
         w.at(1_000).await;
         let r = w.mb.call_with_timeout(nine(), Op::SetPec(true), 50).await;

@@ -6,57 +6,37 @@ use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
 use common::{
-    db, mb_address, sim, Db, FakePorts, Fault, LoopBus, Node, PortOp, Seen, TestClock,
-    BUS_TIMEOUT_US, TRANSFER_US,
+    db, mb_address, Db, FakePorts, Fault, LoopBus, Node, PortOp, Seen, TestClock, BUS_TIMEOUT_US,
+    TRANSFER_US,
 };
 use embassy_futures::join::{join, join_array};
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_mb::{run_robot_with, MbConfig, Motherboard, RobotPhase, MAX_PENDING};
+use firmware_mb::{run_robot_with, MbConfig, RobotPhase, MAX_PENDING};
 use x10_devices::{Link, LinkError, Robot};
 use x10_hal::bus::BusError;
 use x10_hal::time::{Clock, Instant};
 use x10_microcode::{pec, Address, Edge, EventConfig, EventKind, Level, Op, Pin, Port, Status};
 
-type Mb = Motherboard<NoopRawMutex, FakePorts, TestClock>;
-
-struct World {
-    clock: TestClock,
-    mb: Mb,
-    bus: LoopBus,
-    db9: Rc<Db>,
+/// The shared world (MB and DB 9) plus a second real daughterboard at 17.
+struct TwoBoards {
+    w: common::World,
     db17: Rc<Db>,
 }
 
-fn world() -> World {
-    let clock = TestClock::new();
-    let mb = Motherboard::new(
-        MbConfig::new(mb_address()),
-        clock.clone(),
-        FakePorts::new(clock.clone(), 2, 2),
-    );
-    let bus = LoopBus::new(&clock);
-    let db9 = Rc::new(db(&clock, 9));
-    let db17 = Rc::new(db(&clock, 17));
-    bus.attach(9, Node::Db(db9.clone()));
-    bus.attach(17, Node::Db(db17.clone()));
-    World {
-        clock,
-        mb,
-        bus,
-        db9,
-        db17,
+impl std::ops::Deref for TwoBoards {
+    type Target = common::World;
+
+    fn deref(&self) -> &common::World {
+        &self.w
     }
 }
 
-impl World {
-    fn sim<T>(&self, body: impl std::future::Future<Output = T>) -> T {
-        sim(
-            &self.clock,
-            join(self.mb.run(self.bus.clone()), self.bus.run_dbs()),
-            body,
-        )
-    }
+fn world() -> TwoBoards {
+    let w = common::World::new();
+    let db17 = Rc::new(db(&w.clock, 17));
+    w.bus.attach(17, Node::Db(db17.clone()));
+    TwoBoards { w, db17 }
 }
 
 fn addr(a: u8) -> Address {
@@ -75,8 +55,8 @@ fn a(n: u8) -> Port {
 const BOOTED_US: u64 = 1_000;
 
 /// Runs `call` once the boot events of the world's boards (sent again at the start of every
-/// `World::sim`) have been routed.
-async fn after_boot<T>(w: &World, call: impl std::future::Future<Output = T>) -> T {
+/// `common::World::sim`) have been routed.
+async fn after_boot<T>(w: &TwoBoards, call: impl std::future::Future<Output = T>) -> T {
     w.clock
         .sleep_until(Instant(w.clock.now_us() + BOOTED_US))
         .await;

@@ -6,56 +6,12 @@
 #[allow(unused_imports)]
 mod common;
 
-use std::rc::Rc;
-
-use common::{db, mb_address, sim, Db, FakePorts, LoopBus, Node, TestClock};
+use common::{Db, World};
 use embassy_futures::join::join;
 use embassy_futures::select::{select, Either};
-use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_mb::{MbConfig, Motherboard};
-use x10_hal::time::{Clock, Instant};
 use x10_microcode::{pec, Address, EventKind, Op, Pin, PinRef, Port};
 
-type Mb = Motherboard<NoopRawMutex, FakePorts, TestClock>;
-
-struct World {
-    clock: TestClock,
-    mb: Mb,
-    bus: LoopBus,
-    db9: Rc<Db>,
-}
-
-fn world() -> World {
-    let clock = TestClock::new();
-    let mb = Motherboard::new(
-        MbConfig::new(mb_address()),
-        clock.clone(),
-        FakePorts::new(clock.clone(), 2, 2),
-    );
-    let bus = LoopBus::new(&clock);
-    let db9 = Rc::new(db(&clock, 9));
-    bus.attach(9, Node::Db(db9.clone()));
-    World {
-        clock,
-        mb,
-        bus,
-        db9,
-    }
-}
-
 impl World {
-    fn sim<T>(&self, body: impl std::future::Future<Output = T>) -> T {
-        sim(
-            &self.clock,
-            join(self.mb.run(self.bus.clone()), self.bus.run_dbs()),
-            body,
-        )
-    }
-
-    async fn at(&self, t: u64) {
-        self.clock.sleep_until(Instant(t)).await;
-    }
-
     /// Negotiates PEC with DB 9 (at 1 000 µs).
     async fn pec_on(&self) {
         self.at(1_000).await;
@@ -103,7 +59,7 @@ fn boot(db9: &Db) -> Vec<u8> {
 
 #[test]
 fn an_event_with_a_good_pec_from_a_board_with_pec_is_delivered() {
-    let w = world();
+    let w = World::new();
     let ev = with_pec(pin_change(1, 1));
     assert_eq!(ev, [0x09, 0x01, 0x80, 0x01, 0x00, 0x01, 0x01, ev[7]]);
     let got = w.sim(async {
@@ -120,7 +76,7 @@ fn an_event_with_a_good_pec_from_a_board_with_pec_is_delivered() {
 
 #[test]
 fn an_event_with_a_bad_or_missing_pec_from_a_board_with_pec_is_counted_and_dropped() {
-    let w = world();
+    let w = World::new();
     let good = with_pec(pin_change(4, 1));
     let mut wrong_pec = with_pec(pin_change(1, 1));
     *wrong_pec.last_mut().unwrap() ^= 0x5A;
@@ -159,7 +115,7 @@ fn an_event_with_a_bad_or_missing_pec_from_a_board_with_pec_is_counted_and_dropp
 
 #[test]
 fn a_boot_event_without_pec_from_a_board_with_pec_is_accepted_and_turns_pec_off() {
-    let w = world();
+    let w = World::new();
     // only `boot` is excepted: a `rejected` event without PEC is dropped
     let rejected = vec![0x09, 0x05, 0x00, 0x07, 0x03, 0x00];
     assert_eq!(
@@ -191,7 +147,7 @@ fn a_boot_event_without_pec_from_a_board_with_pec_is_accepted_and_turns_pec_off(
 
 #[test]
 fn a_board_with_pec_off_may_send_events_with_or_without_pec() {
-    let w = world();
+    let w = World::new();
     let got = w.sim(async {
         w.at(1_000).await;
         assert!(!w.mb.pec_enabled(db9()));

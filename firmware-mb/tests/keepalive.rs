@@ -3,58 +3,16 @@
 
 mod common;
 
-use std::rc::Rc;
-
-use common::{db, mb_address, sim, Db, FakePorts, LoopBus, Node, PortOp, Seen, TestClock};
+use common::{sim, Node, PortOp, Seen, World};
 use embassy_futures::join::join;
 use embassy_futures::select::select;
-use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::SafeState;
-use firmware_mb::{MbConfig, Motherboard, MAX_KEEPALIVES};
+use firmware_mb::MAX_KEEPALIVES;
 use x10_devices::LinkError;
 use x10_hal::time::{Clock, Instant};
 use x10_microcode::{Address, Level, Op, Pin, Port};
 
-type Mb = Motherboard<NoopRawMutex, FakePorts, TestClock>;
-
-struct World {
-    clock: TestClock,
-    mb: Mb,
-    bus: LoopBus,
-    db9: Rc<Db>,
-}
-
-fn world() -> World {
-    let clock = TestClock::new();
-    let mb = Motherboard::new(
-        MbConfig::new(mb_address()),
-        clock.clone(),
-        FakePorts::new(clock.clone(), 2, 2),
-    );
-    let bus = LoopBus::new(&clock);
-    let db9 = Rc::new(db(&clock, 9));
-    bus.attach(9, Node::Db(db9.clone()));
-    World {
-        clock,
-        mb,
-        bus,
-        db9,
-    }
-}
-
 impl World {
-    fn sim<T>(&self, body: impl std::future::Future<Output = T>) -> T {
-        sim(
-            &self.clock,
-            join(self.mb.run(self.bus.clone()), self.bus.run_dbs()),
-            body,
-        )
-    }
-
-    async fn at(&self, t: u64) {
-        self.clock.sleep_until(Instant(t)).await;
-    }
-
     /// The writes to DB 9 (start time, bytes).
     fn writes_to_9(&self) -> Vec<(u64, Vec<u8>)> {
         self.bus
@@ -88,7 +46,7 @@ const T: u64 = common::TRANSFER_US;
 
 #[test]
 fn a_failsafe_set_by_a_program_is_kept_alive_while_the_program_sends_nothing() {
-    let w = world();
+    let w = World::new();
     w.sim(async {
         w.at(1_000).await;
         w.mb.call(db9(), Op::SetFailsafe { timeout_ms: 300 })
@@ -117,7 +75,7 @@ fn a_failsafe_set_by_a_program_is_kept_alive_while_the_program_sends_nothing() {
 
 #[test]
 fn the_programs_own_traffic_postpones_the_heartbeat() {
-    let w = world();
+    let w = World::new();
     let a1a = Port::actuator(1).unwrap().pin(Pin::A);
     w.sim(async {
         w.at(1_000).await;
@@ -146,7 +104,7 @@ fn the_programs_own_traffic_postpones_the_heartbeat() {
 
 #[test]
 fn set_failsafe_zero_stops_the_keepalive() {
-    let w = world();
+    let w = World::new();
     w.sim(async {
         w.at(1_000).await;
         w.mb.call(db9(), Op::SetFailsafe { timeout_ms: 300 })
@@ -173,7 +131,7 @@ fn set_failsafe_zero_stops_the_keepalive() {
 
 #[test]
 fn a_board_that_rebooted_gets_its_failsafe_set_again() {
-    let w = world();
+    let w = World::new();
     w.sim(async {
         w.at(1_000).await;
         w.mb.call(db9(), Op::SetFailsafe { timeout_ms: 300 })
@@ -201,7 +159,7 @@ fn a_board_that_rebooted_gets_its_failsafe_set_again() {
 
 #[test]
 fn a_stopped_motherboard_leaves_the_board_to_trip_at_exactly_its_timeout() {
-    let w = world();
+    let w = World::new();
     let stop_at = 500_000;
     let mb = async {
         // the motherboard runs until `stop_at`, then stops (crashed, unpowered)
@@ -256,7 +214,7 @@ fn a_stopped_motherboard_leaves_the_board_to_trip_at_exactly_its_timeout() {
 
 #[test]
 fn keepalives_are_bounded_and_a_failsafe_beyond_them_is_refused_before_it_is_sent() {
-    let w = world();
+    let w = World::new();
     let boards: Vec<u8> = (0x30..0x30 + MAX_KEEPALIVES as u8 + 1).collect();
     for &b in &boards {
         w.bus.attach(b, Node::Script(Box::new(|_| (0, Vec::new()))));

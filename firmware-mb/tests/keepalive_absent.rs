@@ -7,18 +7,11 @@
 #[allow(unused_imports)]
 mod common;
 
-use std::rc::Rc;
-
-use common::{db, mb_address, sim, Db, FakePorts, LoopBus, Node, Seen, TestClock};
-use embassy_futures::join::join;
+use common::{LoopBus, Node, Seen, World};
 use embassy_futures::select::select;
-use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_mb::{MbConfig, Motherboard};
 use x10_devices::LinkError;
 use x10_hal::time::{Clock, Instant};
 use x10_microcode::{Address, Op, Port};
-
-type Mb = Motherboard<NoopRawMutex, FakePorts, TestClock>;
 
 /// One transfer on the loopback bus takes 100 µs.
 const T: u64 = common::TRANSFER_US;
@@ -43,50 +36,28 @@ fn writes_to(bus: &LoopBus, board: u8) -> Vec<(u64, Vec<u8>)> {
         .collect()
 }
 
-struct World {
-    clock: TestClock,
-    mb: Mb,
-    bus: LoopBus,
-    db9: Rc<Db>,
-}
-
 /// DB 9 (present) and board 10, each with a 300 ms failsafe set by a program (board 10 first,
 /// at 1 000 µs), after which board 10 goes away; `program` runs beside until 1 s.
 fn run(program: impl Fn(&World) -> Box<dyn std::future::Future<Output = ()> + '_>) -> World {
-    let clock = TestClock::new();
-    let w = World {
-        mb: Motherboard::new(
-            MbConfig::new(mb_address()),
-            clock.clone(),
-            FakePorts::new(clock.clone(), 2, 2),
-        ),
-        bus: LoopBus::new(&clock),
-        db9: Rc::new(db(&clock, 9)),
-        clock,
-    };
-    w.bus.attach(9, Node::Db(w.db9.clone()));
+    let w = World::new();
     w.bus
         .attach(10, Node::Script(Box::new(|_| (0, Vec::new()))));
     w.bus.attach(0x20, Node::Silent);
-    sim(
-        &w.clock,
-        join(w.mb.run(w.bus.clone()), w.bus.run_dbs()),
-        async {
-            w.clock.sleep_until(Instant(1_000)).await;
-            for b in [10, 9] {
-                w.mb.call(addr(b), Op::SetFailsafe { timeout_ms: 300 })
-                    .await
-                    .unwrap();
-            }
-            // board 10 goes away: every transaction to it is NACKed from now on
-            w.bus.attach(10, Node::Absent);
-            select(
-                Box::into_pin(program(&w)),
-                w.clock.sleep_until(Instant(1_000_000)),
-            )
-            .await;
-        },
-    );
+    w.sim(async {
+        w.clock.sleep_until(Instant(1_000)).await;
+        for b in [10, 9] {
+            w.mb.call(addr(b), Op::SetFailsafe { timeout_ms: 300 })
+                .await
+                .unwrap();
+        }
+        // board 10 goes away: every transaction to it is NACKed from now on
+        w.bus.attach(10, Node::Absent);
+        select(
+            Box::into_pin(program(&w)),
+            w.clock.sleep_until(Instant(1_000_000)),
+        )
+        .await;
+    });
     w
 }
 

@@ -12,11 +12,13 @@ use std::rc::Rc;
 use std::task::{Poll, Waker};
 
 pub use db_common::{run, FakePorts, PortOp, TestClock};
+use embassy_futures::join::join;
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{Daughterboard, DbConfig};
+use firmware_mb::{MbConfig, Motherboard};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
-use x10_hal::time::Clock;
+use x10_hal::time::{Clock, Instant};
 use x10_microcode::{Address, BoardKind};
 
 pub type Db = Daughterboard<NoopRawMutex, FakePorts>;
@@ -290,5 +292,51 @@ pub fn sim<T>(clock: &TestClock, background: impl Future, body: impl Future<Outp
     match run(clock, select(body, background)) {
         Either::First(v) => v,
         Either::Second(_) => panic!("background ended"),
+    }
+}
+
+/// The motherboard under test: its internal board on recording ports, the test clock.
+pub type Mb = Motherboard<NoopRawMutex, FakePorts, TestClock>;
+
+/// A motherboard at [`MB`] and a real daughterboard at 9 on one loopback bus.
+pub struct World {
+    pub clock: TestClock,
+    pub mb: Mb,
+    pub bus: LoopBus,
+    pub db9: Rc<Db>,
+}
+
+impl World {
+    /// The motherboard with 2 + 2 internal ports, and DB 9 attached.
+    pub fn new() -> World {
+        let clock = TestClock::new();
+        let mb = Motherboard::new(
+            MbConfig::new(mb_address()),
+            clock.clone(),
+            FakePorts::new(clock.clone(), 2, 2),
+        );
+        let bus = LoopBus::new(&clock);
+        let db9 = Rc::new(db(&clock, 9));
+        bus.attach(9, Node::Db(db9.clone()));
+        World {
+            clock,
+            mb,
+            bus,
+            db9,
+        }
+    }
+
+    /// Runs `body` while the motherboard and the bus's daughterboards run beside it.
+    pub fn sim<T>(&self, body: impl Future<Output = T>) -> T {
+        sim(
+            &self.clock,
+            join(self.mb.run(self.bus.clone()), self.bus.run_dbs()),
+            body,
+        )
+    }
+
+    /// Sleeps until `t` µs.
+    pub async fn at(&self, t: u64) {
+        self.clock.sleep_until(Instant(t)).await;
     }
 }
