@@ -26,12 +26,14 @@ use x10_microcode::Address;
 use crate::board::{init, Board, Bus, Ports, JUMPERS, KIND, NAME};
 
 /// The motherboard's address, checked at build time.
+/// (A `panic!` in a `const` is a compile error naming the variable: it never runs on the board.)
 const MB: u8 = match address::build_mb(option_env!("X10_MB_ADDR")) {
     Ok(a) => a,
     Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
 };
 
 /// The base address, checked at build time for every jumper setting.
+/// (A `panic!` in a `const` is a compile error naming the variable: it never runs on the board.)
 const BASE: u8 = match address::build_base(option_env!("X10_DB_ADDR"), JUMPERS as u32, MB) {
     Ok(b) => b,
     Err(_) if JUMPERS == 0 => {

@@ -28,6 +28,7 @@ use crate::board::{init, Board, Bus, Ports, KIND, NAME};
 include!(concat!(env!("OUT_DIR"), "/robot.rs"));
 
 /// The motherboard's address, checked at build time.
+/// (A `panic!` in a `const` is a compile error naming the variable: it never runs on the board.)
 const MB: u8 = match address::build_mb(option_env!("X10_MB_ADDR")) {
     Ok(a) => a,
     Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
