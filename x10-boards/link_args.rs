@@ -1,5 +1,6 @@
-// Link arguments of the firmware images: one file for the build scripts of firmware-mb and
-// firmware-db, which take it in with `include!("../x10-boards/link_args.rs");`.
+// Link arguments of the firmware images: one file for the build scripts of x10-boards (the
+// daughterboard images) and x10-robots (the motherboard images), which take it in with
+// `include!`.
 // It is no module of x10-boards (a build script runs on the host, before any chip code).
 // rustc lists an included file among the build script's sources, so changing this file
 // rebuilds and reruns both scripts.

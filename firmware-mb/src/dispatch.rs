@@ -2,20 +2,18 @@
 //! DB-interrupt listener at the motherboard's own address.
 
 use embassy_futures::select::{select, Either};
-use embassy_sync::blocking_mutex::raw::RawMutex;
-use firmware_db::Ports;
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::retry::Backoff;
-use x10_hal::time::{Clock, Instant};
+use x10_hal::time::Instant;
 use x10_microcode::MAX_FRAME_LEN;
 
 use crate::diag::bump;
-use crate::motherboard::Motherboard;
+use crate::motherboard::{now, sleep_until, MbCore};
 use crate::table::Job;
 
-impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
+impl MbCore {
     /// The dispatcher and the DB-interrupt listener on `bus`; never returns. Part of
-    /// [`Motherboard::run`].
+    /// [`crate::Motherboard::run`].
     ///
     /// Idle, it waits to be addressed at the motherboard's address
     /// ([`MultiMaster::addressed`], polled before the request queue; the only bus call that is
@@ -101,7 +99,7 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         wanted: impl Fn(u8) -> bool,
     ) -> bool {
         loop {
-            let r = select(bus.addressed(), self.clock.sleep_until(until)).await;
+            let r = select(bus.addressed(), sleep_until(until)).await;
             match r {
                 Either::First(addressed) => {
                     // Past `until` if need be: a transaction under way is received whole.
@@ -180,7 +178,7 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                 self.finish_transfer(meta, Err(e));
                 return;
             };
-            let until = self.clock.now().plus_us(u64::from(wait));
+            let until = now().plus_us(u64::from(wait));
             // After a lost arbitration any write to us may be what won the bus (or what a
             // single-role port was too busy to ACK); after a NACK only one from the board we
             // addressed is (it was busy sending it to us).

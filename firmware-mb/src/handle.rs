@@ -1,69 +1,135 @@
-//! The handle robot programs use.
+//! [`X10`]: the handle robot programs use.
 
-use embassy_sync::blocking_mutex::raw::RawMutex;
-use firmware_db::Ports;
 use x10_devices::{Link, LinkError, PinEvent};
-use x10_hal::time::Clock;
 use x10_microcode::{Address, Op, Payload, PinRef};
 
-use crate::motherboard::Motherboard;
+use crate::diag::MbDiagnostics;
+use crate::motherboard::MbCore;
+use crate::MbConfig;
 
-/// A cheap, `Copy` handle on a [`Motherboard`] for robot tasks: implements
-/// [`x10_devices::Link`], so every driver works through it. Clone it into as many tasks as
-/// needed; each call gets its own sequence number and its own reply.
-pub struct MbHandle<'a, M: RawMutex, P: Ports, C: Clock> {
-    mb: &'a Motherboard<M, P, C>,
+/// The robot programs' handle on the running motherboard: one concrete, `Copy` type, the same
+/// on every board and in the simulator, so a robot program is a plain `async fn` that takes
+/// an `X10`:
+///
+/// ```ignore
+/// pub async fn blink(x10: X10) -> Result<(), x10::Error> {
+///     let mut led = DigitalOutput::new(x10, SELF, 1, Pin::A)?;
+///     loop {
+///         led.toggle().await?;
+///         Timer::after_millis(500).await;
+///     }
+/// }
+/// ```
+///
+/// It implements [`x10_devices::Link`], so every driver works through it; copy it into as
+/// many tasks as needed: each call gets its own sequence number and its own reply, and the
+/// runtime's tasks (dispatcher, internal daughterboard, keepalive) serve them all. A firmware
+/// image gets it from `Motherboard::handle` (the board crate's `start_motherboard`), the
+/// simulator hands one to every robot task.
+#[derive(Clone, Copy)]
+pub struct X10 {
+    core: &'static MbCore,
 }
 
-impl<'a, M: RawMutex, P: Ports, C: Clock> MbHandle<'a, M, P, C> {
-    /// A handle on `mb`.
-    pub fn new(mb: &'a Motherboard<M, P, C>) -> Self {
-        MbHandle { mb }
+impl X10 {
+    pub(crate) fn new(core: &'static MbCore) -> X10 {
+        X10 { core }
     }
 
-    /// The motherboard behind the handle.
-    pub fn motherboard(&self) -> &'a Motherboard<M, P, C> {
-        self.mb
-    }
-
-    /// [`Link::call`] with an explicit timeout in µs.
+    /// Sends `op` to board `db` (0 = [`x10_devices::SELF`], the motherboard's own ports) and
+    /// waits for its outcome, with the default timeout (`MbConfig::request_timeout_us`, plus
+    /// the pulse-in timeout for a pulse-in). Drivers call this; programs rarely need it.
     ///
     /// # Errors
-    /// As [`Motherboard::call_with_timeout`].
+    /// As [`MbCore::call_with_timeout`].
+    pub async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
+        self.core.call(db, op).await
+    }
+
+    /// [`X10::call`] with an explicit timeout in µs.
+    ///
+    /// # Errors
+    /// As [`MbCore::call_with_timeout`].
     pub async fn call_with_timeout(
         &self,
         db: Address,
         op: Op<'_>,
         timeout_us: u64,
     ) -> Result<Payload, LinkError> {
-        self.mb.call_with_timeout(db, op, timeout_us).await
+        self.core.call_with_timeout(db, op, timeout_us).await
+    }
+
+    /// Waits for the next pin-change or analog-threshold event from `pin` on board `db`
+    /// (enable it first; drivers such as `Button::wait_change` do).
+    ///
+    /// # Errors
+    /// As [`MbCore::wait_event`].
+    pub async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
+        self.core.wait_event(db, pin).await
+    }
+
+    /// The motherboard's counters.
+    pub fn diagnostics(&self) -> MbDiagnostics {
+        self.core.diagnostics()
+    }
+
+    /// The motherboard's configuration.
+    pub fn config(&self) -> &'static MbConfig {
+        &self.core.config
+    }
+
+    /// True when PEC is negotiated with `db`.
+    pub fn pec_enabled(&self, db: Address) -> bool {
+        self.core.pec_enabled(db)
+    }
+
+    /// The shared runtime state behind the handle.
+    pub fn core(&self) -> &'static MbCore {
+        self.core
     }
 }
 
-impl<M: RawMutex, P: Ports, C: Clock> Clone for MbHandle<'_, M, P, C> {
-    fn clone(&self) -> Self {
-        *self
+impl core::fmt::Debug for X10 {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("X10")
+            .field("address", &self.core.config.address)
+            .finish()
     }
 }
 
-impl<M: RawMutex, P: Ports, C: Clock> Copy for MbHandle<'_, M, P, C> {}
+#[cfg(feature = "defmt")]
+impl defmt::Format for X10 {
+    fn format(&self, f: defmt::Formatter<'_>) {
+        defmt::write!(f, "X10 {{ address: {} }}", self.core.config.address)
+    }
+}
 
-impl<M: RawMutex, P: Ports, C: Clock> Link for MbHandle<'_, M, P, C> {
+impl Link for X10 {
     async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
-        self.mb.call(db, op).await
+        self.core.call(db, op).await
     }
 
     async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
-        self.mb.wait_event(db, pin).await
+        self.core.wait_event(db, pin).await
     }
 }
 
-impl<M: RawMutex, P: Ports, C: Clock> Link for Motherboard<M, P, C> {
+impl Link for MbCore {
     async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
-        Motherboard::call(self, db, op).await
+        MbCore::call(self, db, op).await
     }
 
     async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
-        Motherboard::wait_event(self, db, pin).await
+        MbCore::wait_event(self, db, pin).await
+    }
+}
+
+impl<P: firmware_db::Ports> Link for crate::Motherboard<P> {
+    async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
+        MbCore::call(self, db, op).await
+    }
+
+    async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
+        MbCore::wait_event(self, db, pin).await
     }
 }

@@ -13,16 +13,14 @@
 
 use embassy_futures::join::join_array;
 use embassy_futures::select::select;
-use embassy_sync::blocking_mutex::raw::RawMutex;
 use embassy_sync::signal::Signal;
-use firmware_db::Ports;
 use heapless::Vec;
 use x10_devices::LinkError;
-use x10_hal::time::{Clock, Instant};
+use x10_hal::time::Instant;
 use x10_microcode::{Address, Op};
 
 use crate::diag::{bump, MbDiagnostics};
-use crate::motherboard::Motherboard;
+use crate::motherboard::{now, sleep_until, MbCore, M};
 
 /// Boards whose failsafe the motherboard keeps alive at the same time. A `SetFailsafe` with a
 /// non-zero timeout to one more board is refused with `LinkError::Busy` before it is sent.
@@ -280,9 +278,9 @@ pub(crate) fn failsafe_change(op: &Op<'_>) -> Option<u16> {
     }
 }
 
-impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
+impl MbCore {
     /// The failsafe keepalive (see the module docs); never returns. Part of
-    /// [`Motherboard::run`].
+    /// [`crate::Motherboard::run`].
     ///
     /// It sends through [`Motherboard::call_with_timeout`] like any robot task: a heartbeat
     /// takes a pending slot and a sequence number, and queues behind the requests already
@@ -306,9 +304,9 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// ended; sleeps until the next one is due or `changed` is signalled.
     async fn keepalive_worker(&self, changed: &Signal<M, ()>) -> ! {
         loop {
-            let now = self.clock.now();
+            let t_now = now();
             let timeout = self.config.request_timeout_us;
-            match self.with(|t| t.keepalive.claim(now, timeout)) {
+            match self.with(|t| t.keepalive.claim(t_now, timeout)) {
                 Next::Send(board, op, timeout_us) => {
                     let op_sent = match op {
                         KeepaliveOp::Heartbeat => Op::Heartbeat,
@@ -323,13 +321,13 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
                             Outcome::Failed
                         }
                     };
-                    let now = self.clock.now();
-                    self.with(|t| t.keepalive.done(board, op, outcome, now, &mut t.diag));
+                    let t_now = now();
+                    self.with(|t| t.keepalive.done(board, op, outcome, t_now, &mut t.diag));
                     // The board can be taken again: wake the workers that left it out.
                     self.wake_keepalive_workers();
                 }
                 Next::At(at) => {
-                    select(self.clock.sleep_until(at), changed.wait()).await;
+                    select(sleep_until(at), changed.wait()).await;
                 }
                 Next::Idle => changed.wait().await,
             }

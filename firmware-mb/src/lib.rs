@@ -3,23 +3,21 @@
 //! Portable (no chip code, `no_std`, no allocation). The motherboard owns the bus controller
 //! role and serves any number of robot tasks:
 //!
-//! * [`Motherboard::run`] joins the four long-running parts: the dispatcher with its
-//!   DB-interrupt listener ([`Motherboard::run_dispatcher`]), the internal daughterboard's
-//!   background work, the routing of its events ([`Motherboard::run_internal_events`]), and
-//!   the failsafe keepalive ([`Motherboard::run_keepalive`]: a board whose failsafe a
-//!   program set hears a heartbeat whenever nothing was sent to it for a third of the
-//!   timeout);
-//! * [`Motherboard::call`] / [`MbHandle`] (an [`x10_devices::Link`]) is what robot programs
-//!   use: a pending table keyed by (board, sequence number) makes every request end exactly
-//!   once, with its value or a typed [`x10_devices::LinkError`];
-//! * address 0 is the internal daughterboard: the `firmware-db` core on the motherboard's
-//!   own [`firmware_db::Ports`], reached by direct calls, its events routed like bus events;
-//! * [`run_robot`] runs a [`x10_devices::Robot`] program: `setup`, then `step` forever.
+//! * [`X10`] is what robot programs take: one concrete, `Copy` handle, the same on every board
+//!   and in the simulator. It implements [`x10_devices::Link`], so every driver works
+//!   through it; a pending table keyed by (board, sequence number) makes every request end
+//!   exactly once, with its value or a typed [`x10_devices::LinkError`];
+//! * [`Motherboard::run`], in a task of its own, serves them: the dispatcher with its
+//!   DB-interrupt listener ([`MbCore::run_dispatcher`]), the internal daughterboard (address
+//!   0: the `firmware-db` core on the board's own [`firmware_db::Ports`], its requests queued
+//!   like bus requests and its events routed like bus events), and the failsafe keepalive
+//!   ([`MbCore::run_keepalive`]: a board whose failsafe a program set hears a heartbeat
+//!   whenever nothing was sent to it for a third of the timeout).
 //!
-//! Nothing here is an `#[embassy_executor::task]`: firmware wraps these `async fn`s in tasks,
-//! the simulator polls them on its own deterministic executor. Generic over the raw mutex
-//! (`embassy_sync::blocking_mutex::raw::RawMutex`), the bus ([`x10_hal::bus::MultiMaster`])
-//! and the clock ([`x10_hal::time::Clock`]). See `docs/architecture.md`.
+//! Time is embassy-time's (on boards its chip driver; in the simulator a virtual-time
+//! driver). Nothing here is an `#[embassy_executor::task]`: a board crate wraps
+//! [`Motherboard::run`] in a task with its concrete types (`x10_boards::*::start_motherboard`),
+//! the simulator polls it on its own deterministic executor. See `docs/architecture.md`.
 #![no_std]
 #![cfg_attr(
     not(test),
@@ -40,13 +38,13 @@ mod dispatch;
 mod handle;
 mod keepalive;
 mod motherboard;
-mod robot;
+mod observe;
 mod table;
 
 pub use config::MbConfig;
 pub use diag::MbDiagnostics;
-pub use handle::MbHandle;
+pub use handle::X10;
 pub use keepalive::{BUSY_RETRY_US, MAX_KEEPALIVES};
-pub use motherboard::{Motherboard, REQUEST_QUEUE_LEN};
-pub use robot::{run_robot, run_robot_with, RobotPhase};
+pub use motherboard::{MbCore, Motherboard, REQUEST_QUEUE_LEN};
+pub use observe::{CallObserver, CallRecord};
 pub use table::{MAX_EVENT_WAITERS, MAX_PENDING, RECENT_LEN, UNCLAIMED_EVENTS};

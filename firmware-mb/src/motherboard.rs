@@ -1,19 +1,24 @@
 //! The motherboard: request/response over the pending table, the internal daughterboard,
 //! event routing.
+//!
+//! Two parts: [`MbCore`], everything robot tasks and the dispatcher share (configuration,
+//! pending table, signals), which names no board type, so that the robot programs' handle
+//! [`crate::X10`] is one concrete type; and [`Motherboard`], the core plus the internal
+//! daughterboard on the board's own ports, whose tasks ([`Motherboard::run`]) serve it.
 
 use core::cell::RefCell;
+use core::ops::Deref;
 
-use embassy_futures::join::join4;
+use embassy_futures::join::join5;
 use embassy_futures::select::{select, Either};
-use embassy_sync::blocking_mutex::raw::RawMutex;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
-use embassy_sync::mutex::Mutex;
 use embassy_sync::signal::Signal;
 use firmware_db::{Daughterboard, Ports, REPLY_BUF_LEN};
 use heapless::Vec;
 use x10_devices::{LinkError, PinEvent};
 use x10_hal::bus::{BusError, MultiMaster};
-use x10_hal::time::Clock;
+use x10_hal::time::{EmbassyClock, Instant};
 use x10_microcode::{
     Address, Event, EventKind, Op, Payload, PinRef, Reply, Request, Status, MAX_FRAME_LEN,
     REPLY_HEADER_LEN,
@@ -22,44 +27,74 @@ use x10_microcode::{
 use crate::config::MbConfig;
 use crate::diag::{bump, MbDiagnostics};
 use crate::keepalive::{failsafe_change, KEEPALIVE_WORKERS};
+use crate::observe::{CallObserver, CallRecord};
 use crate::table::{
     Ended, Job, JobMeta, SlotState, Table, Ticket, WaiterTicket, MAX_EVENT_WAITERS, MAX_PENDING,
 };
+
+/// The raw mutex of every lock and signal of the motherboard: a critical section, so the
+/// shared state can live in a `static` and robot tasks may run on any executor.
+pub(crate) type M = CriticalSectionRawMutex;
+
+/// Now, in µs since boot (embassy-time).
+pub(crate) fn now() -> Instant {
+    Instant(embassy_time::Instant::now().as_micros())
+}
+
+/// Sleeps until `at` (embassy-time).
+pub(crate) async fn sleep_until(at: Instant) {
+    embassy_time::Timer::at(embassy_time::Instant::from_micros(at.as_micros())).await
+}
 
 /// Requests that can wait for the dispatcher: one per pending slot, so a caller that holds a
 /// slot never waits for room in the queue ([`MAX_PENDING`]).
 pub const REQUEST_QUEUE_LEN: usize = MAX_PENDING;
 
-/// The motherboard runtime: everything the dispatcher, the internal daughterboard and the
-/// robot tasks share. Generic over the raw mutex `M`, the internal board's ports `P` and the
-/// clock `C`; it names no chip.
-///
-/// Give it a `'static` home on a board (a `StaticCell`) or keep it on the stack of the
-/// simulator's executor, run [`Motherboard::run`] once, and hand [`Motherboard::handle`] (or
-/// `&Motherboard`, which implements [`x10_devices::Link`] too) to any number of robot tasks.
-pub struct Motherboard<M: RawMutex, P: Ports, C: Clock> {
+/// What robot tasks, the dispatcher and the keepalive share: configuration, the pending
+/// table, the request queues and the signals that end requests. It names no board type; a
+/// [`Motherboard`] holds one (and dereferences to it), and [`crate::X10`] is a reference to it.
+pub struct MbCore {
     pub(crate) config: MbConfig,
-    pub(crate) clock: C,
-    internal: Daughterboard<M, P>,
-    internal_lock: Mutex<M, ()>,
-    /// Signalled when a job is queued (the dispatcher takes it from the table).
+    /// Signalled when a job for the bus is queued (the dispatcher takes it from the table).
     job_ready: Signal<M, ()>,
+    /// Signalled when a job for the internal daughterboard is queued.
+    internal_ready: Signal<M, ()>,
     /// Signalled (one per keepalive worker) when a failsafe kept alive changes (set,
     /// stopped, board rebooted) or a keepalive ended.
     pub(crate) keepalive_changed: [Signal<M, ()>; KEEPALIVE_WORKERS],
     table: BlockingMutex<M, RefCell<Table>>,
     done: [Signal<M, Result<Payload, LinkError>>; MAX_PENDING],
     waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
+    observer: Option<&'static dyn CallObserver>,
+}
+
+/// The motherboard runtime: the shared [`MbCore`] and the internal daughterboard (address 0)
+/// on the board's own ports `P`. It names no chip.
+///
+/// Give it a `'static` home (a `StaticCell` on a board; the simulator leaks one per run), run
+/// [`Motherboard::run`] once in a task of its own, and hand [`Motherboard::handle`] (an
+/// [`crate::X10`]) to any number of robot tasks.
+pub struct Motherboard<P: Ports> {
+    core: MbCore,
+    internal: Daughterboard<M, P>,
+}
+
+impl<P: Ports> Deref for Motherboard<P> {
+    type Target = MbCore;
+
+    fn deref(&self) -> &MbCore {
+        &self.core
+    }
 }
 
 /// Frees a request's slot when the caller's future is dropped before it ended.
-struct SlotGuard<'a, M: RawMutex, P: Ports, C: Clock> {
-    mb: &'a Motherboard<M, P, C>,
+struct SlotGuard<'a> {
+    mb: &'a MbCore,
     ticket: Ticket,
     armed: bool,
 }
 
-impl<M: RawMutex, P: Ports, C: Clock> SlotGuard<'_, M, P, C> {
+impl SlotGuard<'_> {
     fn release(mut self, ended: Ended) {
         self.armed = false;
         self.mb.with(|t| t.release(self.ticket, ended));
@@ -91,7 +126,7 @@ impl<M: RawMutex, P: Ports, C: Clock> SlotGuard<'_, M, P, C> {
     }
 }
 
-impl<M: RawMutex, P: Ports, C: Clock> Drop for SlotGuard<'_, M, P, C> {
+impl Drop for SlotGuard<'_> {
     fn drop(&mut self) {
         if self.armed {
             let ticket = self.ticket;
@@ -105,13 +140,13 @@ impl<M: RawMutex, P: Ports, C: Clock> Drop for SlotGuard<'_, M, P, C> {
 
 /// Unregisters an event waiter whose future is dropped; an event already delivered to it goes
 /// back to the front of the unclaimed queue.
-struct WaiterGuard<'a, M: RawMutex, P: Ports, C: Clock> {
-    mb: &'a Motherboard<M, P, C>,
+struct WaiterGuard<'a> {
+    mb: &'a MbCore,
     ticket: WaiterTicket,
     armed: bool,
 }
 
-impl<M: RawMutex, P: Ports, C: Clock> Drop for WaiterGuard<'_, M, P, C> {
+impl Drop for WaiterGuard<'_> {
     fn drop(&mut self) {
         if !self.armed {
             return;
@@ -154,25 +189,99 @@ enum Outcome {
     Defer,
 }
 
-impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
+impl<P: Ports> Motherboard<P> {
     /// A motherboard with its internal daughterboard on `internal_ports`.
     /// The internal board always has address 0, whatever `config.internal.address` says.
-    pub fn new(config: MbConfig, clock: C, internal_ports: P) -> Self {
+    pub fn new(config: MbConfig, internal_ports: P) -> Self {
         let mut internal = config.internal;
         internal.address = Address::INTERNAL;
         Motherboard {
-            config,
-            clock,
+            core: MbCore {
+                config,
+                job_ready: Signal::new(),
+                internal_ready: Signal::new(),
+                keepalive_changed: [const { Signal::new() }; KEEPALIVE_WORKERS],
+                table: BlockingMutex::new(RefCell::new(Table::new())),
+                done: [const { Signal::new() }; MAX_PENDING],
+                waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
+                observer: None,
+            },
             internal: Daughterboard::new(internal_ports, internal),
-            internal_lock: Mutex::new(()),
-            job_ready: Signal::new(),
-            keepalive_changed: [const { Signal::new() }; KEEPALIVE_WORKERS],
-            table: BlockingMutex::new(RefCell::new(Table::new())),
-            done: [const { Signal::new() }; MAX_PENDING],
-            waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
         }
     }
 
+    /// The same motherboard, reporting every finished call to `observer` (the simulator
+    /// traces robot calls this way; boards leave it unset).
+    pub fn with_observer(mut self, observer: &'static dyn CallObserver) -> Self {
+        self.core.observer = Some(observer);
+        self
+    }
+
+    /// The shared part, which robot tasks reach through [`crate::X10`].
+    pub fn core(&self) -> &MbCore {
+        &self.core
+    }
+
+    /// The internal daughterboard (address 0).
+    pub fn internal(&self) -> &Daughterboard<M, P> {
+        &self.internal
+    }
+
+    /// The robot programs' handle: one concrete, `Copy` type whatever the board.
+    pub fn handle(&'static self) -> crate::X10 {
+        crate::X10::new(&self.core)
+    }
+
+    /// Runs the motherboard; never returns. Run it in a task of its own: the dispatcher with
+    /// its DB-interrupt listener on `bus`, the internal daughterboard (its requests, its
+    /// background work, the routing of its events) and the failsafe keepalive
+    /// ([`MbCore::run_keepalive`]).
+    pub async fn run<B: MultiMaster>(&self, bus: B) -> ! {
+        let (never, _, _, _, _) = join5(
+            self.core.run_dispatcher(bus),
+            self.run_internal_requests(),
+            self.internal.run_background(EmbassyClock),
+            self.run_internal_events(),
+            self.core.run_keepalive(),
+        )
+        .await;
+        never
+    }
+
+    /// Serves the requests to the internal daughterboard, oldest first: the same bytes as on
+    /// the bus, the same reply parsing. Never returns. Part of [`Motherboard::run`].
+    pub async fn run_internal_requests(&self) -> ! {
+        loop {
+            let job = self.core.next_internal_job().await;
+            let meta = &job.meta;
+            if !self.core.is_queued(meta.ticket) {
+                self.core.with(|t| bump(&mut t.diag.abandoned));
+                continue;
+            }
+            let read = meta.read_len > 0;
+            self.internal.handle_write(&job.frame, read).await;
+            if read {
+                let mut reply = [0u8; REPLY_BUF_LEN];
+                let n = self.internal.take_reply(&mut reply);
+                self.core.finish_transfer(meta, Ok(reply.get(..n)));
+            } else {
+                self.core.finish_transfer(meta, Ok(None));
+            }
+        }
+    }
+
+    /// Routes the internal daughterboard's events (deferred replies, pin events, rejections)
+    /// exactly as events that arrive over the bus. Never returns. Part of
+    /// [`Motherboard::run`].
+    pub async fn run_internal_events(&self) -> ! {
+        loop {
+            let ev = self.internal.next_event().await;
+            self.core.route_event(&ev.as_event(Address::INTERNAL));
+        }
+    }
+}
+
+impl MbCore {
     pub(crate) fn with<R>(&self, f: impl FnOnce(&mut Table) -> R) -> R {
         self.table.lock(|t| f(&mut t.borrow_mut()))
     }
@@ -180,16 +289,6 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// The configuration.
     pub fn config(&self) -> &MbConfig {
         &self.config
-    }
-
-    /// The clock.
-    pub fn clock(&self) -> &C {
-        &self.clock
-    }
-
-    /// The internal daughterboard (address 0).
-    pub fn internal(&self) -> &Daughterboard<M, P> {
-        &self.internal
     }
 
     /// A copy of the counters.
@@ -201,35 +300,6 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
     /// board's `boot` event).
     pub fn pec_enabled(&self, db: Address) -> bool {
         self.with(|t| t.pec(db))
-    }
-
-    /// A cloneable handle for robot tasks; implements [`x10_devices::Link`].
-    pub fn handle(&self) -> crate::MbHandle<'_, M, P, C> {
-        crate::MbHandle::new(self)
-    }
-
-    /// Runs the motherboard; never returns: the dispatcher with its DB-interrupt listener on
-    /// `bus`, the internal daughterboard's background work, the routing of its events, and
-    /// the failsafe keepalive ([`Motherboard::run_keepalive`]).
-    pub async fn run<B: MultiMaster>(&self, bus: B) -> ! {
-        let (never, _, _, _) = join4(
-            self.run_dispatcher(bus),
-            self.internal.run_background(&self.clock),
-            self.run_internal_events(),
-            self.run_keepalive(),
-        )
-        .await;
-        never
-    }
-
-    /// Routes the internal daughterboard's events (deferred replies, pin events, rejections)
-    /// exactly as events that arrive over the bus. Never returns. Part of
-    /// [`Motherboard::run`].
-    pub async fn run_internal_events(&self) -> ! {
-        loop {
-            let ev = self.internal.next_event().await;
-            self.route_event(&ev.as_event(Address::INTERNAL));
-        }
     }
 
     /// The time a request may take: the configured request timeout, plus the pulse-in
@@ -289,13 +359,34 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         op: Op<'_>,
         timeout_us: u64,
     ) -> Result<Payload, LinkError> {
+        let Some(observer) = self.observer else {
+            return self.call_inner(db, op, timeout_us).await;
+        };
+        let started = now();
+        let result = self.call_inner(db, op, timeout_us).await;
+        observer.observe(&CallRecord {
+            db,
+            op: &op,
+            result: &result,
+            started,
+            ended: now(),
+        });
+        result
+    }
+
+    async fn call_inner(
+        &self,
+        db: Address,
+        op: Op<'_>,
+        timeout_us: u64,
+    ) -> Result<Payload, LinkError> {
         op.validate()?;
         if db == self.config.address {
             return Err(LinkError::Invalid(x10_microcode::Error::BadAddress(
                 db.get(),
             )));
         }
-        let now = self.clock.now();
+        let now = now();
         let deadline = now.plus_us(timeout_us);
         let (ticket, seq, pec_on) = self.with(|t| {
             let (ticket, seq) = t.alloc(db, failsafe_change(&op), now)?;
@@ -350,25 +441,26 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
             pec_change: pec_change(&op),
             failsafe_change: failsafe_change(&op),
         };
-        if db.is_internal() {
-            let internal = self.call_internal(&meta, &frame);
-            if let Either::Second(()) = select(internal, self.clock.sleep_until(deadline)).await {
-                return guard.expire();
-            }
+        let internal = db.is_internal();
+        // Never full: every queued job holds one of the MAX_PENDING slots, and a job leaves
+        // its queue when its slot is released.
+        if self
+            .with(|t| t.enqueue(Job { meta, frame }, internal))
+            .is_err()
+        {
+            self.with(|t| bump(&mut t.diag.busy));
+            guard.release(Ended::GaveUp);
+            return Err(LinkError::Busy);
+        }
+        if internal {
+            self.internal_ready.signal(());
         } else {
-            // Never full: every queued job holds one of the MAX_PENDING slots, and a job
-            // leaves the queue when its slot is released.
-            if self.with(|t| t.enqueue(Job { meta, frame })).is_err() {
-                self.with(|t| bump(&mut t.diag.busy));
-                guard.release(Ended::GaveUp);
-                return Err(LinkError::Busy);
-            }
             self.job_ready.signal(());
         }
         let Some(signal) = self.done.get(ticket.index) else {
             return guard.expire();
         };
-        match select(signal.wait(), self.clock.sleep_until(deadline)).await {
+        match select(signal.wait(), sleep_until(deadline)).await {
             Either::First(r) => {
                 guard.release(Ended::Completed);
                 r
@@ -377,29 +469,24 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         }
     }
 
-    /// The internal daughterboard, reached by direct calls under a lock: the same bytes as
-    /// on the bus, the same reply parsing.
-    async fn call_internal(&self, meta: &JobMeta, bytes: &[u8]) {
-        let _lock = self.internal_lock.lock().await;
-        let read = meta.read_len > 0;
-        self.internal.handle_write(bytes, read).await;
-        if read {
-            let mut reply = [0u8; REPLY_BUF_LEN];
-            let n = self.internal.take_reply(&mut reply);
-            self.finish_transfer(meta, Ok(reply.get(..n)));
-        } else {
-            self.finish_transfer(meta, Ok(None));
-        }
-    }
-
     /// The oldest queued job; waits for one. Cancel-safe: a job is taken out only when this
     /// returns it.
     pub(crate) async fn next_job(&self) -> Job {
         loop {
-            if let Some(job) = self.with(Table::pop_job) {
+            if let Some(job) = self.with(|t| t.pop_job(false)) {
                 return job;
             }
             self.job_ready.wait().await;
+        }
+    }
+
+    /// The oldest queued job for the internal daughterboard; waits for one. Cancel-safe.
+    async fn next_internal_job(&self) -> Job {
+        loop {
+            if let Some(job) = self.with(|t| t.pop_job(true)) {
+                return job;
+            }
+            self.internal_ready.wait().await;
         }
     }
 
@@ -456,18 +543,18 @@ impl<M: RawMutex, P: Ports, C: Clock> Motherboard<M, P, C> {
         self.with(|t| {
             // The clock is read only for a board whose failsafe is kept alive.
             if acked && t.keepalive.tracks(meta.db) {
-                t.keepalive.sent(meta.db, self.clock.now());
+                t.keepalive.sent(meta.db, now());
             }
             match outcome {
                 Outcome::Defer => {
-                    if !t.defer(meta, self.clock.now()) {
+                    if !t.defer(meta, now()) {
                         bump(&mut t.diag.late_replies);
                     }
                 }
                 Outcome::Complete(r) => {
                     if r.is_ok() {
                         // The board applied it, whether or not the caller still waits.
-                        t.applied(meta.db, meta, || self.clock.now());
+                        t.applied(meta.db, meta, now);
                     }
                     if t.complete(meta.ticket, &r) {
                         if let Some(s) = self.done.get(meta.ticket.index) {

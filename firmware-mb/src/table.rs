@@ -172,6 +172,8 @@ pub(crate) struct Table {
     /// Requests for the dispatcher, oldest first (a ring: taking the oldest moves nothing).
     /// Each holds a slot, so the queue never overflows; releasing the slot takes the job out.
     queue: Deque<Job, MAX_PENDING>,
+    /// Requests for the internal daughterboard, the same way.
+    internal_queue: Deque<Job, MAX_PENDING>,
     /// The failsafes the motherboard keeps alive.
     pub(crate) keepalive: Keepalives,
     /// A failsafe setting changed (the keepalive task must look again).
@@ -231,6 +233,7 @@ impl Table {
             }; MAX_EVENT_WAITERS],
             unclaimed: Vec::new(),
             queue: Deque::new(),
+            internal_queue: Deque::new(),
             keepalive: Keepalives::new(),
             keepalive_changed: false,
         }
@@ -249,17 +252,27 @@ impl Table {
         }
     }
 
-    /// Queues a job for the dispatcher (behind every job queued before).
+    /// Queues a job for the dispatcher, or for the internal daughterboard when `internal`
+    /// (behind every job queued there before).
     ///
     /// # Errors
     /// The job back if the queue is full (it cannot be while each job holds a slot).
-    pub(crate) fn enqueue(&mut self, job: Job) -> Result<(), Job> {
-        self.queue.push_back(job)
+    pub(crate) fn enqueue(&mut self, job: Job, internal: bool) -> Result<(), Job> {
+        if internal {
+            self.internal_queue.push_back(job)
+        } else {
+            self.queue.push_back(job)
+        }
     }
 
-    /// The oldest queued job.
-    pub(crate) fn pop_job(&mut self) -> Option<Job> {
-        self.queue.pop_front()
+    /// The oldest job queued for the dispatcher, or for the internal daughterboard when
+    /// `internal`.
+    pub(crate) fn pop_job(&mut self, internal: bool) -> Option<Job> {
+        if internal {
+            self.internal_queue.pop_front()
+        } else {
+            self.queue.pop_front()
+        }
     }
 
     /// True when PEC is negotiated with `board`.
@@ -499,6 +512,9 @@ impl Table {
     pub(crate) fn release(&mut self, t: Ticket, ended: Ended) {
         if !self.queue.is_empty() {
             self.queue.retain(|j| j.meta.ticket != t);
+        }
+        if !self.internal_queue.is_empty() {
+            self.internal_queue.retain(|j| j.meta.ticket != t);
         }
         let Some(s) = self.slot_mut(t) else {
             return;

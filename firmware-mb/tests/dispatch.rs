@@ -5,15 +5,11 @@ mod common;
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
-use common::{
-    db, mb_address, Db, FakePorts, Fault, LoopBus, Node, PortOp, Seen, TestClock, BUS_TIMEOUT_US,
-    TRANSFER_US,
-};
+use common::{db, mb_address, Db, Fault, LoopBus, Node, PortOp, Seen, BUS_TIMEOUT_US, TRANSFER_US};
 use embassy_futures::join::{join, join_array};
 use embassy_futures::select::{select, Either};
-use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_mb::{run_robot_with, MbConfig, RobotPhase, MAX_PENDING};
-use x10_devices::{Link, LinkError, Robot};
+use firmware_mb::{MbConfig, MAX_PENDING};
+use x10_devices::{Link, LinkError};
 use x10_hal::bus::BusError;
 use x10_hal::time::{Clock, Instant};
 use x10_microcode::{pec, Address, Edge, EventConfig, EventKind, Level, Op, Pin, Port, Status};
@@ -833,60 +829,52 @@ fn bad_event_frames_and_reads_of_the_mb_are_counted() {
 
 const MB_ADDR_BYTE: u8 = common::MB << 1;
 
-struct Blinker {
-    steps: Rc<Cell<u32>>,
-    link: firmware_mb::MbHandle<'static, NoopRawMutex, FakePorts, TestClock>,
-}
-
-impl Robot for Blinker {
-    async fn setup(&mut self) -> Result<(), LinkError> {
-        self.link.call(addr(0x31), Op::Ping).await.map(|_| ())
-    }
-
-    async fn step(&mut self) -> Result<(), LinkError> {
-        let n = self.steps.get();
-        self.steps.set(n + 1);
-        let level = if n.is_multiple_of(2) {
-            Level::High
-        } else {
-            Level::Low
-        };
-        self.link
-            .call(Address::INTERNAL, Op::DigitalWrite(a(1).pin(Pin::A), level))
-            .await?;
-        if n % 3 == 2 {
-            self.link
-                .call(Address::INTERNAL, Op::AnalogRead(s(5)))
-                .await?;
-        }
-        Ok(())
-    }
-}
-
 #[test]
 fn the_robot_runner_steps_at_its_period_and_goes_on_after_errors() {
-    let w = Box::leak(Box::new(world()));
-    let steps = Rc::new(Cell::new(0));
+    // A robot task in the loop()-style: a ping first (no board 0x31: NACKed), then every
+    // 10 ms a write and every third step a read of a port that does not exist. Errors are
+    // values the task handles; it goes on.
+    let w = world();
+    let x10 = w.mb.handle();
+    let steps = Cell::new(0u32);
     let errors = RefCell::new(Vec::new());
-    let robot = Blinker {
-        steps: steps.clone(),
-        link: w.mb.handle(),
-    };
     w.sim(async {
-        let runner = run_robot_with(robot, w.clock.clone(), 10_000, |phase, e| {
-            errors.borrow_mut().push((w.clock.now_us(), phase, e));
-        });
-        let _ = select(runner, w.clock.sleep_until(Instant(100_000))).await;
+        let robot = async {
+            if let Err(e) = x10.call(addr(0x31), Op::Ping).await {
+                errors.borrow_mut().push((w.clock.now_us(), "setup", e));
+            }
+            let mut ticker = embassy_time::Ticker::every(embassy_time::Duration::from_millis(10));
+            loop {
+                let n = steps.get();
+                steps.set(n + 1);
+                let level = if n.is_multiple_of(2) {
+                    Level::High
+                } else {
+                    Level::Low
+                };
+                let mut r = x10
+                    .call(Address::INTERNAL, Op::DigitalWrite(a(1).pin(Pin::A), level))
+                    .await;
+                if r.is_ok() && n % 3 == 2 {
+                    r = x10.call(Address::INTERNAL, Op::AnalogRead(s(5))).await;
+                }
+                if let Err(e) = r {
+                    errors.borrow_mut().push((w.clock.now_us(), "step", e));
+                }
+                ticker.next().await;
+            }
+        };
+        let _ = select(robot, w.clock.sleep_until(Instant(100_000))).await;
     });
-    // setup NACKed (no board 0x31) after ~1.6 ms of retries, then steps every 10 ms from there
+    // the ping NACKed (no board 0x31) after ~1.6 ms of retries, then steps every 10 ms
     let errors = errors.into_inner();
-    assert_eq!(errors[0].1, RobotPhase::Setup);
+    assert_eq!(errors[0].1, "setup");
     assert_eq!(errors[0].2, LinkError::Nack);
     assert_eq!(steps.get(), 10);
     let step_errors: Vec<_> = errors[1..].iter().map(|e| (e.1, e.2)).collect();
     assert_eq!(
         step_errors,
-        vec![(RobotPhase::Step, LinkError::Status(Status::PortOutOfRange)); 3]
+        vec![("step", LinkError::Status(Status::PortOutOfRange)); 3]
     );
     let writes =
         w.mb.internal()

@@ -127,10 +127,9 @@ impl MultiMaster for PartialBus {
     }
 }
 
-fn motherboard(clock: &TestClock) -> Motherboard<NoopRawMutex, FakePorts, TestClock> {
+fn motherboard(clock: &TestClock) -> Motherboard<FakePorts> {
     Motherboard::new(
         MbConfig::new(mb_address()),
-        clock.clone(),
         FakePorts::new(clock.clone(), 2, 2),
     )
 }

@@ -18,7 +18,7 @@
 //!
 //! The alarm **latches**, as in the thesis: its `loop()` turns the alarm on (`alarm.on_a()`)
 //! and has no branch that turns it off, so once raised it stays on until the program restarts
-//! (`setup` drives it LOW). The latch holds the decision, not the write: a condition seen once
+//! (the program drives it LOW before its loop). The latch holds the decision, not the write: a condition seen once
 //! keeps the alarm wanted even if writing it failed and the temperature is back to normal.
 //!
 //! The alarm is a [`Kept`] [`DigitalOutput`]: its level is written when it changes, every
@@ -31,15 +31,14 @@
 //! * `readThermistorFarenheit(<200` does not compile; the intent is `readThermistorFahrenheit()
 //!   < 200`.
 //! * A thermistor that cannot be read (board absent, an open or shorted thermistor reading on an
-//!   ADC rail) raises the alarm too, and `step` then returns the error so the runner logs it: a
-//!   monitoring system that cannot see a temperature must not stay silent. The thesis would
+//!   ADC rail) raises the alarm too: a monitoring system that cannot see a temperature must not
+//!   stay silent. The thesis would
 //!   compute `log` of a negative number or divide by zero and compare a NaN (never true: no
 //!   alarm).
-//! * `setup` puts the alarm in a known state (LOW); the thesis's `setup()` is empty.
+//! * The alarm starts in a known state (LOW); the thesis's `setup()` is empty.
 
-use x10_devices::{
-    Address, DigitalOutput, Error, Kept, Level, Link, LinkError, Pin, Robot, Thermistor,
-};
+use embassy_time::Ticker;
+use x10::{Address, DigitalOutput, Error, Kept, Level, Pin, Thermistor, X10};
 
 const fn addr(n: u8) -> Address {
     match Address::new(n) {
@@ -63,75 +62,35 @@ pub const HOT_PORT: u8 = 6;
 pub const ALARM_PORT: u8 = 3;
 /// Pin of the alarm.
 pub const ALARM_PIN: Pin = Pin::A;
-/// Alarm when the freezer is warmer than this, °C.
+/// The freezer is too warm above this (°C).
 pub const COLD_LIMIT_C: f32 = 1.0;
-/// Alarm when the oven is cooler than this, °F.
+/// The oven is too cool below this (°F).
 pub const HOT_LIMIT_F: f32 = 200.0;
 
-/// The Figure 4.6 program.
-#[derive(Clone, Debug)]
-pub struct TemperatureAlarm<L> {
-    cold: Thermistor<L>,
-    hot: Thermistor<L>,
-    alarm: Kept<DigitalOutput<L>>,
-    /// The latch: the condition has been seen since `setup`.
-    raised: bool,
-}
-
-impl<L: Link + Clone> TemperatureAlarm<L> {
-    /// The program on `link`.
-    ///
-    /// # Errors
-    /// None with these constants; the drivers' constructors check port numbers.
-    pub fn new(link: L) -> Result<Self, Error> {
-        let alarm = DigitalOutput::new(link.clone(), CONTROL_BOARD, ALARM_PORT, ALARM_PIN)?;
-        Ok(TemperatureAlarm {
-            cold: Thermistor::new(link.clone(), FREEZER, COLD_PORT)?,
-            hot: Thermistor::new(link, OVEN, HOT_PORT)?,
-            alarm: Kept::new(alarm, crate::REFRESH),
-            raised: false,
-        })
-    }
-}
-
-impl<L: Link> TemperatureAlarm<L> {
-    /// True once the alarm has been raised (it latches), whether or not writing it succeeded.
-    pub fn alarm_raised(&self) -> bool {
-        self.raised
-    }
-
-    /// True while the alarm is known to sound: the last write (HIGH) succeeded.
-    pub fn alarm_on(&self) -> bool {
-        self.alarm.state() == Some(Level::High)
-    }
-
-    /// The thesis's condition; an unreadable thermistor counts as "alarm" and is reported.
-    async fn alarm_wanted(&self) -> (bool, Option<Error>) {
-        match self.cold.celsius().await {
-            Ok(c) if c.0 > COLD_LIMIT_C => (true, None),
-            Ok(_) => match self.hot.fahrenheit().await {
-                Ok(f) => (f.0 < HOT_LIMIT_F, None),
-                Err(e) => (true, Some(e)),
-            },
-            Err(e) => (true, Some(e)),
-        }
-    }
-}
-
-impl<L: Link> Robot for TemperatureAlarm<L> {
-    async fn setup(&mut self) -> Result<(), LinkError> {
-        self.raised = false;
-        Ok(self.alarm.set(Level::Low).await?)
-    }
-
-    async fn step(&mut self) -> Result<(), LinkError> {
-        let (wanted, fault) = self.alarm_wanted().await;
-        self.raised |= wanted;
-        let level = if self.raised { Level::High } else { Level::Low };
-        self.alarm.keep(level).await?;
-        match fault {
-            Some(e) => Err(e.into()),
-            None => Ok(()),
-        }
+/// The Figure 4.6 program. Runs for ever; returns only if a driver cannot be built.
+///
+/// # Errors
+/// [`Error::BadPort`] with bad port constants (never with these).
+pub async fn temperature_alarm(x10: X10) -> Result<(), Error> {
+    let cold = Thermistor::new(x10, FREEZER, COLD_PORT)?;
+    let hot = Thermistor::new(x10, OVEN, HOT_PORT)?;
+    let alarm = DigitalOutput::new(x10, CONTROL_BOARD, ALARM_PORT, ALARM_PIN)?;
+    let mut alarm = Kept::new(alarm, crate::REFRESH);
+    let _ = alarm.set(Level::Low).await;
+    let mut raised = false;
+    let mut ticker = Ticker::every(crate::PERIOD);
+    loop {
+        // Freezer above 1 °C, or else oven below 200 °F; a reading that fails counts as too.
+        let wanted = match cold.celsius().await {
+            Ok(c) if c.0 > COLD_LIMIT_C => true,
+            Ok(_) => hot.fahrenheit().await.map_or(true, |f| f.0 < HOT_LIMIT_F),
+            Err(_) => true,
+        };
+        // The alarm latches: once raised it stays on (the thesis never turns it off).
+        raised |= wanted;
+        let _ = alarm
+            .keep(if raised { Level::High } else { Level::Low })
+            .await;
+        ticker.next().await;
     }
 }

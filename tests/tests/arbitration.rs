@@ -5,7 +5,6 @@
 use std::cell::RefCell;
 use std::rc::Rc;
 
-use x10_devices::Link;
 use x10_microcode::{Address, EventConfig, EventKind, Op, Pin};
 use x10_sim::bus::Role;
 use x10_sim::ports::{Analog, Digital, SensorScript};

@@ -1,9 +1,8 @@
 //! Same seed, same run: the trace and the waveform are identical byte for byte, even with
 //! injected faults; another seed gives another run.
 
-use x10_robots::Program;
 use x10_sim::bus::FaultConfig;
-use x10_sim::sim::{Sim, SimConfig, SimOutcome};
+use x10_sim::sim::{SimConfig, SimOutcome};
 use x10_sim::timing::Speed;
 
 fn run(seed: u64) -> SimOutcome {
@@ -18,7 +17,10 @@ fn run(seed: u64) -> SimOutcome {
         },
         ..SimConfig::default()
     };
-    Sim::program(Program::Fig4_4, config).run().unwrap()
+    x10_sim::examples::sim("fig4_4", config)
+        .expect("an example")
+        .run()
+        .unwrap()
 }
 
 #[test]

@@ -3,7 +3,6 @@
 //! One that keeps talking never trips it. (A live MB whose program merely stops sending keeps
 //! the failsafe fed with heartbeats: see keepalive.rs.)
 
-use x10_devices::Link;
 use x10_microcode::{Address, Level, Op, Pin};
 use x10_sim::bus::Outcome;
 use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};

@@ -4,7 +4,7 @@
 use std::cell::RefCell;
 use std::rc::Rc;
 
-use x10_devices::{Link, LinkError};
+use x10_devices::LinkError;
 use x10_hal::bus::MultiMaster;
 use x10_microcode::{Address, Edge, Level, Op, Pin, Port};
 use x10_sim::bus::{NodeConfig, Outcome};
@@ -246,12 +246,13 @@ fn a_board_that_resets_mid_run_fails_calls_while_down_then_serves_again() {
 /// program having noticed anything.
 #[test]
 fn a_motor_on_a_board_that_reset_is_driven_again() {
-    use x10_robots::{Program, REFRESH_STEPS};
+    use x10_robots::{PERIOD, REFRESH_STEPS};
     let config = SimConfig {
         duration_ms: 5_000,
         ..SimConfig::default()
     };
-    let o = Sim::program(Program::Fig4_4, config)
+    let o = x10_sim::examples::sim("fig4_4", config)
+        .expect("an example")
         .reset_at("db09", 2_503, 2)
         .run()
         .unwrap();
@@ -263,10 +264,10 @@ fn a_motor_on_a_board_that_reset_is_driven_again() {
     assert_eq!(ends, vec![false, true, false, true, false], "{changes:?}");
     let reset_end = changes[2].0;
     assert_eq!(reset_end, ms(2_505));
-    // Driven again within one refresh period of 10 ms steps.
+    // Driven again within one refresh period of 20 ms steps.
     let again = changes[3].0;
     assert!(
-        again > reset_end && again - reset_end <= ms(10 * u64::from(REFRESH_STEPS)),
+        again > reset_end && again - reset_end <= ms(PERIOD.as_millis() * u64::from(REFRESH_STEPS)),
         "{changes:?}"
     );
     assert_eq!(o.log.level_at("db09", a1a, ms(3_000)), Some(Level::High));

@@ -2,9 +2,8 @@
 //! retry, reject and count, and the robot still does its job.
 
 use x10_microcode::Pin;
-use x10_robots::Program;
 use x10_sim::bus::FaultConfig;
-use x10_sim::sim::{Sim, SimConfig};
+use x10_sim::sim::SimConfig;
 use x10_tests::{act, ms};
 
 #[test]
@@ -18,7 +17,10 @@ fn fig4_4_survives_nacks_and_corrupted_bytes() {
         },
         ..SimConfig::default()
     };
-    let o = Sim::program(Program::Fig4_4, config).run().unwrap();
+    let o = x10_sim::examples::sim("fig4_4", config)
+        .expect("an example")
+        .run()
+        .unwrap();
     // Faults happened and were handled.
     assert!(o.bus.injected > 20, "{:?}", o.bus);
     assert!(o.mb.retries > 0);

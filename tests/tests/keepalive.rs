@@ -7,7 +7,6 @@
 //! at the firmware level (`firmware-mb/tests/keepalive.rs`): the simulator has no way to stop
 //! its motherboard mid-run.
 
-use x10_devices::Link;
 use x10_microcode::{Address, Level, Op, Pin};
 use x10_sim::bus::{BusRecord, Outcome};
 use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};

@@ -4,7 +4,7 @@
 use std::cell::RefCell;
 use std::rc::Rc;
 
-use x10_devices::{Link, LinkError, SELF};
+use x10_devices::{LinkError, SELF};
 use x10_microcode::{Address, Op, Port};
 use x10_sim::ports::{Analog, SensorScript};
 use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};

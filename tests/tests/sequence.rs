@@ -4,7 +4,6 @@
 use std::cell::RefCell;
 use std::rc::Rc;
 
-use x10_devices::Link;
 use x10_microcode::{Address, Edge, Op, Pin, Request};
 use x10_sim::ports::{Analog, Digital, SensorScript};
 use x10_sim::sim::{task, Sim, SimConfig};

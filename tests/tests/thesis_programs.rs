@@ -2,34 +2,34 @@
 //! the scripted signals of `x10_sim::scenario`, at every bus clock.
 
 use x10_microcode::Pin;
-use x10_robots::Program;
 use x10_sim::sim::{Sim, SimConfig, SimOutcome};
 use x10_sim::timing::Speed;
 use x10_tests::{act, duties, levels, ms, us};
 
-fn run(program: Program, speed: Speed) -> SimOutcome {
+fn run(program: &str, speed: Speed) -> SimOutcome {
     let config = SimConfig {
         speed,
         ..SimConfig::default()
     };
-    match Sim::program(program, config).run() {
-        Ok(o) => o,
-        Err(e) => panic!("{program} at {speed}: {e}"),
+    match x10_sim::examples::sim(program, config).map(Sim::run) {
+        Some(Ok(o)) => o,
+        None => panic!("no example {program}"),
+        Some(Err(e)) => panic!("{program} at {speed}: {e}"),
     }
 }
 
 /// Figure 4.2's motor on the internal board: IN1 (A1.A) and EN (PWM A1.A).
 fn assert_fig4_2_motor(o: &SimOutcome) {
     let a1a = act(1, Pin::A);
-    // Boot safe state at 0, then: button pressed at 2.0 s (debounced: two agreeing reads 10 ms
+    // Boot safe state at 0, then: button pressed at 2.0 s (debounced: two agreeing reads 20 ms
     // apart), released at 3.0 s (then the force sensor is read: 2 µs ADC), force 350 from 3.6 s
     // to 4.2 s (ADC 2 µs before the decision).
     assert_eq!(
         levels(&o.log, "mb", a1a),
         vec![
             (0, false),
-            (ms(2_010), true),
-            (ms(3_010) + us(2), false),
+            (ms(2_020), true),
+            (ms(3_020) + us(2), false),
             (ms(3_600) + us(2), true),
             (ms(4_200) + us(2), false),
         ]
@@ -37,8 +37,8 @@ fn assert_fig4_2_motor(o: &SimOutcome) {
     assert_eq!(
         duties(&o.log, "mb", a1a),
         vec![
-            (ms(2_010), 255),
-            (ms(3_010) + us(2), 0),
+            (ms(2_020), 255),
+            (ms(3_020) + us(2), 0),
             (ms(3_600) + us(2), 255),
             (ms(4_200) + us(2), 0),
         ]
@@ -57,7 +57,7 @@ fn assert_fig4_2_motor(o: &SimOutcome) {
 
 #[test]
 fn fig4_2_button_or_force_runs_the_motor_on_the_internal_board() {
-    let o = run(Program::Fig4_2, Speed::Fast);
+    let o = run("fig4_2", Speed::Fast);
     assert_fig4_2_motor(&o);
     // Everything is on the internal board: nothing on the bus.
     assert!(o.records.is_empty());
@@ -69,10 +69,10 @@ fn fig4_2_button_or_force_runs_the_motor_on_the_internal_board() {
 
 #[test]
 fn fig4_4_adds_the_light_module_without_changing_fig4_2() {
-    let o = run(Program::Fig4_4, Speed::Fast);
+    let o = run("fig4_4", Speed::Fast);
     // The first program behaves exactly as alone, to the nanosecond.
     assert_fig4_2_motor(&o);
-    let alone = run(Program::Fig4_2, Speed::Fast);
+    let alone = run("fig4_2", Speed::Fast);
     assert_eq!(
         o.log.changes().iter().filter(|c| c.board == "mb").count(),
         alone.log.len()
@@ -102,7 +102,7 @@ fn fig4_4_adds_the_light_module_without_changing_fig4_2() {
 #[test]
 fn fig4_4_at_every_bus_clock() {
     for speed in Speed::ALL {
-        let o = run(Program::Fig4_4, speed);
+        let o = run("fig4_4", speed);
         assert_fig4_2_motor(&o);
         let on = levels(&o.log, "db09", act(1, Pin::A));
         assert_eq!(on.len(), 3, "{speed}: {on:?}");
@@ -127,7 +127,7 @@ fn fig4_4_at_every_bus_clock() {
 #[test]
 fn fig4_6_raises_the_alarm_when_the_freezer_passes_1_c_and_latches() {
     for speed in Speed::ALL {
-        let o = run(Program::Fig4_6, speed);
+        let o = run("fig4_6", speed);
         let alarm = act(3, Pin::A);
         let l = levels(&o.log, "db0a", alarm);
         // Low from setup (after the boot safe state), high once, never low again.

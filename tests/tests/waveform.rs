@@ -1,9 +1,8 @@
 //! The VCD file: a valid header, time only moving forward, and SDA changing while SCL is high
 //! exactly at every START, repeated START and STOP of the recorded transactions.
 
-use x10_robots::Program;
 use x10_sim::bus::WireSym;
-use x10_sim::sim::{Sim, SimConfig};
+use x10_sim::sim::SimConfig;
 use x10_sim::timing::Speed;
 
 #[test]
@@ -11,10 +10,13 @@ fn vcd_encodes_every_start_and_stop() {
     for speed in Speed::ALL {
         let config = SimConfig {
             speed,
-            duration_ms: 300,
+            duration_ms: 600,
             ..SimConfig::default()
         };
-        let o = Sim::program(Program::Fig4_4, config).run().unwrap();
+        let o = x10_sim::examples::sim("fig4_4", config)
+            .expect("an example")
+            .run()
+            .unwrap();
         let vcd = o.vcd();
         let (header, body) = vcd.split_once("$enddefinitions $end\n").unwrap();
         assert!(header.contains("$timescale 1ns $end"));

@@ -507,3 +507,9 @@ impl Ports for G431Ports {
         }
     }
 }
+
+#[cfg(feature = "motherboard")]
+use embassy_stm32::Peripherals;
+
+#[cfg(feature = "motherboard")]
+motherboard_starter!(ports: G431Ports, bus: G431Bus, kind: x10_microcode::BoardKind::G431, name: "STM32G431");

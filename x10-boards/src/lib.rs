@@ -19,8 +19,11 @@
 //! take the controller role while the bus is in use as far as the chip can tell (which the
 //! runtimes see as arbitration lost, and retry).
 //!
-//! The images themselves (`main`, tasks, defmt-rtt, panic-probe) are the bins of firmware-mb
-//! and firmware-db.
+//! With the `motherboard` feature, each chip module also has `start_motherboard`
+//! ([`start`]): the library call an image's `main` makes to start the X10 motherboard runtime
+//! and get the robot programs' [`firmware_mb::X10`] handle. The images themselves (`main`,
+//! robot tasks, defmt-rtt, panic-probe) are the bins of x10-robots (motherboard, the example
+//! programs), firmware-db (daughterboard) and of a user's own robot crate.
 //!
 //! Features: `rp2040`, `stm32g431` (one per build: each brings its HAL and critical section),
 //! `time` (only [`EmbassyClock`]). Without any, only the portable parts compile:
@@ -41,6 +44,10 @@ pub use clock::EmbassyClock;
 
 #[cfg(all(feature = "rp2040", feature = "stm32g431"))]
 compile_error!("features `rp2040` and `stm32g431` are exclusive: build one image per cargo call");
+
+#[cfg(feature = "motherboard")]
+#[macro_use]
+pub mod start;
 
 #[cfg(feature = "rp2040")]
 pub mod pico;

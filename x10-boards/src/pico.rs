@@ -570,3 +570,9 @@ impl Ports for PicoPorts {
             .map_err(|_| PortError::Timeout)
     }
 }
+
+#[cfg(feature = "motherboard")]
+use embassy_rp::Peripherals;
+
+#[cfg(feature = "motherboard")]
+motherboard_starter!(ports: PicoPorts, bus: PicoBus, kind: x10_microcode::BoardKind::PICO, name: "Pico");

@@ -44,6 +44,41 @@ impl<L: Link> DigitalOutput<L> {
     pub fn pin(&self) -> Pin {
         self.pin
     }
+
+    /// The level last written successfully (`None` before the first, after a failure).
+    pub fn level(&self) -> Option<Level> {
+        self.level
+    }
+
+    /// Drives the pin HIGH (one write).
+    ///
+    /// # Errors
+    /// [`crate::Error::Link`]; the level is then unknown.
+    pub async fn high(&mut self) -> Result<()> {
+        Output::set(self, Level::High).await
+    }
+
+    /// Drives the pin LOW (one write).
+    ///
+    /// # Errors
+    /// [`crate::Error::Link`]; the level is then unknown.
+    pub async fn low(&mut self) -> Result<()> {
+        Output::set(self, Level::Low).await
+    }
+
+    /// Drives the pin to the other level (HIGH when the level is unknown); returns the level
+    /// written.
+    ///
+    /// # Errors
+    /// [`crate::Error::Link`]; the level is then unknown.
+    pub async fn toggle(&mut self) -> Result<Level> {
+        let next = match self.level {
+            Some(Level::High) => Level::Low,
+            _ => Level::High,
+        };
+        Output::set(self, next).await?;
+        Ok(next)
+    }
 }
 
 /// The level: `state()` is the level last written successfully (`None` before the first,

@@ -57,7 +57,7 @@ mod thermistor;
 mod ultrasonic;
 mod units;
 
-pub use analog::AnalogSensor;
+pub use analog::{AnalogSensor, Crossing};
 pub use button::{Button, ButtonState};
 pub use dc_motor::{DcMotor, Ramp};
 pub use delay::ClockDelay;

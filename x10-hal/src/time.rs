@@ -1,4 +1,7 @@
-//! A monotonic clock in microseconds.
+//! A monotonic clock in microseconds: the runtimes' internal seam over time. Robot programs
+//! never see it; they use `embassy_time` directly. With the `embassy-time` feature,
+//! [`EmbassyClock`] is this clock on embassy-time (on boards, and in the simulator, whose
+//! embassy-time driver runs in virtual time).
 
 /// A point in time, in microseconds since the clock started.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
@@ -51,5 +54,22 @@ impl<C: Clock + ?Sized> Clock for &C {
 
     async fn sleep_until(&self, at: Instant) {
         (**self).sleep_until(at).await
+    }
+}
+
+/// [`Clock`] on embassy-time. Its instants are microseconds since boot; sleeping is an
+/// embassy-time timer, so the executor sleeps too.
+#[cfg(feature = "embassy-time")]
+#[derive(Clone, Copy, Debug, Default)]
+pub struct EmbassyClock;
+
+#[cfg(feature = "embassy-time")]
+impl Clock for EmbassyClock {
+    fn now(&self) -> Instant {
+        Instant(embassy_time::Instant::now().as_micros())
+    }
+
+    async fn sleep_until(&self, at: Instant) {
+        embassy_time::Timer::at(embassy_time::Instant::from_micros(at.as_micros())).await
     }
 }

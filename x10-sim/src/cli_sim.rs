@@ -5,10 +5,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Args;
-use x10_robots::Program;
 
+use crate::examples;
 use crate::report;
-use crate::sim::{Sim, SimConfig};
+use crate::sim::SimConfig;
 use crate::timing::Speed;
 
 const SIM_HELP: &str = "\
@@ -36,9 +36,9 @@ EXAMPLES
 #[derive(Args, Debug)]
 #[command(after_help = SIM_HELP)]
 pub struct SimArgs {
-    /// Robot program: fig4_2, fig4_4 or fig4_6.
-    #[arg(required_unless_present = "report", value_parser = program)]
-    pub program: Option<Program>,
+    /// Example robot: fig4_2, fig4_4 or fig4_6.
+    #[arg(required_unless_present = "report", value_parser = example)]
+    pub program: Option<&'static examples::Example>,
     /// Seed of the simulation's randomness (backoff jitter, injected faults).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -67,8 +67,8 @@ pub struct ReportArgs {
     pub samples: u32,
 }
 
-fn program(s: &str) -> Result<Program, String> {
-    s.parse::<Program>().map_err(|e| e.to_string())
+fn example(s: &str) -> Result<&'static examples::Example, String> {
+    examples::find(s).ok_or_else(|| format!("unknown example (known: {})", examples::names()))
 }
 
 fn speed(s: &str) -> Result<Speed, String> {
@@ -105,7 +105,11 @@ pub fn sim_main(args: SimArgs) -> ExitCode {
         record_wire: args.vcd.is_some(),
         ..SimConfig::default()
     };
-    let outcome = match Sim::program(program, config).run() {
+    let Some(sim) = examples::sim(program.name, config) else {
+        eprintln!("x10 sim: unknown example {}", program.name);
+        return ExitCode::from(2);
+    };
+    let outcome = match sim.run() {
         Ok(o) => o,
         Err(e) => {
             eprintln!("x10 sim: {e}");
@@ -119,11 +123,8 @@ pub fn sim_main(args: SimArgs) -> ExitCode {
         }
     }
     let mut text = format!(
-        "# x10 sim {program} --seed {} --clock {} --duration-ms {}: {}\n",
-        args.seed,
-        args.clock,
-        args.duration_ms,
-        program.description()
+        "# x10 sim {} --seed {} --clock {} --duration-ms {}: {}\n",
+        program.name, args.seed, args.clock, args.duration_ms, program.description
     );
     text.push_str(&outcome.trace.render());
     text.push_str(&report::summary(&outcome));

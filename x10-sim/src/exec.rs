@@ -9,6 +9,16 @@
 //! Time is kept in nanoseconds so that bus bit times at 1 MHz (and the I2C spec's sub-µs setup
 //! and hold times) are exact; [`SimClock`] exposes it to the runtimes as the microsecond
 //! [`x10_hal::time::Clock`].
+//!
+//! ## embassy-time in virtual time
+//! This module is also embassy-time's driver (`embassy-time-driver`, 1 MHz ticks) for any
+//! program linked with the simulator: `embassy_time::Instant::now()` reads, and
+//! `Timer::after` sleeps in, the virtual time of the simulation running on the calling
+//! thread. A running [`Executor`] makes its clock the thread's current one, so simulations on
+//! different threads (`cargo test` runs tests in parallel) are isolated from each other, and
+//! robot programs, the motherboard runtime and the daughterboards all see one virtual time.
+//! Outside a run, `Instant::now()` reads the clock of the last executor created or run on the
+//! thread (0 before any).
 
 use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
@@ -39,7 +49,111 @@ struct TimeState {
     now: Nanos,
     timers: BTreeMap<(Nanos, u64), Waker>,
     next_timer: u64,
+    /// embassy-time's wake-ups: one entry per waker (the earliest asked for), as embassy's
+    /// own timer queues keep them. A task whose timer was dropped is woken once more for
+    /// nothing, which a future must tolerate anyway.
+    embassy: Vec<(Nanos, Waker)>,
 }
+
+impl TimeState {
+    /// The earliest deadline of any sleeper.
+    fn next_deadline(&self) -> Option<Nanos> {
+        let sleep = self.timers.first_key_value().map(|(&(at, _), _)| at);
+        let embassy = self.embassy.iter().map(|&(at, _)| at).min();
+        match (sleep, embassy) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+    }
+
+    /// Removes and returns every waker due by `now`: sleepers in deadline order, then
+    /// embassy-time's in the order they were scheduled.
+    fn take_due(&mut self, now: Nanos) -> Vec<Waker> {
+        let mut due = Vec::new();
+        while let Some(entry) = self.timers.first_entry() {
+            if entry.key().0 > now {
+                break;
+            }
+            due.push(entry.remove());
+        }
+        if self.embassy.iter().any(|&(at, _)| at <= now) {
+            let mut keep = Vec::with_capacity(self.embassy.len());
+            for (at, w) in self.embassy.drain(..) {
+                if at <= now {
+                    due.push(w);
+                } else {
+                    keep.push((at, w));
+                }
+            }
+            self.embassy = keep;
+        }
+        due
+    }
+
+    fn schedule_embassy(&mut self, at: Nanos, waker: &Waker) {
+        if at <= self.now {
+            waker.wake_by_ref();
+            return;
+        }
+        match self.embassy.iter_mut().find(|(_, w)| w.will_wake(waker)) {
+            Some(entry) => entry.0 = entry.0.min(at),
+            None => self.embassy.push((at, waker.clone())),
+        }
+    }
+}
+
+thread_local! {
+    /// The virtual time embassy-time reads on this thread (see the module docs).
+    static CURRENT_TIME: RefCell<Option<Rc<TimeCore>>> = const { RefCell::new(None) };
+    /// The name of the task being polled on this thread.
+    static CURRENT_TASK: RefCell<Option<Rc<str>>> = const { RefCell::new(None) };
+}
+
+fn set_current_time(core: Option<Rc<TimeCore>>) -> Option<Rc<TimeCore>> {
+    CURRENT_TIME.with(|c| std::mem::replace(&mut *c.borrow_mut(), core))
+}
+
+/// The name of the task the executor is polling on this thread (`None` outside a poll).
+pub fn current_task() -> Option<Rc<str>> {
+    CURRENT_TASK.with(|c| c.borrow().clone())
+}
+
+/// embassy-time's driver: the virtual time of the simulation running on this thread.
+struct VirtualTimeDriver;
+
+impl embassy_time_driver::Driver for VirtualTimeDriver {
+    fn now(&self) -> u64 {
+        CURRENT_TIME.with(|c| {
+            c.borrow()
+                .as_ref()
+                .map_or(0, |core| core.now() / NANOS_PER_TICK)
+        })
+    }
+
+    fn schedule_wake(&self, at: u64, waker: &Waker) {
+        let handled = CURRENT_TIME.with(|c| match c.borrow().as_ref() {
+            Some(core) => {
+                let at_ns = at.saturating_mul(NANOS_PER_TICK);
+                match core.state.try_borrow_mut() {
+                    Ok(mut st) => st.schedule_embassy(at_ns, waker),
+                    // Only while the executor itself holds the state: never from a task.
+                    Err(_) => waker.wake_by_ref(),
+                }
+                true
+            }
+            None => false,
+        });
+        if !handled {
+            // No simulation on this thread: wake at once rather than never.
+            waker.wake_by_ref();
+        }
+    }
+}
+
+embassy_time_driver::time_driver_impl!(static DRIVER: VirtualTimeDriver = VirtualTimeDriver);
+
+/// Nanoseconds per embassy-time tick.
+const NANOS_PER_TICK: u64 = 1_000_000_000 / embassy_time_driver::TICK_HZ;
 
 /// Virtual time and the sleepers' queue, shared by the executor and every [`SimClock`].
 #[derive(Default)]
@@ -165,7 +279,7 @@ impl Wake for TaskFlag {
 type BoxFuture<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
 
 struct Task<'a> {
-    name: String,
+    name: Rc<str>,
     future: BoxFuture<'a>,
     flag: Arc<TaskFlag>,
     waker: Waker,
@@ -254,6 +368,7 @@ impl<'a> Executor<'a> {
 
     /// An executor with no tasks on `clock` (made before the things the tasks borrow).
     pub fn with_clock(clock: &SimClock) -> Self {
+        set_current_time(Some(clock.core.clone()));
         Executor {
             time: clock.core.clone(),
             tasks: Vec::new(),
@@ -293,7 +408,7 @@ impl<'a> Executor<'a> {
         });
         let waker = Waker::from(flag.clone());
         self.tasks.push(Some(Task {
-            name,
+            name: name.into(),
             future,
             flag,
             waker,
@@ -339,7 +454,10 @@ impl<'a> Executor<'a> {
                 polls_here += 1;
                 let waker = task.waker.clone();
                 let mut cx = Context::from_waker(&waker);
-                if task.future.as_mut().poll(&mut cx).is_ready() {
+                let previous = CURRENT_TASK.with(|c| c.replace(Some(task.name.clone())));
+                let ready = task.future.as_mut().poll(&mut cx).is_ready();
+                CURRENT_TASK.with(|c| c.replace(previous));
+                if ready {
                     *slot = None;
                     self.finished += 1;
                 }
@@ -347,7 +465,7 @@ impl<'a> Executor<'a> {
             if !progressed {
                 return Ok((polls_here, false));
             }
-            if polls_here > SPIN_POLLS && !self.time.state.borrow().timers.is_empty() {
+            if polls_here > SPIN_POLLS && self.time.state.borrow().next_deadline().is_some() {
                 return Ok((polls_here, true));
             }
             if polls_here > MAX_POLLS_PER_INSTANT {
@@ -356,7 +474,7 @@ impl<'a> Executor<'a> {
                     .iter()
                     .flatten()
                     .filter(|t| t.flag.woken.load(Ordering::Relaxed))
-                    .map(|t| t.name.clone())
+                    .map(|t| t.name.to_string())
                     .collect();
                 return Err(RunError::Livelock {
                     at: self.time.now(),
@@ -385,6 +503,7 @@ impl<'a> Executor<'a> {
         end: Nanos,
         keep_going: &dyn Fn() -> bool,
     ) -> Result<RunStats, RunError> {
+        set_current_time(Some(self.time.clone()));
         loop {
             let (polls, spun) = self.run_instant()?;
             self.polls.set(self.polls.get() + polls);
@@ -396,7 +515,7 @@ impl<'a> Executor<'a> {
             }
             let due: Vec<Waker> = {
                 let mut st = self.time.state.borrow_mut();
-                let Some((&(deadline, _), _)) = st.timers.first_key_value() else {
+                let Some(deadline) = st.next_deadline() else {
                     break;
                 };
                 if deadline > end {
@@ -405,14 +524,7 @@ impl<'a> Executor<'a> {
                 }
                 st.now = st.now.max(deadline);
                 let now = st.now;
-                let mut due = Vec::new();
-                while let Some(entry) = st.timers.first_entry() {
-                    if entry.key().0 > now {
-                        break;
-                    }
-                    due.push(entry.remove());
-                }
-                due
+                st.take_due(now)
             };
             for w in due {
                 w.wake();

@@ -22,10 +22,12 @@ pub mod board;
 pub mod bus;
 pub mod cli_sim;
 pub mod codec;
+pub mod examples;
 pub mod exec;
 pub mod ports;
 pub mod report;
 pub mod scenario;
+
 pub mod sim;
 pub mod timing;
 pub mod trace;

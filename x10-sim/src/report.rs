@@ -17,7 +17,7 @@ use std::cell::RefCell;
 use std::fmt::Write as _;
 use std::rc::Rc;
 
-use x10_devices::{Link, SELF};
+use x10_devices::SELF;
 use x10_microcode::{Address, Level, Op, Pin, Port, DIAGNOSTIC_NAMES};
 
 use crate::bus::Outcome;

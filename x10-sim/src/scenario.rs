@@ -19,7 +19,6 @@ use std::rc::Rc;
 
 use x10_devices::ThermistorConfig;
 use x10_microcode::Address;
-use x10_robots::Program;
 
 use crate::ports::{Analog, Digital, SensorScript};
 use crate::sim::{Sim, SimConfig};
@@ -83,11 +82,12 @@ fn addr(n: u8) -> Address {
     Address::external(n).unwrap_or(Address::INTERNAL)
 }
 
-/// The simulation of `program`: its boards with the scripts above, and the program.
-pub fn build(program: Program, config: SimConfig) -> Sim {
+/// The boards of example `name` (`fig4_2`, `fig4_4`, `fig4_6`) with the scripts above, without
+/// its robot tasks; `None` for another name.
+pub fn build(name: &str, config: SimConfig) -> Option<Sim> {
     let sim = Sim::new(config);
-    let sim = match program {
-        Program::Fig4_2 | Program::Fig4_4 => {
+    let sim = match name {
+        "fig4_2" | "fig4_4" => {
             let internal = sim
                 .ports("mb", 2, 2)
                 .with_sensor(
@@ -111,7 +111,7 @@ pub fn build(program: Program, config: SimConfig) -> Sim {
                     },
                 );
             let sim = sim.with_internal_ports(internal);
-            if program == Program::Fig4_4 {
+            if name == "fig4_4" {
                 let ports = sim.ports("db09", 2, 2).with_sensor(
                     1,
                     SensorScript {
@@ -124,7 +124,7 @@ pub fn build(program: Program, config: SimConfig) -> Sim {
                 sim
             }
         }
-        Program::Fig4_6 => {
+        "fig4_6" => {
             let freezer = sim.ports("db11", 2, 2).with_sensor(
                 1,
                 SensorScript {
@@ -144,8 +144,9 @@ pub fn build(program: Program, config: SimConfig) -> Sim {
                 .with_board(addr(108), oven)
                 .with_board(addr(10), control)
         }
+        _ => return None,
     };
-    sim.with_program(program)
+    Some(sim)
 }
 
 #[cfg(test)]

@@ -1,36 +1,52 @@
 //! The simulation: the real motherboard runtime (`firmware-mb`, with its internal
 //! daughterboard on simulated ports), any number of real daughterboards (`firmware-db`) at their
-//! addresses, robot programs from `x10-robots` and test tasks, on one simulated bus, in virtual
-//! time. [`Sim::run`] returns everything that happened as a [`SimOutcome`].
+//! addresses, robot programs (plain `async fn`s that take an [`X10`]) and test tasks, on one
+//! simulated bus, in virtual time. [`Sim::run`] returns everything that happened as a
+//! [`SimOutcome`].
 //!
 //! ```
-//! use x10_sim::sim::{Sim, SimConfig};
-//! let outcome = Sim::program(x10_robots::Program::Fig4_4, SimConfig::default()).run().unwrap();
-//! assert!(outcome.trace.render().contains("light_motor"));
+//! use embassy_time::Timer;
+//! use x10_devices::{DigitalOutput, Pin, SELF};
+//! use x10_sim::sim::{Sim, SimConfig, X10};
+//!
+//! async fn blink(x10: X10) -> Result<(), x10_devices::Error> {
+//!     let mut led = DigitalOutput::new(x10, SELF, 1, Pin::A)?;
+//!     loop {
+//!         led.toggle().await?;
+//!         Timer::after_millis(500).await;
+//!     }
+//! }
+//!
+//! let config = SimConfig { duration_ms: 1_200, ..SimConfig::default() };
+//! let outcome = Sim::new(config).with_robot("blink", blink).run().unwrap();
+//! // Low at boot (the safe state), then high at 0 s, low at 0.5 s, high at 1.0 s.
+//! let a1a = x10_microcode::Port::actuator(1).unwrap().pin(Pin::A);
+//! let levels: Vec<bool> = outcome.log.of("mb", a1a).iter().map(|c| {
+//!     c.change == x10_sim::ports::Change::Digital(x10_microcode::Level::High)
+//! }).collect();
+//! assert_eq!(levels, [false, true, false, true]);
 //! ```
 
 use std::fmt;
 use std::future::Future;
 use std::pin::Pin;
 use std::rc::Rc;
+use std::sync::Mutex;
 
-use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_mb::{run_robot_with, MbConfig, MbDiagnostics, MbHandle, Motherboard, RobotPhase};
-use x10_devices::{Link, LinkError, PinEvent};
-use x10_microcode::{Address, Diagnostics, Op, Payload, PinRef};
-use x10_robots::Program;
+use firmware_mb::{CallObserver, CallRecord, MbConfig, MbDiagnostics, Motherboard};
+use x10_microcode::{Address, Diagnostics, Op, Payload};
+
+pub use firmware_mb::X10;
 
 use crate::board::{board_name, DbBoard, Notes};
 use crate::bus::{BusConfig, BusRecord, BusStats, FaultConfig, NodeConfig, NodeId, Role, SimBus};
-use crate::exec::{Executor, Nanos, RunError, SimClock};
+use crate::exec::{current_task, Executor, Nanos, RunError, SimClock};
 use crate::ports::{ActuatorLog, SimPorts};
 use crate::timing::Speed;
 use crate::trace::{self, BusNames, Severity, Trace, TraceLine};
 
 /// The motherboard runtime as the simulator runs it.
-pub type SimMotherboard = Motherboard<NoopRawMutex, SimPorts, SimClock>;
-/// The robot programs' handle on it.
-pub type SimHandle<'a> = MbHandle<'a, NoopRawMutex, SimPorts, SimClock>;
+pub type SimMotherboard = Motherboard<SimPorts>;
 
 /// Settings of a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -47,8 +63,6 @@ pub struct SimConfig {
     pub mb_role: Role,
     /// Bus fault injection.
     pub faults: FaultConfig,
-    /// Period of each robot's `step`, in µs.
-    pub robot_period_us: u64,
     /// The motherboard's request timeout, in µs.
     pub request_timeout_us: u64,
     /// Longest a target may stretch SCL, in µs.
@@ -70,8 +84,7 @@ pub const MB_ADDRESS: Address = match Address::external(0x08) {
 };
 
 impl Default for SimConfig {
-    /// 400 kHz, seed 1, 5 s, MB at 0x08 (dual-role), no faults, robots stepping every 10 ms,
-    /// 100 ms request timeout, 25 ms stretch timeout, calls traced, runs the full duration,
+    /// 400 kHz, seed 1, 5 s, MB at 0x08 (dual-role), no faults, 100 ms request timeout, 25 ms stretch timeout, calls traced, runs the full duration,
     /// wire symbols kept.
     fn default() -> Self {
         SimConfig {
@@ -81,7 +94,6 @@ impl Default for SimConfig {
             mb_address: MB_ADDRESS,
             mb_role: Role::DualRole,
             faults: FaultConfig::NONE,
-            robot_period_us: 10_000,
             request_timeout_us: 100_000,
             stretch_timeout_us: 25_000,
             trace_calls: true,
@@ -93,9 +105,9 @@ impl Default for SimConfig {
 
 /// What a test task gets: the running motherboard and the simulation around it.
 #[derive(Clone)]
-pub struct Ctx<'a> {
+pub struct Ctx {
     /// The motherboard runtime.
-    pub mb: &'a SimMotherboard,
+    pub mb: &'static SimMotherboard,
     /// Virtual time.
     pub clock: SimClock,
     /// The bus.
@@ -107,20 +119,11 @@ pub struct Ctx<'a> {
     nodes: Rc<Vec<(String, NodeId)>>,
 }
 
-impl<'a> Ctx<'a> {
-    /// The robots' handle on the motherboard.
-    pub fn handle(&self) -> SimHandle<'a> {
+impl Ctx {
+    /// The robot programs' handle on the motherboard (calls are traced under the task's
+    /// name).
+    pub fn handle(&self) -> X10 {
         self.mb.handle()
-    }
-
-    /// A handle that traces every call as `who`.
-    pub fn traced(&self, who: &str) -> TracedLink<'a> {
-        TracedLink::new(
-            self.mb.handle(),
-            who,
-            self.clock.clone(),
-            self.notes.clone(),
-        )
     }
 
     /// The bus node called `name` (`mb`, `db09`, or a raw node's name).
@@ -132,41 +135,47 @@ impl<'a> Ctx<'a> {
     }
 }
 
-/// A future a test task runs.
-pub type LocalFuture<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
+/// A future a task runs.
+pub type LocalFuture = Pin<Box<dyn Future<Output = ()>>>;
 
 /// A test task: given the context, the future to run.
-pub type TaskFn = Box<dyn for<'a> FnOnce(Ctx<'a>) -> LocalFuture<'a>>;
+pub type TaskFn = Box<dyn FnOnce(Ctx) -> LocalFuture>;
 
 /// Makes a [`TaskFn`] from a closure (helps type inference).
 pub fn task<F>(f: F) -> TaskFn
 where
-    F: for<'a> FnOnce(Ctx<'a>) -> LocalFuture<'a> + 'static,
+    F: FnOnce(Ctx) -> LocalFuture + 'static,
 {
     Box::new(f)
 }
 
-/// A [`Link`] that traces each call (board, operation, outcome, time taken) and forwards it
-/// to the motherboard. Robot programs run on it unchanged.
-#[derive(Clone)]
-pub struct TracedLink<'a> {
-    inner: SimHandle<'a>,
-    who: Rc<str>,
-    clock: SimClock,
-    notes: Notes,
+/// How a robot task ended, as the simulator reports it: `()` and `Ok(_)` are a normal end,
+/// `Err(e)` is traced as a warning with `e`'s text.
+pub trait TaskEnd {
+    /// The error's text, if the task ended with one.
+    fn error(self) -> Option<String>;
 }
 
-impl<'a> TracedLink<'a> {
-    /// Traces as `who`.
-    pub fn new(inner: SimHandle<'a>, who: &str, clock: SimClock, notes: Notes) -> Self {
-        TracedLink {
-            inner,
-            who: who.into(),
-            clock,
-            notes,
-        }
+impl TaskEnd for () {
+    fn error(self) -> Option<String> {
+        None
     }
 }
+
+impl TaskEnd for core::convert::Infallible {
+    fn error(self) -> Option<String> {
+        None
+    }
+}
+
+impl<T, E: fmt::Display> TaskEnd for Result<T, E> {
+    fn error(self) -> Option<String> {
+        self.err().map(|e| e.to_string())
+    }
+}
+
+/// A robot task: given the handle, the future to run.
+type RobotFn = Box<dyn FnOnce(X10, Notes, SimClock) -> LocalFuture>;
 
 /// The value of a reply in words: a level, a number, or the bytes.
 fn value_text(op: &Op<'_>, p: &Payload) -> String {
@@ -187,39 +196,43 @@ fn db_label(db: Address) -> String {
     }
 }
 
-impl Link for TracedLink<'_> {
-    async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
-        let t0 = self.clock.now_ns();
-        let r = self.inner.call(db, op).await;
-        let t1 = self.clock.now_ns();
-        let took = trace::micros(t1 - t0);
-        let (severity, outcome) = match &r {
-            Ok(p) => (Severity::Info, value_text(&op, p)),
+/// Traces every call a robot or test task makes (one line per call: board, operation,
+/// outcome, time taken), under the task's name. The motherboard's own calls (keepalives, in
+/// its task `mb`) are left out.
+struct CallTracer {
+    lines: Mutex<Vec<TraceLine>>,
+}
+
+impl CallObserver for CallTracer {
+    fn observe(&self, call: &CallRecord<'_>) {
+        let who = current_task().map_or_else(|| "?".to_string(), |n| n.to_string());
+        if who == "mb" {
+            return;
+        }
+        let took = trace::micros(call.ended.since(call.started).saturating_mul(1_000));
+        let (severity, outcome) = match call.result {
+            Ok(p) => (Severity::Info, value_text(call.op, p)),
             Err(e) => (Severity::Warn, format!("error: {e}")),
         };
-        self.notes.push(TraceLine::new(
-            t1,
+        let line = TraceLine::new(
+            call.ended.as_micros().saturating_mul(1_000),
             severity,
-            self.who.to_string(),
+            who,
             format!(
                 "{} {} -> {outcome} in {took}",
-                db_label(db),
-                trace::describe_op(&op)
+                db_label(call.db),
+                trace::describe_op(call.op)
             ),
-        ));
-        r
-    }
-
-    async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
-        self.inner.wait_event(db, pin).await
+        );
+        if let Ok(mut lines) = self.lines.lock() {
+            lines.push(line);
+        }
     }
 }
 
 /// Why a simulation could not run.
 #[derive(Debug)]
 pub enum SimError {
-    /// A robot program could not be built.
-    Program(x10_devices::Error),
     /// The executor found a task that never stops waking itself.
     Run(RunError),
     /// A board name used twice, or an address used by two boards.
@@ -229,7 +242,6 @@ pub enum SimError {
 impl fmt::Display for SimError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            SimError::Program(e) => write!(f, "cannot build the robot program: {e:?}"),
             SimError::Run(e) => write!(f, "simulation stopped: {e}"),
             SimError::Config(s) => write!(f, "bad simulation setup: {s}"),
         }
@@ -294,7 +306,7 @@ pub struct Sim {
     mb_ports: SimPorts,
     boards: Vec<DbBoard>,
     raw_nodes: Vec<NodeConfig>,
-    program: Option<Program>,
+    robots: Vec<(String, RobotFn)>,
     tasks: Vec<(String, TaskFn)>,
     resets: Vec<ScheduledReset>,
     mb_stop_ns: Option<Nanos>,
@@ -315,17 +327,11 @@ impl Sim {
             mb_ports,
             boards: Vec::new(),
             raw_nodes: Vec::new(),
-            program: None,
+            robots: Vec::new(),
             tasks: Vec::new(),
             resets: Vec::new(),
             mb_stop_ns: None,
         }
-    }
-
-    /// The simulation of a thesis program with its boards and scripted signals
-    /// ([`crate::scenario`]).
-    pub fn program(program: Program, config: SimConfig) -> Sim {
-        crate::scenario::build(program, config)
     }
 
     /// The configuration.
@@ -380,9 +386,27 @@ impl Sim {
         self
     }
 
-    /// Runs `program`'s robots, each in its own task.
-    pub fn with_program(mut self, program: Program) -> Sim {
-        self.program = Some(program);
+    /// Runs a robot task called `name`: `robot(x10)`, an `async fn` that takes the handle
+    /// (the same function a firmware image spawns as an embassy task). Its calls are traced
+    /// under `name`; an `Err` it returns is traced as a warning. Add as many as the robot has.
+    pub fn with_robot<F, Fut>(mut self, name: &str, robot: F) -> Sim
+    where
+        F: FnOnce(X10) -> Fut + 'static,
+        Fut: Future + 'static,
+        Fut::Output: TaskEnd,
+    {
+        let who = name.to_string();
+        let f: RobotFn = Box::new(move |x10, notes, clock| {
+            Box::pin(async move {
+                let end = robot(x10).await;
+                let (severity, text) = match end.error() {
+                    Some(e) => (Severity::Warn, format!("ended with an error: {e}")),
+                    None => (Severity::Info, "ended".to_string()),
+                };
+                notes.push(TraceLine::new(clock.now_ns(), severity, who, text));
+            })
+        });
+        self.robots.push((name.to_string(), f));
         self
     }
 
@@ -456,7 +480,7 @@ impl Sim {
             mb_ports,
             boards,
             raw_nodes,
-            program,
+            robots,
             tasks,
             resets,
             mb_stop_ns,
@@ -490,25 +514,18 @@ impl Sim {
         mb_cfg.seed = (config.seed as u32)
             ^ ((config.seed >> 32) as u32)
             ^ u32::from(config.mb_address.get());
-        let mb: SimMotherboard = Motherboard::new(mb_cfg, clock.clone(), mb_ports);
-
-        // One build per robot, each on a link that traces under the robot's name (the
-        // program's code is the same; only the trace label differs).
-        let mut robots = Vec::new();
-        if let Some(p) = program {
-            for (i, name) in p.robot_names().iter().enumerate() {
-                let link = TracedLink::new(mb.handle(), name, clock.clone(), notes.clone());
-                let built = p.build(link).map_err(SimError::Program)?;
-                if let Some(r) = built.into_iter().nth(i) {
-                    robots.push(r);
-                }
-            }
-        }
+        // Robot tasks hold a `'static` handle: each run leaks its motherboard (a few KiB).
+        let tracer: &'static CallTracer = Box::leak(Box::new(CallTracer {
+            lines: Mutex::new(Vec::new()),
+        }));
+        let mb: &'static SimMotherboard = Box::leak(Box::new(
+            Motherboard::new(mb_cfg, mb_ports).with_observer(tracer),
+        ));
 
         let run = {
             let mut ex = Executor::with_clock(&clock);
             ex.spawn("bus", bus.engine());
-            let mb_ref = &mb;
+            let mb_ref = mb;
             let mb_port = bus.port(mb_node);
             let (mb_bus, mb_clock) = (bus.clone(), clock.clone());
             ex.spawn("mb", async move {
@@ -538,30 +555,13 @@ impl Sim {
                     bus.reset_node(node, r.down_ns);
                 });
             }
-            for robot in robots {
-                let name = robot.name();
-                let clock2 = clock.clone();
-                let notes2 = notes.clone();
-                ex.spawn(name, async move {
-                    run_robot_with(robot, clock2.clone(), config.robot_period_us, |phase, e| {
-                        let what = match phase {
-                            RobotPhase::Setup => "setup",
-                            RobotPhase::Step => "step",
-                        };
-                        notes2.push(TraceLine::new(
-                            clock2.now_ns(),
-                            Severity::Warn,
-                            name,
-                            format!("{what} failed: {e}"),
-                        ));
-                    })
-                    .await;
-                });
+            for (name, robot) in robots {
+                ex.spawn(name, robot(mb.handle(), notes.clone(), clock.clone()));
             }
             let running = Rc::new(std::cell::Cell::new(tasks.len()));
             for (name, f) in tasks {
                 let ctx = Ctx {
-                    mb: &mb,
+                    mb,
                     clock: clock.clone(),
                     bus: bus.clone(),
                     notes: notes.clone(),
@@ -613,10 +613,12 @@ impl Sim {
             )
         }));
         lines.extend(log.changes().iter().map(trace::change_line));
+        let calls = tracer.lines.lock().map(|mut l| std::mem::take(&mut *l));
         lines.extend(
             notes
                 .lines()
                 .into_iter()
+                .chain(calls.unwrap_or_default())
                 .filter(|l| config.trace_calls || l.severity >= Severity::Warn),
         );
         trace.extend(lines);

@@ -26,9 +26,44 @@ struct ClockInner {
     timers: RefCell<Vec<(u64, Waker)>>,
 }
 
+thread_local! {
+    /// The clock embassy-time reads on this thread: the last one made (each test makes one).
+    static CURRENT: RefCell<Option<TestClock>> = const { RefCell::new(None) };
+}
+
+/// embassy-time's driver in the tests: the thread's current [`TestClock`] (the motherboard
+/// runtime sleeps with embassy-time, the daughterboard's with its `Clock`: one time).
+struct TestTimeDriver;
+
+impl embassy_time_driver::Driver for TestTimeDriver {
+    fn now(&self) -> u64 {
+        CURRENT.with(|c| c.borrow().as_ref().map_or(0, TestClock::now_us))
+    }
+
+    fn schedule_wake(&self, at: u64, waker: &Waker) {
+        CURRENT.with(|c| match c.borrow().as_ref() {
+            Some(clock) if at > clock.now_us() => {
+                let mut timers = clock.0.timers.borrow_mut();
+                match timers.iter_mut().find(|(_, w)| w.will_wake(waker)) {
+                    // Every pending future registers again when its task is polled, so the
+                    // earliest deadline of a task is the one to keep.
+                    Some(entry) => entry.0 = entry.0.min(at),
+                    None => timers.push((at, waker.clone())),
+                }
+            }
+            _ => waker.wake_by_ref(),
+        });
+    }
+}
+
+embassy_time_driver::time_driver_impl!(static DRIVER: TestTimeDriver = TestTimeDriver);
+
 impl TestClock {
+    /// A clock at 0, which embassy-time on this thread reads from now on.
     pub fn new() -> Self {
-        Self::default()
+        let clock = Self::default();
+        CURRENT.with(|c| *c.borrow_mut() = Some(clock.clone()));
+        clock
     }
 
     pub fn now_us(&self) -> u64 {

@@ -296,12 +296,12 @@ pub fn sim<T>(clock: &TestClock, background: impl Future, body: impl Future<Outp
 }
 
 /// The motherboard under test: its internal board on recording ports, the test clock.
-pub type Mb = Motherboard<NoopRawMutex, FakePorts, TestClock>;
+pub type Mb = Motherboard<FakePorts>;
 
 /// A motherboard at [`MB`] and a real daughterboard at 9 on one loopback bus.
 pub struct World {
     pub clock: TestClock,
-    pub mb: Mb,
+    pub mb: &'static Mb,
     pub bus: LoopBus,
     pub db9: Rc<Db>,
 }
@@ -310,11 +310,11 @@ impl World {
     /// The motherboard with 2 + 2 internal ports, and DB 9 attached.
     pub fn new() -> World {
         let clock = TestClock::new();
-        let mb = Motherboard::new(
+        // Robot handles are `'static`: each test leaks its motherboard.
+        let mb: &'static Mb = Box::leak(Box::new(Motherboard::new(
             MbConfig::new(mb_address()),
-            clock.clone(),
             FakePorts::new(clock.clone(), 2, 2),
-        );
+        )));
         let bus = LoopBus::new(&clock);
         let db9 = Rc::new(db(&clock, 9));
         bus.attach(9, Node::Db(db9.clone()));

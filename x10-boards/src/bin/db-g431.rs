@@ -19,5 +19,5 @@ mod board {
     pub const NAME: &str = "G431";
 }
 
-#[path = "../image.rs"]
+#[path = "../db_image.rs"]
 mod image;

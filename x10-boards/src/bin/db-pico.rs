@@ -1,5 +1,5 @@
 //! Daughterboard image for the Raspberry Pi Pico: `cargo db-pico` flashes it and streams its
-//! defmt log. The image itself (task, start-up) is `../image.rs`, shared with the other boards.
+//! defmt log. The image itself (task, start-up) is `../db_image.rs`, shared with the other boards.
 //!
 //! Address: `X10_DB_ADDR` at build time (default 9) plus the three address-select jumpers
 //! read at boot; events go to the motherboard at `X10_MB_ADDR` (default 0x08).
@@ -17,5 +17,5 @@ mod board {
     pub const NAME: &str = "Pico";
 }
 
-#[path = "../image.rs"]
+#[path = "../db_image.rs"]
 mod image;

@@ -1,0 +1,78 @@
+//! Starting the motherboard runtime on a board: `start_motherboard` of each chip module
+//! ([`crate::pico`], [`crate::g431`]) builds the board's bus and ports, puts the
+//! [`firmware_mb::Motherboard`] in a `static`, spawns its task and returns the [`X10`] handle
+//! for the robot tasks. An image's `main`:
+//!
+//! ```ignore
+//! #[embassy_executor::main]
+//! async fn main(spawner: Spawner) {
+//!     let p = x10_boards::pico::init();
+//!     let x10 = unwrap!(x10_boards::pico::start_motherboard(spawner, p, MbConfig::new(MB_ADDRESS)));
+//!     spawner.spawn(unwrap!(blink(x10)));
+//! }
+//! ```
+
+use x10_microcode::Address;
+
+pub use firmware_mb::{MbConfig, X10};
+
+/// Why `start_motherboard` failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StartError {
+    /// The motherboard was already started (it runs once per image).
+    AlreadyStarted,
+    /// The executor could not take the runtime's task.
+    Spawn,
+}
+
+/// The motherboard's address: `X10_MB_ADDR` at build time, 0x08 by default. A bad value is a
+/// compile error (the `panic!` runs in a `const`, never on the board).
+pub const MB_ADDRESS: Address = match crate::address::build_mb(option_env!("X10_MB_ADDR")) {
+    Ok(a) => match Address::external(a) {
+        Ok(a) => a,
+        Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
+    },
+    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
+};
+
+/// Defines `start_motherboard` for one board: the `static` motherboard, its task, and the
+/// function (tasks cannot be generic, so each board names its types).
+macro_rules! motherboard_starter {
+    (ports: $ports:ty, bus: $bus:ty, kind: $kind:expr, name: $name:literal $(,)?) => {
+        type StartedMb = firmware_mb::Motherboard<$ports>;
+
+        static MOTHERBOARD: static_cell::StaticCell<StartedMb> = static_cell::StaticCell::new();
+
+        #[embassy_executor::task]
+        async fn motherboard_task(mb: &'static StartedMb, bus: $bus) -> ! {
+            mb.run(bus).await
+        }
+
+        /// Starts the X10 motherboard runtime on this board: builds the bus (listening at
+        /// `config.address`) and the ports of the internal daughterboard from `p`, spawns the
+        /// runtime's task (dispatcher, DB-interrupt listener, internal daughterboard,
+        /// keepalive) and returns the handle robot tasks take.
+        ///
+        /// # Errors
+        /// [`crate::start::StartError::AlreadyStarted`] on a second call;
+        /// [`crate::start::StartError::Spawn`] if the executor has no room for the task.
+        pub fn start_motherboard(
+            spawner: embassy_executor::Spawner,
+            p: Peripherals,
+            mut config: firmware_mb::MbConfig,
+        ) -> Result<firmware_mb::X10, crate::start::StartError> {
+            let address = config.address.get();
+            let board = Board::new(p, |_jumpers| crate::BusConfig::standard(address));
+            config.internal.board = $kind;
+            let mb: &'static StartedMb = MOTHERBOARD
+                .try_init(firmware_mb::Motherboard::new(config, board.ports))
+                .ok_or(crate::start::StartError::AlreadyStarted)?;
+            let task =
+                motherboard_task(mb, board.bus).map_err(|_| crate::start::StartError::Spawn)?;
+            spawner.spawn(task);
+            defmt::info!("X10 motherboard on a {=str} at {=u8:#04x}", $name, address);
+            Ok(mb.handle())
+        }
+    };
+}

@@ -1,0 +1,78 @@
+//! # x10: write your own robot
+//!
+//! A robot program is one or more plain `async fn`s that take an [`X10`], the handle on the
+//! motherboard runtime, and run for ever or return. They use `embassy_time` (`Timer`,
+//! `Ticker`, `Instant`, `Duration`, `with_timeout`) and `embassy_futures` (`select`, `join`)
+//! directly, build drivers on the handle and await them, events included:
+//!
+//! ```
+//! use embassy_time::Timer;
+//! use x10::{Button, ButtonState, DcMotor, Error, Pin, Speed, SELF, X10};
+//!
+//! /// Backs off for 800 ms whenever the bumper (sensor port 2, pin B) is pressed.
+//! pub async fn bumper(x10: X10) -> Result<(), Error> {
+//!     let mut motor = DcMotor::new(x10, SELF, 1)?; // H-bridge on actuator port 1
+//!     let mut bumper = Button::new(x10, SELF, 2, Pin::B)?;
+//!     bumper.enable_events().await?;
+//!     loop {
+//!         if bumper.wait_change().await? == ButtonState::Pressed {
+//!             motor.set_speed(Speed::new(-60)?).await?;
+//!             Timer::after_millis(800).await;
+//!             motor.stop().await?;
+//!         }
+//!     }
+//! }
+//! ```
+//!
+//! The same function runs
+//! * on a board: the image's `main` starts the motherboard runtime
+//!   (`x10_boards::pico::start_motherboard`) and spawns an embassy task that awaits it;
+//! * in the simulator: `x10_sim::Sim::with_robot("bumper", bumper)` (or a world file and the
+//!   `x10_sim::app` command line), in virtual time, against simulated daughterboards.
+//!
+//! [`X10`] is `Copy`: give it to as many tasks as the robot has. Every driver method returns
+//! a [`Result`]; nothing panics. Boards are addressed by number, [`SELF`] (0) being the
+//! motherboard's own ports; ports count from 1, as in the thesis.
+//!
+//! This crate re-exports `firmware_mb::X10` and the drivers, units and types of
+//! `x10_devices`; [`every`] runs loop()-style code on a fixed period.
+#![no_std]
+
+use core::convert::Infallible;
+
+pub use embassy_time::Duration;
+pub use firmware_mb::{MbConfig, MbDiagnostics, X10};
+pub use x10_devices::*;
+pub use x10_microcode::{BoardKind, Op};
+
+/// Runs `step` every `period` on a fixed grid (an embassy `Ticker`), for ever: the Arduino
+/// `loop()` of the thesis, for code written that way. A step that overruns its period is
+/// followed at once by the next one. Returns the first error `step` returns (handle the
+/// errors you want to ride out inside `step`).
+///
+/// ```
+/// # use x10::{every, AnalogSensor, Duration, Error, SELF, X10};
+/// async fn log_light(x10: X10) -> Result<(), Error> {
+///     let light = AnalogSensor::new(x10, SELF, 1)?;
+///     let mut brightest = 0;
+///     every(Duration::from_millis(100), async || {
+///         brightest = brightest.max(light.read_raw().await?);
+///         Ok::<(), Error>(())
+///     })
+///     .await?;
+///     Ok(())
+/// }
+/// ```
+///
+/// # Errors
+/// The first error of `step`.
+pub async fn every<E>(
+    period: Duration,
+    mut step: impl AsyncFnMut() -> core::result::Result<(), E>,
+) -> core::result::Result<Infallible, E> {
+    let mut ticker = embassy_time::Ticker::every(period);
+    loop {
+        step().await?;
+        ticker.next().await;
+    }
+}
