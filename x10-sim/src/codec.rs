@@ -146,6 +146,46 @@ pub fn to_hex(bytes: &[u8]) -> String {
         .join(" ")
 }
 
+/// The frames given as command-line arguments. One argument is one frame, in any form
+/// [`parse_hex`] reads, except when there are two or more arguments and every one is a single
+/// byte — one or two hex digits, optionally prefixed `0x` — as logic analyzers print them: then
+/// they are the bytes of one frame, and the first may carry a `request:`, `reply:` or `event:`
+/// prefix. `12 09 01 02` (four arguments) is the frame `12 09 01 02`; `12090102 30098004` are
+/// two frames. A frame of one byte is too short for every kind, so this does not change what
+/// any valid input means.
+pub fn frames_of_args(args: Vec<String>) -> Vec<String> {
+    fn byte(arg: &str) -> Option<u8> {
+        let arg = arg.trim();
+        let digits = arg
+            .strip_prefix("0x")
+            .or_else(|| arg.strip_prefix("0X"))
+            .unwrap_or(arg);
+        if (1..=2).contains(&digits.len()) && digits.chars().all(|c| c.is_ascii_hexdigit()) {
+            u8::from_str_radix(digits, 16).ok()
+        } else {
+            None
+        }
+    }
+    let Some((first, rest)) = args.split_first() else {
+        return args;
+    };
+    if rest.is_empty() {
+        return args;
+    }
+    let (prefix, first) = split_prefix(first);
+    let bytes: Option<Vec<u8>> = std::iter::once(first)
+        .chain(rest.iter().map(String::as_str))
+        .map(byte)
+        .collect();
+    match bytes {
+        Some(bytes) => {
+            let prefix = prefix.map_or(String::new(), |k| format!("{}:", k.name()));
+            vec![format!("{prefix}{}", to_hex(&bytes))]
+        }
+        None => args,
+    }
+}
+
 /// Parses an address given on the command line: decimal, or hex with `0x`.
 ///
 /// # Errors
@@ -1618,6 +1658,27 @@ mod tests {
         );
         assert_eq!(split_prefix("event: 09"), (Some(FrameKind::Event), " 09"));
         assert_eq!(split_prefix("12:09"), (None, "12:09"));
+        let args = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        // Single bytes are one frame; anything else is one frame per argument.
+        assert_eq!(
+            frames_of_args(args(&["12", "09", "0x1", "0X02"])),
+            ["12 09 01 02"]
+        );
+        assert_eq!(
+            frames_of_args(args(&["reply:04", "00", "02", "00", "02"])),
+            ["reply:04 00 02 00 02"]
+        );
+        for unchanged in [
+            &["12"][..],
+            &["12090102", "30098004"],
+            &["12", "09", "01", "0102"],
+            &["12", "09", "01", "zz"],
+            &["12", "reply:09"],
+            &["12", "0x"],
+        ] {
+            assert_eq!(frames_of_args(args(unchanged)), args(unchanged));
+        }
+        assert!(frames_of_args(Vec::new()).is_empty());
         assert_eq!(parse_address("0x09").unwrap().get(), 9);
         assert_eq!(parse_address("16").unwrap().get(), 16);
         assert!(parse_address("0x78").is_err());

@@ -272,6 +272,60 @@ fn hex_forms_and_prefixes_agree() {
 }
 
 #[test]
+fn bytes_as_separate_arguments_are_one_frame() {
+    // As a logic analyzer prints them: two or more arguments, each one byte (one or two hex
+    // digits, optionally 0x), are the bytes of one frame.
+    let io_high = "request to DB 0x09 seq 2: io high on actuator port 1 pin B\n";
+    for args in [
+        &["decode", "12", "09", "01", "02"][..],
+        &["decode", "0x12", "0x09", "0x01", "0x02"],
+        &["decode", "12", "9", "1", "2"],
+        &["decode", "request:12", "09", "01", "02"],
+    ] {
+        let out = x10(args);
+        assert!(out.status.success(), "{args:?}: {}", stderr(&out));
+        assert_eq!(stdout(&out), io_high, "{args:?}");
+    }
+    assert_eq!(
+        stdout(&x10(&["decode", "--json", "30", "09", "80", "04"])),
+        stdout(&x10(&["decode", "--json", "30 09 80 04"]))
+    );
+    let out = x10(&["decode", "reply:04", "00", "02", "00", "02"]);
+    assert_eq!(stdout(&out), "reply seq 4: ok, payload [00 02]\n");
+    let out = x10(&["decode", "--pec", "9", "12", "09", "01", "02", "9c"]);
+    assert_eq!(
+        stdout(&out),
+        "request to DB 0x09 seq 2: io high on actuator port 1 pin B [PEC 0x9c ok, address 0x09]\n"
+    );
+    // The joined frame is named as one frame in errors.
+    let line = one_line_error(&x10(&["decode", "12", "09", "01"]), 1);
+    assert_eq!(
+        line,
+        "x10 decode: frame 1 `12 09 01`: invalid request: frame truncated (a board answers status bad_length)"
+    );
+    // Arguments of several bytes are one frame each, as before ...
+    let out = x10(&["decode", "12090102", "30 09 80 04"]);
+    assert_eq!(
+        stdout(&out),
+        "request to DB 0x09 seq 2: io high on actuator port 1 pin B\n\
+         request to DB 0x09 seq 4: analog read on sensor port 1\n"
+    );
+    // ... and so is every argument once one of them is not a single byte.
+    let out = x10(&["decode", "12", "09", "01", "0102"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(stdout(&out), "");
+    assert_eq!(
+        stderr(&out),
+        "x10 decode: frame 1 `12`: invalid request: frame truncated (a board answers status bad_length)\n\
+         x10 decode: frame 2 `09`: invalid request: frame truncated (a board answers status bad_length)\n\
+         x10 decode: frame 3 `01`: invalid request: frame truncated (a board answers status bad_length)\n\
+         x10 decode: frame 4 `0102`: invalid request: frame truncated (a board answers status bad_length)\n"
+    );
+    let help = stdout(&x10(&["decode", "--help"]));
+    assert!(help.contains("they are the bytes of ONE frame"), "{help}");
+}
+
+#[test]
 fn a_reply_is_decoded_as_the_answer_to_the_request_before_it() {
     let out = x10(&[
         "decode",

@@ -1,11 +1,19 @@
-//! `cargo xtask`: project tasks for CI.
+//! `cargo xtask`: project tasks.
 //!
-//! `cargo xtask size [--no-build]` builds the four firmware images in release, one cargo call
-//! per image (two chips' features in one call would clash), then reads each ELF and prints its
-//! flash (everything loaded from flash: vector table, code, read-only data, the initial values
-//! of `.data`, the RP2040's boot2) and static RAM (`.data`, `.bss`, `.uninit`: everything with
-//! a RAM address; the stack comes on top). It fails when a daughterboard image exceeds
-//! 48 KiB of flash or 12 KiB of static RAM. `--no-build` measures the ELFs already built.
+//! * `cargo xtask size [--no-build]` builds the four firmware images in release, one cargo call
+//!   per image (two chips' features in one call would clash), then reads each ELF and prints its
+//!   flash (everything loaded from flash: vector table, code, read-only data, the initial values
+//!   of `.data`, the RP2040's boot2) and static RAM (`.data`, `.bss`, `.uninit`: everything with
+//!   a RAM address; the stack comes on top). It fails when a daughterboard image exceeds
+//!   48 KiB of flash or 12 KiB of static RAM. `--no-build` measures the ELFs already built.
+//! * `cargo xtask image NAME [ARGS…]` builds image NAME in release and runs it: `cargo run` with
+//!   the image's package, target, features and bin, then ARGS as given (cargo's options, and
+//!   after `--` the runner's, probe-rs). The aliases `cargo mb-pico`, `cargo db-pico`,
+//!   `cargo mb-g431` and `cargo db-g431` of `.cargo/config.toml` are this task.
+//!
+//! Both read the images from one table, [`IMAGES`], and first check that the Rust targets they
+//! need are installed: a missing one is one line naming it and the `rustup target add` command,
+//! instead of the compiler's "can't find crate for `core`" (E0463).
 
 use std::env;
 use std::fmt;
@@ -17,41 +25,47 @@ use object::{Object, ObjectSection, SectionFlags};
 
 /// One firmware image: how to build it and its limits.
 struct Image {
+    /// The image's name: its bin target, and the alias `cargo NAME` that builds and flashes it.
     bin: &'static str,
+    /// The package that holds the bin.
     package: &'static str,
+    /// The Rust target it is built for.
     target: &'static str,
-    feature: &'static str,
+    /// The cargo features it is built with, comma-separated.
+    features: &'static str,
     /// Daughterboard images have size limits.
     daughterboard: bool,
 }
 
-const IMAGES: [Image; 4] = [
+/// Every firmware image: the one place that says how each is built (`cargo xtask size`, and
+/// `cargo xtask image` behind the aliases of `.cargo/config.toml`).
+const IMAGES: &[Image] = &[
     Image {
         bin: "mb-pico",
-        package: "firmware-mb",
+        package: "x10-robots",
         target: "thumbv6m-none-eabi",
-        feature: "rp2040",
+        features: "rp2040",
         daughterboard: false,
     },
     Image {
         bin: "db-pico",
-        package: "firmware-db",
+        package: "x10-boards",
         target: "thumbv6m-none-eabi",
-        feature: "rp2040",
+        features: "rp2040,daughterboard",
         daughterboard: true,
     },
     Image {
         bin: "mb-g431",
-        package: "firmware-mb",
+        package: "x10-robots",
         target: "thumbv7em-none-eabihf",
-        feature: "stm32g431",
+        features: "stm32g431",
         daughterboard: false,
     },
     Image {
         bin: "db-g431",
-        package: "firmware-db",
+        package: "x10-boards",
         target: "thumbv7em-none-eabihf",
-        feature: "stm32g431",
+        features: "stm32g431,daughterboard",
         daughterboard: true,
     },
 ];
@@ -79,16 +93,42 @@ enum Error {
     Elf(PathBuf, object::Error),
     Build(&'static str),
     Metadata(String),
+    /// The compiler's sysroot could not be read.
+    Toolchain(String),
+    /// Rust targets that are needed and not installed, and for what.
+    MissingTargets(String, Vec<&'static str>),
+    /// `cargo run` could not be started.
+    Run(std::io::Error),
 }
 
 impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Error::Usage(s) => write!(f, "{s}\nusage: cargo xtask size [--no-build]"),
+            Error::Usage(s) => write!(
+                f,
+                "{s}\nusage: cargo xtask size [--no-build]\n       cargo xtask image NAME [ARGS...]   (NAME: {})",
+                names()
+            ),
             Error::Io(p, e) => write!(f, "{}: {e}", p.display()),
             Error::Elf(p, e) => write!(f, "{}: not an ELF file: {e}", p.display()),
             Error::Build(bin) => write!(f, "building {bin} failed"),
             Error::Metadata(s) => write!(f, "cargo metadata: {s}"),
+            Error::Toolchain(s) => write!(f, "cannot find the Rust toolchain's sysroot: {s}"),
+            Error::MissingTargets(what, targets) => {
+                let (noun, verb, it) = if targets.len() == 1 {
+                    ("target", "is", "it")
+                } else {
+                    ("targets", "are", "them")
+                };
+                write!(
+                    f,
+                    "{what} needs the Rust {noun} {}, which {verb} not installed for this toolchain; \
+                     add {it} with `rustup target add {}` (./test-all does that too)",
+                    targets.join(" and "),
+                    targets.join(" ")
+                )
+            }
+            Error::Run(e) => write!(f, "cannot run cargo: {e}"),
         }
     }
 }
@@ -160,13 +200,123 @@ fn build(cargo: &str, image: &Image) -> Result<(), Error> {
             "--target",
             image.target,
         ])
-        .args(["--features", image.feature, "--bin", image.bin])
+        .args(["--features", image.features, "--bin", image.bin])
         .status()
         .map_err(|_| Error::Build(image.bin))?;
     if status.success() {
         Ok(())
     } else {
         Err(Error::Build(image.bin))
+    }
+}
+
+/// The images' names, for messages.
+fn names() -> String {
+    IMAGES.iter().map(|i| i.bin).collect::<Vec<_>>().join(", ")
+}
+
+/// The image called `name`.
+///
+/// # Errors
+/// [`Error::Usage`] for an unknown name.
+fn image(name: &str) -> Result<&'static Image, Error> {
+    IMAGES
+        .iter()
+        .find(|i| i.bin == name)
+        .ok_or_else(|| Error::Usage(format!("unknown image `{name}`")))
+}
+
+/// The targets the toolchain has a standard library for: the directories of
+/// `$(rustc --print sysroot)/lib/rustlib` (rustup's `rust-std` component of each target).
+///
+/// # Errors
+/// [`Error::Toolchain`] when rustc cannot be run or its sysroot cannot be read.
+fn installed_targets() -> Result<Vec<String>, Error> {
+    let rustc = env::var("RUSTC").unwrap_or_else(|_| "rustc".into());
+    let out = Command::new(&rustc)
+        .args(["--print", "sysroot"])
+        .output()
+        .map_err(|e| Error::Toolchain(format!("{rustc}: {e}")))?;
+    if !out.status.success() {
+        return Err(Error::Toolchain(
+            String::from_utf8_lossy(&out.stderr).trim().to_owned(),
+        ));
+    }
+    let sysroot = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
+    let rustlib = sysroot.join("lib").join("rustlib");
+    let entries = std::fs::read_dir(&rustlib).map_err(|e| Error::Io(rustlib.clone(), e))?;
+    let mut targets = Vec::new();
+    for entry in entries {
+        let entry = entry.map_err(|e| Error::Io(rustlib.clone(), e))?;
+        if entry.path().join("lib").is_dir() {
+            targets.push(entry.file_name().to_string_lossy().into_owned());
+        }
+    }
+    Ok(targets)
+}
+
+/// The targets of `wanted` that are not in `installed`, each once, in the order of `wanted`.
+fn missing_targets(wanted: &[&'static str], installed: &[String]) -> Vec<&'static str> {
+    let mut missing: Vec<&'static str> = Vec::new();
+    for &t in wanted {
+        if !installed.iter().any(|i| i == t) && !missing.contains(&t) {
+            missing.push(t);
+        }
+    }
+    missing
+}
+
+/// Checks that the targets `what` needs are installed.
+///
+/// # Errors
+/// [`Error::MissingTargets`], and [`installed_targets`]'s errors.
+fn check_targets(what: &str, wanted: &[&'static str]) -> Result<(), Error> {
+    let missing = missing_targets(wanted, &installed_targets()?);
+    if missing.is_empty() {
+        Ok(())
+    } else {
+        Err(Error::MissingTargets(what.to_owned(), missing))
+    }
+}
+
+/// `cargo run` of an image in release, with `args` after cargo's own.
+fn image_command(cargo: &str, image: &Image, args: &[String]) -> Command {
+    let mut cmd = Command::new(cargo);
+    cmd.args(["run", "-p", image.package, "--release", "--target"])
+        .args([
+            image.target,
+            "--features",
+            image.features,
+            "--bin",
+            image.bin,
+        ])
+        .args(args);
+    cmd
+}
+
+/// Runs `cargo xtask image NAME ARGS…`: checks the image's target, then becomes its
+/// `cargo run` (on Unix the process is replaced, so the exit status and Ctrl-C are cargo's and
+/// probe-rs's); returns only on failure.
+///
+/// # Errors
+/// Usage, target and toolchain errors, [`Error::Run`].
+fn run_image(name: &str, args: &[String]) -> Result<ExitCode, Error> {
+    let image = image(name)?;
+    check_targets(image.bin, &[image.target])?;
+    let cargo = env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut cmd = image_command(&cargo, image, args);
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        Err(Error::Run(cmd.exec()))
+    }
+    #[cfg(not(unix))]
+    {
+        let status = cmd.status().map_err(Error::Run)?;
+        Ok(status
+            .code()
+            .and_then(|c| u8::try_from(c).ok())
+            .map_or(ExitCode::FAILURE, ExitCode::from))
     }
 }
 
@@ -180,9 +330,13 @@ fn kib(bytes: u64) -> String {
 /// Build, metadata and ELF errors.
 fn size(build_first: bool) -> Result<bool, Error> {
     let cargo = env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    if build_first {
+        let targets: Vec<&'static str> = IMAGES.iter().map(|i| i.target).collect();
+        check_targets("cargo xtask size", &targets)?;
+    }
     let dir = target_dir(&cargo)?;
     let mut rows = Vec::new();
-    for image in &IMAGES {
+    for image in IMAGES {
         let secs = if build_first {
             let t = Instant::now();
             build(&cargo, image)?;
@@ -230,27 +384,29 @@ fn size(build_first: bool) -> Result<bool, Error> {
 ///
 /// # Errors
 /// [`Error::Usage`] for unknown arguments, and the task's errors.
-fn run(args: &[String]) -> Result<bool, Error> {
+fn run(args: &[String]) -> Result<ExitCode, Error> {
+    let sized = |ok| {
+        if ok {
+            ExitCode::SUCCESS
+        } else {
+            eprintln!("a daughterboard image exceeds its size limit");
+            ExitCode::FAILURE
+        }
+    };
     match args {
-        [task] if task == "size" => size(true),
-        [task, flag] if task == "size" && flag == "--no-build" => size(false),
+        [task] if task == "size" => size(true).map(sized),
+        [task, flag] if task == "size" && flag == "--no-build" => size(false).map(sized),
+        [task, name, rest @ ..] if task == "image" => run_image(name, rest),
         _ => Err(Error::Usage(format!("unknown arguments {args:?}"))),
     }
 }
 
 fn main() -> ExitCode {
     let args: Vec<String> = env::args().skip(1).collect();
-    match run(&args) {
-        Ok(true) => ExitCode::SUCCESS,
-        Ok(false) => {
-            eprintln!("a daughterboard image exceeds its size limit");
-            ExitCode::FAILURE
-        }
-        Err(e) => {
-            eprintln!("xtask: {e}");
-            ExitCode::FAILURE
-        }
-    }
+    run(&args).unwrap_or_else(|e| {
+        eprintln!("xtask: {e}");
+        ExitCode::FAILURE
+    })
 }
 
 #[cfg(test)]
@@ -261,6 +417,66 @@ mod tests {
     fn arguments() {
         assert!(matches!(run(&["sizes".into()]), Err(Error::Usage(_))));
         assert!(matches!(run(&[]), Err(Error::Usage(_))));
+        assert!(matches!(run(&["image".into()]), Err(Error::Usage(_))));
+        let e = run(&["image".into(), "mb-uno".into()]).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "unknown image `mb-uno`\n\
+             usage: cargo xtask size [--no-build]\n       \
+             cargo xtask image NAME [ARGS...]   (NAME: mb-pico, db-pico, mb-g431, db-g431)"
+        );
+    }
+
+    #[test]
+    fn a_missing_target_is_named_with_the_command_that_adds_it() {
+        let host = "x86_64-unknown-linux-gnu".to_owned();
+        let v6 = "thumbv6m-none-eabi".to_owned();
+        let all: Vec<&'static str> = IMAGES.iter().map(|i| i.target).collect();
+        // A toolchain without the thumb targets (rustup's default for an installed toolchain).
+        let missing = missing_targets(&all, std::slice::from_ref(&host));
+        assert_eq!(missing, ["thumbv6m-none-eabi", "thumbv7em-none-eabihf"]);
+        assert_eq!(
+            Error::MissingTargets("cargo xtask size".into(), missing).to_string(),
+            "cargo xtask size needs the Rust targets thumbv6m-none-eabi and thumbv7em-none-eabihf, \
+             which are not installed for this toolchain; add them with \
+             `rustup target add thumbv6m-none-eabi thumbv7em-none-eabihf` (./test-all does that too)"
+        );
+        let missing = missing_targets(&all, &[host.clone(), v6.clone()]);
+        assert_eq!(missing, ["thumbv7em-none-eabihf"]);
+        let image = image("db-pico").unwrap();
+        let missing = missing_targets(&[image.target], std::slice::from_ref(&host));
+        assert_eq!(
+            Error::MissingTargets(image.bin.into(), missing).to_string(),
+            "db-pico needs the Rust target thumbv6m-none-eabi, which is not installed for this \
+             toolchain; add it with `rustup target add thumbv6m-none-eabi` (./test-all does that too)"
+        );
+        let every = [host, v6, "thumbv7em-none-eabihf".to_owned()];
+        assert!(missing_targets(&all, &every).is_empty());
+    }
+
+    #[test]
+    fn an_image_is_cargo_run_of_its_table_row() {
+        let args = ["--".to_owned(), "--connect-under-reset".to_owned()];
+        let cmd = image_command("cargo", image("db-g431").unwrap(), &args);
+        assert_eq!(cmd.get_program(), "cargo");
+        let got: Vec<&std::ffi::OsStr> = cmd.get_args().collect();
+        assert_eq!(
+            got,
+            [
+                "run",
+                "-p",
+                "x10-boards",
+                "--release",
+                "--target",
+                "thumbv7em-none-eabihf",
+                "--features",
+                "stm32g431,daughterboard",
+                "--bin",
+                "db-g431",
+                "--",
+                "--connect-under-reset"
+            ]
+        );
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! `x10`: the X10 command-line tool.
 //!
-//! * `x10 decode HEX…` prints bus frames in words, or as JSON with `--json`;
+//! * `x10 decode HEX…` prints bus frames in words, or as JSON with `--json` (one frame per
+//!   argument, or one frame given as one byte per argument: [`codec::frames_of_args`]);
 //! * `x10 encode --json OBJECT…` turns such JSON back into frame bytes.
 //!
 //! Each subcommand is one variant of [`Command`] and one arm in [`main`]. Every error is one
@@ -39,11 +40,15 @@ enum Command {
 
 const DECODE_HELP: &str = "\
 FRAMES
-  One argument per frame, in hex: 12090102, \"12 09 01 02\", 12:09:01:02 or 0x12,0x09,0x01,0x02.
-  Quote a frame that contains spaces. Frames are requests unless --reply or --event says
-  otherwise; a prefix on one frame overrides that: reply:010000, \"event:09 01 80 07 00 01 01\",
-  request:12090102. With no FRAMES, frames are read from standard input, one per line
-  (blank lines and lines starting with # are skipped).
+  One argument per frame, in hex: 12090102, \"12 09 01 02\", 12:09:01:02 or 0x12,0x09,0x01,0x02
+  (bytes are pairs of hex digits, optionally separated by spaces, :, ,, - or _, each group
+  optionally prefixed 0x). Except: when there are two or more arguments and every one is a
+  single byte (one or two hex digits, optionally prefixed 0x), they are the bytes of ONE frame,
+  as logic analyzers print them: 12 09 01 02, or 0x12 0x09 0x01 0x02, is one frame; the first
+  byte may carry the frame's prefix (reply:04 00 02 00 02). Frames are requests unless --reply
+  or --event says otherwise; a prefix on one frame overrides that: reply:010000,
+  \"event:09 01 80 07 00 01 01\", request:12090102. With no FRAMES, frames are read from
+  standard input, one per line (blank lines and lines starting with # are skipped).
 
 REPLIES
   A reply does not say which request it answers. When a request with the same sequence number
@@ -52,14 +57,16 @@ REPLIES
 
 EXAMPLES
   x10 decode \"12 09 01 02\"
-  x10 decode --json 30098004 reply:04000200 02
+  x10 decode 12 09 01 02
+  x10 decode --json 30098004 \"reply:04000200 02\"
   x10 decode --pec 0x09 \"12 09 01 02 9c\"
   x10 decode --event --pec 0x10 \"09 01 80 07 00 01 01 95\"";
 
 #[derive(Args)]
 #[command(after_help = DECODE_HELP)]
 struct DecodeArgs {
-    /// Frames in hex, one per argument (see FRAMES below).
+    /// Frames in hex, one per argument, or the bytes of one frame, one per argument (see FRAMES
+    /// below).
     frames: Vec<String>,
     /// Print one JSON object per frame instead of words.
     #[arg(long)]
@@ -152,7 +159,7 @@ fn decode(args: DecodeArgs) -> ExitCode {
     } else {
         FrameKind::Request
     };
-    let frames = match inputs(args.frames) {
+    let frames = match inputs(codec::frames_of_args(args.frames)) {
         Ok(f) => f,
         Err(e) => {
             eprintln!("x10 decode: cannot read standard input: {e}");
