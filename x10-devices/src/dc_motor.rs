@@ -141,8 +141,8 @@ impl<L: Link> DcMotor<L> {
     /// the last). A direction change stops at 0 on the way. Already at `target`: sends
     /// nothing.
     ///
-    /// Any [`DelayNs`] works: `embassy_time::Delay` on a board, or a [`crate::ClockDelay`]
-    /// over the runtime's [`x10_hal::time::Clock`] (the simulator's virtual time).
+    /// Any [`DelayNs`] works: `embassy_time::Delay`, on a board and in the simulator (whose
+    /// embassy-time runs in virtual time).
     ///
     /// # Errors
     /// As [`DcMotor::set_speed`]; the ramp stops at the failed step.

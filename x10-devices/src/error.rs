@@ -127,7 +127,7 @@ impl From<RangeError> for Error {
 }
 
 impl From<Error> for LinkError {
-    /// Lets a [`crate::Robot`] (whose methods return [`LinkError`]) use `?` on driver results.
+    /// Lets code whose functions return [`LinkError`] use `?` on driver results.
     ///
     /// `Link(e)` becomes `e`; `BadPort(n)` becomes `Invalid(BadPort(n))`; `WrongPortKind`
     /// becomes `Invalid(WrongPortKind)`; `Range` becomes `Invalid(BadArgument)`; and

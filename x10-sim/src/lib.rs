@@ -24,6 +24,7 @@ pub mod cli_sim;
 pub mod codec;
 pub mod examples;
 pub mod exec;
+pub mod new;
 pub mod ports;
 pub mod report;
 pub mod scenario;

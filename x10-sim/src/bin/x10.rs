@@ -36,6 +36,77 @@ enum Command {
     Sim(x10_sim::cli_sim::SimArgs),
     /// Print the latency table: simulated, wire minimum and the thesis's figures.
     Report(x10_sim::cli_sim::ReportArgs),
+    /// Create a robot crate of your own (program, world, simulator command, host test,
+    /// Pico and STM32G431 images) in PATH, outside this repository.
+    New(NewArgs),
+}
+
+const NEW_HELP: &str = "\
+WHAT YOU GET
+  src/lib.rs          the robot: async fns that take an X10 handle (no_std)
+  world.toml          the boards and devices it runs against in the simulator
+  src/bin/sim.rs      `cargo sim`: the robot in the simulator, with a summary
+  tests/sim.rs        `cargo test`: asserts what the devices did over virtual time
+  src/bin/mb-*.rs     `cargo mb-pico` / `cargo mb-g431`: build, flash (probe-rs), defmt log
+  The crate depends on this X10 checkout by path, with its Cargo.lock.
+
+EXAMPLE
+  x10 new ~/robots/rover && cd ~/robots/rover && cargo sim && cargo test
+
+See docs/your-first-robot.md.";
+
+#[derive(Args)]
+#[command(after_help = NEW_HELP)]
+struct NewArgs {
+    /// The folder to create (must not exist, or be empty).
+    path: std::path::PathBuf,
+    /// The package name (default: the folder's name).
+    #[arg(long)]
+    name: Option<String>,
+    /// The X10 checkout to depend on (default: the one this tool was built from).
+    #[arg(long, value_name = "DIR")]
+    x10: Option<std::path::PathBuf>,
+}
+
+fn new_main(args: NewArgs) -> ExitCode {
+    use x10_sim::new;
+    let raw = match &args.name {
+        Some(n) => n.clone(),
+        None => args
+            .path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+    };
+    let name = match new::crate_name(&raw) {
+        Ok(n) => n,
+        Err(e) => {
+            eprintln!("x10 new: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    let x10 = args.x10.unwrap_or_else(new::own_checkout);
+    let x10 = x10.canonicalize().unwrap_or(x10);
+    match new::create(&args.path, &name, &x10) {
+        Ok(files) => {
+            println!(
+                "Created the robot crate `{name}` in {} ({} files), on the X10 crates in {}.",
+                args.path.display(),
+                files.len(),
+                x10.display()
+            );
+            println!("Next:");
+            println!("  cd {}", args.path.display());
+            println!("  cargo sim        # the robot against world.toml in the simulator");
+            println!("  cargo test       # its host test");
+            println!("  cargo mb-pico    # build and flash the Pico image (probe-rs), or cargo mb-g431");
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("x10 new: {e}");
+            ExitCode::FAILURE
+        }
+    }
 }
 
 const DECODE_HELP: &str = "\
@@ -291,5 +362,6 @@ fn main() -> ExitCode {
         Command::Encode(args) => encode(args),
         Command::Sim(args) => x10_sim::cli_sim::sim_main(args),
         Command::Report(args) => x10_sim::cli_sim::report_main(args),
+        Command::New(args) => new_main(args),
     }
 }

@@ -1,0 +1,9 @@
+//! `cargo sim`: runs the robot in the simulator against `world.toml` and prints what each
+//! device did (`cargo sim -- --help` for the options: duration, full trace, SVG plot, …).
+
+fn main() -> std::process::ExitCode {
+    x10_sim::app::main("world.toml", |sim| {
+        sim.with_robot("blink", robot::blink)
+            .with_robot("drive", robot::drive)
+    })
+}
