@@ -32,7 +32,7 @@ use crate::sim::SimOutcome;
 use crate::trace::Severity;
 use crate::world::{seconds, Device, DeviceKind, Signal, World};
 
-pub use plot::{timeline_html, timeline_svg};
+pub use plot::{timeline_html, timeline_svg, write_timeline};
 
 /// How long a motor state must last to count as a state of its own, in ns: an H-bridge
 /// command is three writes (two direction pins, then the duty), which go out as three
@@ -470,6 +470,14 @@ impl Timeline {
         Ok(self.get(name)?.track.clone())
     }
 
+    /// Every change of device `name`: when (ns) and the new state.
+    ///
+    /// # Errors
+    /// [`TimelineError::NoSuchDevice`].
+    pub fn changes(&self, name: &str) -> Result<Vec<(Nanos, DeviceState)>, TimelineError> {
+        Ok(self.get(name)?.track.changes().to_vec())
+    }
+
     fn typed<T: Clone + PartialEq + 'static>(
         &self,
         name: &str,
@@ -679,11 +687,8 @@ fn servo_angle(us: Option<u16>, config: &x10_devices::ServoConfig) -> Option<u16
 type StateOf = Rc<dyn Fn(&Signal, u64) -> DeviceState>;
 
 fn track_of(d: &Device, board: &str, events: &Events<'_>, end_ns: Nanos) -> Track<DeviceState> {
-    let actuator = d
-        .port()
-        .filter(|p| p.kind() == PortKind::Actuator)
-        .or_else(|| Port::new(PortKind::Actuator, d.port_number()).ok());
-    let sensor_port = Port::new(PortKind::Sensor, d.port_number()).ok();
+    // Every output is on an actuator port.
+    let actuator = Port::new(PortKind::Actuator, d.port_number()).ok();
     let history =
         |port: Option<Port>| port.map_or_else(Vec::new, |p| port_history(board, p, events));
     let from_pins = |port: Option<Port>, f: &dyn Fn(&PortPins) -> DeviceState| {
@@ -726,11 +731,7 @@ fn track_of(d: &Device, board: &str, events: &Events<'_>, end_ns: Nanos) -> Trac
         }
         | DeviceKind::DigitalOutput { pin } => {
             let i = pin.index();
-            let port = if d.port().is_some_and(|p| p.kind() == PortKind::Sensor) {
-                sensor_port
-            } else {
-                actuator
-            };
+            let port = actuator;
             let (initial, states) = from_pins(port, &|p| {
                 DeviceState::Level(
                     p.level

@@ -14,7 +14,9 @@ use x10_robots::Program;
 use x10_sim::ports::Change;
 use x10_sim::scenario;
 use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};
-use x10_sim::timeline::{summary, timeline_html, timeline_svg, MotorState, Timeline};
+use x10_sim::timeline::{
+    summary, timeline_html, timeline_svg, write_timeline, MotorState, Timeline,
+};
 use x10_sim::timing::Speed;
 use x10_sim::world::{Board, BoardKind, Device, Signal, World, SELF};
 
@@ -609,9 +611,18 @@ fn the_timeline_plot_is_well_formed_and_labelled() {
     assert!(html.contains("<title>Bumper &lt;robot&gt;</title>"));
     assert!(html.contains(&svg));
     assert!(html.contains("devices, 5.000 s at 400k:"));
-    if let Ok(dir) = std::env::var("X10_WORLD_PLOT_DIR") {
-        std::fs::write(format!("{dir}/bumper.svg"), &svg).unwrap();
-        std::fs::write(format!("{dir}/bumper.html"), &html).unwrap();
+    // Written by extension (set X10_WORLD_PLOT_DIR to keep them and look at them).
+    let dir = std::env::var("X10_WORLD_PLOT_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|_| std::env::temp_dir());
+    let id = std::process::id();
+    for (name, want) in [("svg", &svg), ("html", &html)] {
+        let path = dir.join(format!("bumper-{id}.{name}"));
+        write_timeline(&path, &world, &o, "Bumper <robot>").unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), *want);
+        if std::env::var("X10_WORLD_PLOT_DIR").is_err() {
+            std::fs::remove_file(&path).unwrap();
+        }
     }
 }
 

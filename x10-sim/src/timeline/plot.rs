@@ -3,6 +3,7 @@
 //! and an HTML page around it.
 
 use std::fmt::Write as _;
+use std::path::Path;
 
 use super::{summary, DeviceState, DeviceTimeline, MotorDirection, Timeline};
 use crate::exec::Nanos;
@@ -410,6 +411,30 @@ pub fn timeline_svg(world: &World, outcome: &SimOutcome) -> String {
         outcome.speed
     );
     Timeline::new(world, outcome).svg(&title)
+}
+
+/// Writes the timeline of `world`'s devices over `outcome` to `path`: an HTML page titled
+/// `title` ([`timeline_html`]) when the name ends in `.html` or `.htm`, otherwise an SVG
+/// picture ([`timeline_svg`]).
+///
+/// # Errors
+/// The file system's.
+pub fn write_timeline(
+    path: &Path,
+    world: &World,
+    outcome: &SimOutcome,
+    title: &str,
+) -> std::io::Result<()> {
+    let html = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("html") || e.eq_ignore_ascii_case("htm"));
+    let text = if html {
+        timeline_html(world, outcome, title)
+    } else {
+        timeline_svg(world, outcome)
+    };
+    std::fs::write(path, text)
 }
 
 /// An HTML page titled `title` with the timeline picture and the [`summary`].

@@ -107,6 +107,13 @@ fn a_motor_command_is_one_change_and_a_reset_stops_the_motor() {
     );
     assert_eq!(far.changes()[1].0, 1_500 * MS);
     assert_eq!(
+        tl.changes("far").unwrap(),
+        vec![
+            (1_000 * MS, DeviceState::Motor(MotorState::forward(100))),
+            (1_500 * MS, DeviceState::Motor(MotorState::STOPPED))
+        ]
+    );
+    assert_eq!(
         tl.led("drive").unwrap_err().to_string(),
         "`drive` is a dc_motor, not a led"
     );

@@ -554,7 +554,14 @@ fn device(d: &RawDevice) -> Result<Device, FieldError> {
             WorldErrorKind::WrongPortKind {
                 device: name,
                 kind: kind_name,
-                port: port_text.clone(),
+                port: format!(
+                    "{}{port}",
+                    if port_kind == x10_microcode::PortKind::Sensor {
+                        'S'
+                    } else {
+                        'A'
+                    }
+                ),
             },
         ));
     }

@@ -1,6 +1,7 @@
 //! The builder, the file reader and the checks.
 
 use super::*;
+use x10_devices::ServoConfig;
 
 fn err(text: &str) -> String {
     match World::from_toml(text) {
@@ -142,6 +143,8 @@ fn board_kinds_have_their_chips_port_counts() {
     assert_eq!(boards[1].adc_max(), 4095);
     // No internal board declared: the default one.
     assert_eq!(World::new().boards(), vec![Board::internal(2, 2)]);
+    assert_eq!(World::new(), World::new().board(Board::internal(2, 2)));
+    assert_ne!(World::new(), World::new().board(Board::internal(2, 3)));
 }
 
 #[test]
@@ -157,6 +160,10 @@ fn errors_name_the_line_and_the_field() {
         ),
         (
             "[[device]]\nname = \"m\"\nkind = \"dc_motor\"\nport = \"S1\"\n",
+            "line 4: device `m`: a dc_motor goes on an actuator port (A1, A2, …), not on S1",
+        ),
+        (
+            "[[device]]\nname = \"m\"\nkind = \"dc_motor\"\nport = \"s1\"\n",
             "line 4: device `m`: a dc_motor goes on an actuator port (A1, A2, …), not on S1",
         ),
         (
