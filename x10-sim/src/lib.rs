@@ -18,6 +18,9 @@
 //! * [`trace`] and [`vcd`]: the readable trace and the SDA/SCL waveform.
 //! * [`report`]: the latency table and the end-of-run summary; [`cli_sim`]: the `x10 sim` and
 //!   `x10 report` subcommands.
+//! * [`world`]: the boards, devices and scripted signals a program runs against, from a
+//!   builder or a TOML file; [`timeline`]: what each device did over a run, as a short
+//!   summary, an SVG or an HTML page.
 pub mod board;
 pub mod bus;
 pub mod cli_sim;
@@ -30,6 +33,8 @@ pub mod report;
 pub mod scenario;
 
 pub mod sim;
+pub mod timeline;
 pub mod timing;
 pub mod trace;
 pub mod vcd;
+pub mod world;

@@ -120,6 +120,34 @@ pub enum Digital {
         /// Pulse width in µs, as a function of time.
         width_us: Analog,
     },
+    /// A periodic pulse train of one width (a blinking or toggling input): high for
+    /// `width_us` every `period_us` from `first_us` on. Unlike [`Digital::Pulses`], the width
+    /// may be longer than 65 ms.
+    Train {
+        /// Start of the first pulse.
+        first_us: u64,
+        /// Period.
+        period_us: u64,
+        /// Pulse width (at most the period).
+        width_us: u64,
+    },
+    /// An ultrasonic ranger's echo pin (HC-SR04 and alike), which answers its trigger: low,
+    /// except for one high pulse `delay_us` after each falling edge of the `trigger` pin of
+    /// the same port (the end of the trigger pulse, as the board's output log recorded it),
+    /// `width_us` wide (evaluated at the start of the echo). With `trigger` `None` (a
+    /// free-running sensor) the echo starts `delay_us` after each pulse-in on the pin begins.
+    ///
+    /// Only pulse-in sees the echo: a digital read of the pin reads low. A pulse-in that
+    /// starts after the echo has risen (or with no trigger pulse before it) misses it and
+    /// times out, as `pulseIn` does on a board.
+    Echo {
+        /// The trigger pin of the same port, if any.
+        trigger: Option<Pin>,
+        /// From the trigger's falling edge (or the start of the pulse-in) to the echo, in µs.
+        delay_us: u64,
+        /// Echo width in µs, as a function of the time the echo starts.
+        width_us: Analog,
+    },
 }
 
 impl Digital {
@@ -159,6 +187,15 @@ impl Digital {
                 let width = u64::from(width_us.value_at(start)) * 1_000;
                 t_ns < start + width.min(period)
             }
+            Digital::Train {
+                first_us,
+                period_us,
+                width_us,
+            } => {
+                let (first, period) = (first_us * 1_000, (period_us * 1_000).max(1));
+                t_ns >= first && (t_ns - first) % period < (width_us * 1_000).min(period)
+            }
+            Digital::Echo { .. } => false,
         }
     }
 
@@ -188,6 +225,24 @@ impl Digital {
                     Some(start + period)
                 }
             }
+            Digital::Train {
+                first_us,
+                period_us,
+                width_us,
+            } => {
+                let (first, period) = (first_us * 1_000, (period_us * 1_000).max(1));
+                if t_ns < first {
+                    return Some(first);
+                }
+                let start = first + (t_ns - first) / period * period;
+                let width = (width_us * 1_000).min(period);
+                if width > 0 && t_ns < start + width {
+                    Some(start + width)
+                } else {
+                    Some(start + period)
+                }
+            }
+            Digital::Echo { .. } => None,
         }
     }
 }
@@ -496,6 +551,40 @@ impl SimPorts {
         }
     }
 
+    /// The echo a [`Digital::Echo`] pin gives a pulse-in starting now: its start and end
+    /// (ns), or `None` when there is none to see (no trigger pulse, the echo already rose, or
+    /// a width of 0).
+    fn echo(
+        &self,
+        pin: PinRef,
+        trigger: Option<Pin>,
+        delay_us: u64,
+        width_us: &Analog,
+    ) -> Option<(Nanos, Nanos)> {
+        let now = self.clock.now_ns();
+        let from = match trigger {
+            None => now,
+            Some(t) => {
+                // The trigger's last falling edge: a LOW logged right after a HIGH.
+                let changes = self.log.of(&self.board, pin.port.pin(t));
+                let mut fall = None;
+                let mut previous = None;
+                for c in changes.iter().take_while(|c| c.t_ns <= now) {
+                    if let Change::Digital(level) = c.change {
+                        if previous == Some(Level::High) && level == Level::Low {
+                            fall = Some(c.t_ns);
+                        }
+                        previous = Some(level);
+                    }
+                }
+                fall?
+            }
+        };
+        let start = from.saturating_add(delay_us.saturating_mul(1_000));
+        let width = u64::from(width_us.value_at(start)) * 1_000;
+        (start >= now && width > 0).then(|| (start, start + width))
+    }
+
     async fn take(&self, ns: Nanos) {
         if ns > 0 {
             self.clock.sleep_ns(ns).await;
@@ -662,6 +751,27 @@ impl Ports for SimPorts {
             .now_ns()
             .saturating_add(u64::from(timeout_ms) * 1_000_000);
         let start_level = matches!(edge, Edge::Rising);
+        if let Digital::Echo {
+            trigger,
+            delay_us,
+            width_us,
+        } = &signal
+        {
+            let echo = self.echo(pin, *trigger, *delay_us, width_us);
+            let result = match echo {
+                // Only a rising-edge pulse-in that starts before the echo rises sees it whole.
+                Some((start, end)) if start_level && end <= deadline => {
+                    self.clock.sleep_until_ns(end).await;
+                    Ok(u32::try_from((end - start) / 1_000).unwrap_or(u32::MAX))
+                }
+                _ => {
+                    self.clock.sleep_until_ns(deadline).await;
+                    Err(PortError::Timeout)
+                }
+            };
+            self.state.borrow_mut().busy.retain(|p| *p != pin);
+            return result;
+        }
         let result = async {
             // Wait for the starting edge, then for the opposite one.
             let mut started = None;
@@ -742,6 +852,18 @@ mod tests {
         assert!(echo.level_at(1_100_000));
         assert_eq!(echo.next_change_after(100_000), Some(400_000));
         assert_eq!(echo.next_change_after(400_000), Some(1_100_000));
+        let blink = Digital::Train {
+            first_us: 100_000,
+            period_us: 700_000,
+            width_us: 200_000,
+        };
+        assert_eq!(
+            [0, 100, 299, 300, 799, 800, 1_000].map(|ms| blink.level_at(ms * 1_000_000)),
+            [false, true, true, false, false, true, false]
+        );
+        assert_eq!(blink.next_change_after(0), Some(100_000_000));
+        assert_eq!(blink.next_change_after(100_000_000), Some(300_000_000));
+        assert_eq!(blink.next_change_after(300_000_000), Some(800_000_000));
     }
 
     #[test]
@@ -842,5 +964,72 @@ mod tests {
         // the end of the second pulse to the start of the third.
         assert_eq!(o[1], (120_500_000, Ok(60_000 - 1_160)));
         assert_eq!(o[2], (125_500_000, Err(PortError::Timeout)));
+    }
+
+    #[test]
+    fn an_echo_pin_answers_its_trigger() {
+        let clock = SimClock::new();
+        let echo = |trigger| Digital::Echo {
+            trigger,
+            delay_us: 500,
+            width_us: Analog::Const(1_000),
+        };
+        let ports = SimPorts::new("db", clock.clone(), ActuatorLog::new(), 2, 0)
+            .with_sensor(
+                1,
+                SensorScript {
+                    b: echo(Some(Pin::A)),
+                    ..SensorScript::default()
+                },
+            )
+            .with_sensor(
+                2,
+                SensorScript {
+                    b: echo(None),
+                    ..SensorScript::default()
+                },
+            );
+        let out = RefCell::new(Vec::new());
+        let mut ex = Executor::with_clock(&clock);
+        let (p, o) = (&ports, &out);
+        let (s1a, s1b) = (
+            pin(PortKind::Sensor, 1, Pin::A),
+            pin(PortKind::Sensor, 1, Pin::B),
+        );
+        let s2b = pin(PortKind::Sensor, 2, Pin::B);
+        ex.spawn("t", async move {
+            let push = |r| o.borrow_mut().push((clock.now_ns(), r));
+            // No trigger pulse yet: nothing to see.
+            push(p.pulse_in(s1b, Edge::Rising, 5).await);
+            // A trigger pulse ending at 10 ms: the echo is 10.5 ms to 11.5 ms.
+            clock.sleep_until_ns(10_000_000).await;
+            p.digital_write(s1a, Level::High).await.unwrap();
+            p.digital_write(s1a, Level::Low).await.unwrap();
+            clock.sleep_until_ns(10_400_000).await;
+            push(p.pulse_in(s1b, Edge::Rising, 30).await);
+            // Too late for the same echo: it already rose.
+            clock.sleep_until_ns(20_000_000).await;
+            p.digital_write(s1a, Level::High).await.unwrap();
+            p.digital_write(s1a, Level::Low).await.unwrap();
+            clock.sleep_until_ns(20_600_000).await;
+            push(p.pulse_in(s1b, Edge::Rising, 30).await);
+            // Free-running: 0.5 ms after the pulse-in starts.
+            push(p.pulse_in(s2b, Edge::Rising, 30).await);
+            push(p.pulse_in(s2b, Edge::Falling, 3).await);
+            // A digital read of an echo pin reads low.
+            push(p.digital_read(s2b).await.map(|l| u32::from(l.is_high())));
+        });
+        ex.run_until_ns(1_000_000_000).unwrap();
+        assert_eq!(
+            *out.borrow(),
+            vec![
+                (5_000_000, Err(PortError::Timeout)),
+                (11_500_000, Ok(1_000)),
+                (50_600_000, Err(PortError::Timeout)),
+                (52_100_000, Ok(1_000)),
+                (55_100_000, Err(PortError::Timeout)),
+                (55_100_000, Ok(0)),
+            ]
+        );
     }
 }
