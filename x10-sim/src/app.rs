@@ -74,7 +74,11 @@ struct Cli {
 pub fn main(world_file: &str, robots: impl FnOnce(Sim) -> Sim) -> ExitCode {
     let cli = Cli::parse();
     let default = Path::new(world_file);
-    let path = cli.run.world.clone().unwrap_or_else(|| default.to_path_buf());
+    let path = cli
+        .run
+        .world
+        .clone()
+        .unwrap_or_else(|| default.to_path_buf());
     let world = match World::load(&path) {
         Ok(w) => w,
         Err(e) => {
@@ -82,8 +86,8 @@ pub fn main(world_file: &str, robots: impl FnOnce(Sim) -> Sim) -> ExitCode {
             return ExitCode::FAILURE;
         }
     };
-    let header = format!("# {}: the robot against {}", "sim", path.display());
-    run(&cli.run, &world, robots, &header)
+    let title = format!("the robot against {}", path.display());
+    run(&cli.run, &world, robots, &title)
 }
 
 /// The simulation configuration of `args`.
@@ -98,13 +102,13 @@ pub fn config(args: &RunArgs) -> SimConfig {
     }
 }
 
-/// Runs `robots` against `world` as `args` say and prints `header`, then the summary or the
-/// trace; writes the files asked for.
+/// Runs `robots` against `world` as `args` say and prints a header line naming the run
+/// (`title`), then the summary or the trace; writes the files asked for.
 pub fn run(
     args: &RunArgs,
     world: &World,
     robots: impl FnOnce(Sim) -> Sim,
-    header: &str,
+    title: &str,
 ) -> ExitCode {
     let sim = match world.sim(config(args)) {
         Ok(s) => s,
@@ -120,11 +124,11 @@ pub fn run(
             return ExitCode::FAILURE;
         }
     };
-    if let Err(code) = write_files(args, world, &outcome) {
+    if let Err(code) = write_files(args, world, &outcome, title) {
         return code;
     }
     let mut text = format!(
-        "{header} (--seed {} --clock {} --duration-ms {})\n",
+        "# {title} (--seed {} --clock {} --duration-ms {})\n",
         args.seed, args.clock, args.duration_ms
     );
     if args.trace {
@@ -136,10 +140,17 @@ pub fn run(
     write_out(&text)
 }
 
-fn write_files(args: &RunArgs, world: &World, outcome: &SimOutcome) -> Result<(), ExitCode> {
+fn write_files(
+    args: &RunArgs,
+    world: &World,
+    outcome: &SimOutcome,
+    title: &str,
+) -> Result<(), ExitCode> {
     let files: [(&Option<PathBuf>, &dyn Fn() -> String); 3] = [
         (&args.svg, &|| timeline::timeline_svg(world, outcome)),
-        (&args.html, &|| timeline::timeline_html(world, outcome)),
+        (&args.html, &|| {
+            timeline::timeline_html(world, outcome, title)
+        }),
         (&args.vcd, &|| outcome.vcd()),
     ];
     for (path, render) in files {

@@ -1,10 +1,11 @@
 //! The example robots of `x10-robots`, by name, for `x10 sim NAME`: each is its tasks (plain
-//! `async fn`s taking an [`crate::sim::X10`]) and the world they run against. Your own robot
-//! does not go here: it lives in its own crate with its own world file and `sim` command
-//! (`x10 new`, `docs/your-first-robot.md`).
+//! `async fn`s taking an [`crate::sim::X10`]) and the world they run against
+//! (`robots/worlds/NAME.toml`, compiled in). Your own robot does not go here: it lives in its
+//! own crate with its own world file and `sim` command (`x10 new`,
+//! `docs/your-first-robot.md`).
 
-use crate::scenario;
 use crate::sim::{Sim, SimConfig};
+use crate::world::{World, WorldError};
 
 /// One example robot.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -15,24 +16,35 @@ pub struct Example {
     pub description: &'static str,
     /// Its robot tasks, by name, in the order they are spawned.
     pub tasks: &'static [&'static str],
+    /// Its world file (`robots/worlds/NAME.toml`).
+    pub world: &'static str,
 }
 
 /// Every example.
-pub const EXAMPLES: [Example; 3] = [
+pub const EXAMPLES: [Example; 4] = [
     Example {
         name: "fig4_2",
         description: "thesis Fig. 4.2: button (SELF S2.B) or force (SELF S1) > 100 runs the motor (SELF A1) at 100 %",
         tasks: &["single_board"],
+        world: include_str!("../../robots/worlds/fig4_2.toml"),
     },
     Example {
         name: "fig4_4",
         description: "thesis Fig. 4.4: Fig. 4.2 unchanged plus a second task: light (DB 9 S1) > 700 runs a motor (DB 9 A1) at 50 %",
         tasks: &["single_board", "light_motor"],
+        world: include_str!("../../robots/worlds/fig4_4.toml"),
     },
     Example {
         name: "fig4_6",
         description: "thesis Fig. 4.6: freezer (DB 17 S1) > 1 °C or oven (DB 108 S6) < 200 °F raises the alarm (DB 10 A3.A)",
         tasks: &["temperature_alarm"],
+        world: include_str!("../../robots/worlds/fig4_6.toml"),
+    },
+    Example {
+        name: "bumper",
+        description: "three tasks: a heartbeat LED (DB 9), a lamp following the light (SELF), a timed back-off when the bumper is hit (SELF)",
+        tasks: &["heartbeat", "lamp", "bumper"],
+        world: include_str!("../../robots/worlds/bumper.toml"),
     },
 ];
 
@@ -50,20 +62,51 @@ pub fn names() -> String {
         .join(", ")
 }
 
+impl Example {
+    /// Its world.
+    ///
+    /// # Errors
+    /// None for the examples' own files (a test loads each).
+    pub fn world(&self) -> Result<World, WorldError> {
+        World::from_toml(self.world)
+    }
+}
+
 /// Adds example `name`'s robot tasks to `sim`; `None` for an unknown name.
 pub fn with_tasks(name: &str, sim: Sim) -> Option<Sim> {
-    use x10_robots::{fig4_2, fig4_4, fig4_6};
+    use x10_robots::{bumper, fig4_2, fig4_4, fig4_6};
     Some(match name {
         "fig4_2" => sim.with_robot("single_board", fig4_2::single_board),
         "fig4_4" => sim
             .with_robot("single_board", fig4_2::single_board)
             .with_robot("light_motor", fig4_4::light_motor),
         "fig4_6" => sim.with_robot("temperature_alarm", fig4_6::temperature_alarm),
+        "bumper" => sim
+            .with_robot("heartbeat", bumper::heartbeat)
+            .with_robot("lamp", bumper::lamp)
+            .with_robot("bumper", bumper::bumper),
         _ => return None,
     })
 }
 
-/// Example `name` against its world, ready to run; `None` for an unknown name.
+/// Example `name` against its world, ready to run; `None` for an unknown name (or a world
+/// file that does not load, which a test rules out).
 pub fn sim(name: &str, config: SimConfig) -> Option<Sim> {
-    with_tasks(name, scenario::build(name, config)?)
+    let example = find(name)?;
+    let sim = example.world().ok()?.sim(config).ok()?;
+    with_tasks(name, sim)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_example_has_a_valid_world_and_its_tasks() {
+        for e in EXAMPLES {
+            assert!(e.world().is_ok(), "{}", e.name);
+            assert!(sim(e.name, SimConfig::default()).is_some(), "{}", e.name);
+        }
+        assert!(sim("fig9_9", SimConfig::default()).is_none());
+    }
 }

@@ -13,14 +13,17 @@
 //!   actuator change.
 //! * [`board`]: a daughterboard running the real `firmware-db`, restarted on reset.
 //! * [`sim`]: the simulation builder ([`sim::Sim`]) running the real motherboard runtime,
-//!   daughterboards, robot programs and test tasks; [`scenario`]: the thesis programs' boards
-//!   and scripted signals.
+//!   daughterboards, robot programs (`async fn`s taking an [`sim::X10`]) and test tasks; the
+//!   executor is embassy-time's driver, so programs sleep in virtual time.
 //! * [`trace`] and [`vcd`]: the readable trace and the SDA/SCL waveform.
 //! * [`report`]: the latency table and the end-of-run summary; [`cli_sim`]: the `x10 sim` and
-//!   `x10 report` subcommands.
+//!   `x10 report` subcommands; [`app`]: the simulator command of a robot crate (`cargo sim`);
+//!   [`examples`]: the example robots of `x10-robots` by name; [`new`]: `x10 new`, a robot
+//!   crate from the template.
 //! * [`world`]: the boards, devices and scripted signals a program runs against, from a
 //!   builder or a TOML file; [`timeline`]: what each device did over a run, as a short
 //!   summary, an SVG or an HTML page.
+pub mod app;
 pub mod board;
 pub mod bus;
 pub mod cli_sim;
@@ -30,7 +33,6 @@ pub mod exec;
 pub mod new;
 pub mod ports;
 pub mod report;
-pub mod scenario;
 
 pub mod sim;
 pub mod timeline;

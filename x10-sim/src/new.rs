@@ -12,7 +12,10 @@ use std::path::{Path, PathBuf};
 /// The template's files: path inside the new crate, contents with `{{name}}` and `{{x10}}`
 /// placeholders.
 pub const TEMPLATE: [(&str, &str); 12] = [
-    ("Cargo.toml", include_str!("../../templates/robot/Cargo.toml")),
+    (
+        "Cargo.toml",
+        include_str!("../../templates/robot/Cargo.toml"),
+    ),
     (
         ".cargo/config.toml",
         include_str!("../../templates/robot/.cargo/config.toml"),
@@ -23,8 +26,14 @@ pub const TEMPLATE: [(&str, &str); 12] = [
     ),
     ("build.rs", include_str!("../../templates/robot/build.rs")),
     ("memory.x", include_str!("../../templates/robot/memory.x")),
-    ("world.toml", include_str!("../../templates/robot/world.toml")),
-    ("src/lib.rs", include_str!("../../templates/robot/src/lib.rs")),
+    (
+        "world.toml",
+        include_str!("../../templates/robot/world.toml"),
+    ),
+    (
+        "src/lib.rs",
+        include_str!("../../templates/robot/src/lib.rs"),
+    ),
     (
         "src/bin/sim.rs",
         include_str!("../../templates/robot/src/bin/sim.rs"),

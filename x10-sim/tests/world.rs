@@ -10,10 +10,10 @@ use x10_devices::{
     Thermistor, Ultrasonic,
 };
 use x10_microcode::{Address, Pin, PortKind};
-use x10_robots::Program;
 use x10_sim::ports::Change;
-use x10_sim::scenario;
-use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};
+use x10_sim::sim::{task, SimConfig, SimOutcome};
+
+mod scenario;
 use x10_sim::timeline::{
     summary, timeline_html, timeline_svg, write_timeline, MotorState, Timeline,
 };
@@ -127,19 +127,21 @@ fn world_files_give_exactly_the_scenario_signals() {
 #[test]
 fn world_files_run_the_thesis_programs_exactly_as_the_scenarios_do() {
     for (file, program) in [
-        ("fig4_2.toml", Program::Fig4_2),
-        ("fig4_4.toml", Program::Fig4_4),
-        ("fig4_6.toml", Program::Fig4_6),
+        ("fig4_2.toml", "fig4_2"),
+        ("fig4_4.toml", "fig4_4"),
+        ("fig4_6.toml", "fig4_6"),
     ] {
         let world = load(file);
         let config = SimConfig::default();
-        let from_world = world
-            .sim(config)
+        let from_world = x10_sim::examples::with_tasks(program, world.sim(config).unwrap())
             .unwrap()
-            .with_program(program)
             .run()
             .unwrap();
-        let from_scenario = Sim::program(program, config).run().unwrap();
+        let from_scenario =
+            x10_sim::examples::with_tasks(program, scenario::build(program, config).unwrap())
+                .unwrap()
+                .run()
+                .unwrap();
         assert_eq!(
             from_world.trace.render(),
             from_scenario.trace.render(),
@@ -153,24 +155,24 @@ fn the_thesis_timelines_say_what_the_scenario_docs_say() {
     // scenario.rs: "fig4_2's motor runs from about 2.0 s to 3.0 s (button) and from 3.6 s to
     // 4.2 s (force); fig4_4's second motor runs from about 1.93 s to 4.0 s; fig4_6's alarm
     // goes on when the freezer passes 1 °C, at about 3.17 s, and stays on."
-    let run = |file: &str, p: Program| {
+    let run = |file: &str, p: &str| {
         let w = load(file);
         let o = w
             .sim(SimConfig::default())
+            .map(|sim| x10_sim::examples::with_tasks(p, sim).unwrap())
             .unwrap()
-            .with_program(p)
             .run()
             .unwrap();
         (Timeline::new(&w, &o), o)
     };
-    let (tl, _) = run("fig4_4.toml", Program::Fig4_4);
+    let (tl, _) = run("fig4_4.toml", "fig4_4");
     let m = tl.motor("motor").unwrap();
     let on: Vec<(u64, MotorState)> = m.changes().iter().map(|(t, s)| (t / MS, *s)).collect();
     assert_eq!(
         on,
         vec![
-            (2_010, MotorState::forward(100)),
-            (3_010, MotorState::STOPPED),
+            (2_020, MotorState::forward(100)),
+            (3_020, MotorState::STOPPED),
             (3_600, MotorState::forward(100)),
             (4_200, MotorState::STOPPED),
         ]
@@ -179,9 +181,10 @@ fn the_thesis_timelines_say_what_the_scenario_docs_say() {
     assert_eq!(lm.at_ms(1_900), MotorState::STOPPED);
     assert_eq!(lm.at_ms(2_000), MotorState::forward(50));
     assert_eq!(lm.at_ms(4_100), MotorState::STOPPED);
-    let (tl, _) = run("fig4_6.toml", Program::Fig4_6);
+    let (tl, _) = run("fig4_6.toml", "fig4_6");
     let alarm = tl.led("alarm").unwrap();
-    assert_eq!(alarm.first_ns(|on| *on).map(|t| t / MS), Some(3_171));
+    // The program reads every 20 ms (x10_robots::PERIOD): the first read above 1 °C.
+    assert_eq!(alarm.first_ns(|on| *on).map(|t| t / MS), Some(3_181));
     assert!(alarm.last_state());
 }
 
@@ -221,7 +224,7 @@ fn board_kinds_have_the_port_counts_of_the_pin_maps() {
 /// Runs `world` with one task `f` for `ms`; returns the outcome.
 fn run_with<F>(world: &World, speed: Speed, ms: u64, f: F) -> SimOutcome
 where
-    F: for<'a> FnOnce(x10_sim::sim::Ctx<'a>) -> x10_sim::sim::LocalFuture<'a> + 'static,
+    F: FnOnce(x10_sim::sim::Ctx) -> x10_sim::sim::LocalFuture + 'static,
 {
     let config = SimConfig {
         speed,
@@ -463,9 +466,9 @@ fn a_reset_board_stops_its_outputs_in_the_timeline() {
 /// The bumper robot of `robots/worlds/bumper.toml`, as a test task: drive forward at 50 %;
 /// on a bump, back off for 300 ms at 30 %; the lamp's brightness follows the light (brighter
 /// when darker); the heartbeat on db09 blinks every 250 ms.
-fn bumper_robot(ctx: x10_sim::sim::Ctx<'_>) -> x10_sim::sim::LocalFuture<'_> {
+fn bumper_robot(ctx: x10_sim::sim::Ctx) -> x10_sim::sim::LocalFuture {
     Box::pin(async move {
-        let link = ctx.traced("bumper_bot");
+        let link = ctx.handle();
         let mut drive = DcMotor::new(link.clone(), SELF, 1).unwrap();
         let mut bumper = Button::new(link.clone(), SELF, 2, Pin::B).unwrap();
         let light = AnalogSensor::new(link.clone(), SELF, 1).unwrap();
@@ -651,5 +654,19 @@ fn every_toml_example_of_the_world_doc_parses() {
         if let Err(e) = World::from_toml(b) {
             panic!("{e}\n{b}");
         }
+    }
+}
+
+#[test]
+fn the_thesis_thermistor_model_matches_the_scenario() {
+    let cfg = x10_devices::ThermistorConfig::THESIS;
+    let mut c = -40.0f32;
+    while c < 150.0 {
+        assert_eq!(
+            x10_sim::world::thermistor_raw(&cfg, c),
+            scenario::thermistor_raw(c),
+            "{c}"
+        );
+        c += 0.37;
     }
 }

@@ -42,9 +42,14 @@ fn every_rust_and_toml_block_is_a_template_file_word_for_word() {
         if lang != "rust" && lang != "toml" {
             continue;
         }
-        let file = file.unwrap_or_else(|| panic!("a ```{lang} block without a file marker:\n{text}"));
+        let file =
+            file.unwrap_or_else(|| panic!("a ```{lang} block without a file marker:\n{text}"));
         let want = std::fs::read_to_string(root.join(&file)).unwrap();
-        assert_eq!(text, want.trim_end_matches('\n'), "{file} differs from the doc");
+        assert_eq!(
+            text,
+            want.trim_end_matches('\n'),
+            "{file} differs from the doc"
+        );
         checked += 1;
     }
     assert_eq!(checked, 5);
@@ -64,5 +69,8 @@ fn the_template_is_what_x10_new_writes() {
 
 #[test]
 fn no_output_is_left_to_fill() {
-    assert!(!DOC.contains("@@"), "an output placeholder is left in the guide");
+    assert!(
+        !DOC.contains("@@"),
+        "an output placeholder is left in the guide"
+    );
 }

@@ -99,7 +99,9 @@ fn new_main(args: NewArgs) -> ExitCode {
             println!("  cd {}", args.path.display());
             println!("  cargo sim        # the robot against world.toml in the simulator");
             println!("  cargo test       # its host test");
-            println!("  cargo mb-pico    # build and flash the Pico image (probe-rs), or cargo mb-g431");
+            println!(
+                "  cargo mb-pico    # build and flash the Pico image (probe-rs), or cargo mb-g431"
+            );
             ExitCode::SUCCESS
         }
         Err(e) => {

@@ -1,4 +1,7 @@
-//! The boards and scripted signals each thesis program runs against in the simulator.
+//! The reference the world files of the thesis programs (`robots/worlds/fig4_*.toml`) are
+//! checked against: the boards and scripted signals as the simulator hard-coded them before
+//! worlds were files. Test code only.
+#![allow(dead_code)]
 //!
 //! | program | board | port | script |
 //! |---|---|---|---|
@@ -20,8 +23,8 @@ use std::rc::Rc;
 use x10_devices::ThermistorConfig;
 use x10_microcode::Address;
 
-use crate::ports::{Analog, Digital, SensorScript};
-use crate::sim::{Sim, SimConfig};
+use x10_sim::ports::{Analog, Digital, SensorScript};
+use x10_sim::sim::{Sim, SimConfig};
 
 /// When the fig4_2 button is pressed (ms).
 pub const BUTTON_PRESS_MS: u64 = 2_000;
