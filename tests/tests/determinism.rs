@@ -48,3 +48,38 @@ fn another_seed_gives_another_run() {
         assert!(o.mb.retries > 0);
     }
 }
+
+#[test]
+fn simulations_on_parallel_threads_are_isolated() {
+    // embassy-time reads the virtual time of the simulation on the calling thread: four runs
+    // at once, with different seeds and examples, each equal to the same run made alone.
+    let alone: Vec<String> = [7, 8].iter().map(|&s| run(s).trace.render()).collect();
+    let bumper = |seed: u64| {
+        let config = SimConfig {
+            seed,
+            duration_ms: 3_000,
+            ..SimConfig::default()
+        };
+        x10_sim::examples::sim("bumper", config)
+            .expect("an example")
+            .run()
+            .unwrap()
+            .trace
+            .render()
+    };
+    let bumper_alone = bumper(3);
+    let handles: Vec<std::thread::JoinHandle<String>> = (0..4u64)
+        .map(|i| {
+            std::thread::spawn(move || match i {
+                0 => run(7).trace.render(),
+                1 => run(8).trace.render(),
+                _ => bumper(3),
+            })
+        })
+        .collect();
+    let together: Vec<String> = handles.into_iter().map(|h| h.join().unwrap()).collect();
+    assert_eq!(together[0], alone[0]);
+    assert_eq!(together[1], alone[1]);
+    assert_eq!(together[2], bumper_alone);
+    assert_eq!(together[3], bumper_alone);
+}

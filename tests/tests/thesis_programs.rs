@@ -1,5 +1,5 @@
 //! The thesis's robot programs (Figures 4.2, 4.4, 4.6) in the simulator: the actuators follow
-//! the scripted signals of `x10_sim::scenario`, at every bus clock.
+//! the scripted signals of their worlds (`robots/worlds/*.toml`), at every bus clock.
 
 use x10_microcode::Pin;
 use x10_sim::sim::{Sim, SimConfig, SimOutcome};

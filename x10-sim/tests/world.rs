@@ -152,7 +152,7 @@ fn world_files_run_the_thesis_programs_exactly_as_the_scenarios_do() {
 
 #[test]
 fn the_thesis_timelines_say_what_the_scenario_docs_say() {
-    // scenario.rs: "fig4_2's motor runs from about 2.0 s to 3.0 s (button) and from 3.6 s to
+    // tests/scenario: "fig4_2's motor runs from about 2.0 s to 3.0 s (button) and from 3.6 s to
     // 4.2 s (force); fig4_4's second motor runs from about 1.93 s to 4.0 s; fig4_6's alarm
     // goes on when the freezer passes 1 °C, at about 3.17 s, and stays on."
     let run = |file: &str, p: &str| {

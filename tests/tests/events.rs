@@ -1,0 +1,75 @@
+//! Robot programs await events instead of polling: an analog window crossing reported by the
+//! board itself (`AnalogSensor::watch_window`, `wait_crossing`), on the internal board and on
+//! a daughterboard, with `select` against a timer.
+
+use embassy_futures::select::{select, Either};
+use embassy_time::{Duration, Instant, Timer};
+use std::cell::RefCell;
+use std::rc::Rc;
+use x10_devices::{AnalogSensor, Crossing, Error, SELF};
+use x10_microcode::Address;
+use x10_sim::sim::{SimConfig, X10};
+use x10_sim::world::{Board, Device, Signal, World};
+
+type Seen = Rc<RefCell<Vec<(u64, Crossing)>>>;
+
+/// Watches 0..=500 counts of the light sensor on `board`; records every crossing and when it
+/// was seen (ms of virtual time), until no crossing comes for 2 s.
+async fn watch(x10: X10, board: Address, seen: Seen) -> Result<(), Error> {
+    let light = AnalogSensor::new(x10, board, 1)?;
+    light.watch_window(0, 500).await?;
+    loop {
+        match select(light.wait_crossing(), Timer::after(Duration::from_secs(2))).await {
+            Either::First(c) => seen.borrow_mut().push((Instant::now().as_millis(), c?)),
+            Either::Second(()) => return Ok(()),
+        }
+    }
+}
+
+fn world() -> World {
+    // Light: 100 counts, ramping to 900 between 1 s and 2 s (above 500 from 1.5 s), back to
+    // 100 at 3 s.
+    let light = Signal::linear([
+        (0, 100.0),
+        (1_000, 100.0),
+        (2_000, 900.0),
+        (3_000, 900.0),
+        (3_000, 100.0),
+    ]);
+    World::new()
+        .board(Board::internal(2, 2))
+        .board(Board::new(9, 2, 2))
+        .device(Device::light_sensor("light", SELF, 1).counts(light.clone()))
+        .device(Device::light_sensor("light9", 9, 1).counts(light))
+}
+
+#[test]
+fn a_window_crossing_wakes_the_task_that_awaits_it() {
+    for board in [Address::INTERNAL, Address::new(9).unwrap()] {
+        let seen: Seen = Rc::default();
+        let s = seen.clone();
+        let config = SimConfig {
+            duration_ms: 6_000,
+            ..SimConfig::default()
+        };
+        let outcome = world()
+            .sim(config)
+            .unwrap()
+            .with_robot("watch", move |x10| watch(x10, board, s))
+            .run()
+            .unwrap();
+        let seen = seen.borrow().clone();
+        // Inside at first (reported once when the watch starts), out at ~1.5 s, in at 3 s;
+        // the board samples every 10 ms, so each is seen within one sampling period.
+        let what: Vec<bool> = seen.iter().map(|(_, c)| c.inside).collect();
+        assert_eq!(what, [true, false, true], "board {}: {seen:?}", board.get());
+        let (t_out, out) = seen[1];
+        assert!((1_500..=1_512).contains(&t_out), "{t_out}");
+        assert!(out.value > 500, "{out:?}");
+        let (t_in, back) = seen[2];
+        assert!((3_000..=3_012).contains(&t_in), "{t_in}");
+        assert_eq!(back.value, 100);
+        // The task ended by itself 2 s after the last crossing: no polling loop ran meanwhile.
+        assert!(outcome.trace.render().contains("watch: ended"));
+    }
+}
