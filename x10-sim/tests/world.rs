@@ -469,10 +469,10 @@ fn a_reset_board_stops_its_outputs_in_the_timeline() {
 fn bumper_robot(ctx: x10_sim::sim::Ctx) -> x10_sim::sim::LocalFuture {
     Box::pin(async move {
         let link = ctx.handle();
-        let mut drive = DcMotor::new(link.clone(), SELF, 1).unwrap();
-        let mut bumper = Button::new(link.clone(), SELF, 2, Pin::B).unwrap();
-        let light = AnalogSensor::new(link.clone(), SELF, 1).unwrap();
-        let lamp = Actuator::new(link.clone(), SELF, 2).unwrap();
+        let mut drive = DcMotor::new(link, SELF, 1).unwrap();
+        let mut bumper = Button::new(link, SELF, 2, Pin::B).unwrap();
+        let light = AnalogSensor::new(link, SELF, 1).unwrap();
+        let lamp = Actuator::new(link, SELF, 2).unwrap();
         let mut heartbeat = DigitalOutput::new(link, db(9), 1, Pin::A).unwrap();
         let mut backing_until = None;
         let mut lamp_duty = None;
