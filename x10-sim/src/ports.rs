@@ -177,24 +177,13 @@ impl Digital {
                 first_us,
                 period_us,
                 width_us,
-            } => {
-                let first = first_us * 1_000;
-                let period = (period_us * 1_000).max(1);
-                if t_ns < first {
-                    return false;
-                }
-                let start = first + (t_ns - first) / period * period;
-                let width = u64::from(width_us.value_at(start)) * 1_000;
-                t_ns < start + width.min(period)
-            }
+            } => PulseTrain::new(*first_us, *period_us)
+                .level_at(t_ns, |start| u64::from(width_us.value_at(start)) * 1_000),
             Digital::Train {
                 first_us,
                 period_us,
                 width_us,
-            } => {
-                let (first, period) = (first_us * 1_000, (period_us * 1_000).max(1));
-                t_ns >= first && (t_ns - first) % period < (width_us * 1_000).min(period)
-            }
+            } => PulseTrain::new(*first_us, *period_us).level_at(t_ns, |_| width_us * 1_000),
             Digital::Echo { .. } => false,
         }
     }
@@ -211,38 +200,61 @@ impl Digital {
                 first_us,
                 period_us,
                 width_us,
-            } => {
-                let first = first_us * 1_000;
-                let period = (period_us * 1_000).max(1);
-                if t_ns < first {
-                    return Some(first);
-                }
-                let start = first + (t_ns - first) / period * period;
-                let width = (u64::from(width_us.value_at(start)) * 1_000).min(period);
-                if width > 0 && t_ns < start + width {
-                    Some(start + width)
-                } else {
-                    Some(start + period)
-                }
-            }
+            } => Some(
+                PulseTrain::new(*first_us, *period_us)
+                    .next_change_after(t_ns, |start| u64::from(width_us.value_at(start)) * 1_000),
+            ),
             Digital::Train {
                 first_us,
                 period_us,
                 width_us,
-            } => {
-                let (first, period) = (first_us * 1_000, (period_us * 1_000).max(1));
-                if t_ns < first {
-                    return Some(first);
-                }
-                let start = first + (t_ns - first) / period * period;
-                let width = (width_us * 1_000).min(period);
-                if width > 0 && t_ns < start + width {
-                    Some(start + width)
-                } else {
-                    Some(start + period)
-                }
-            }
+            } => Some(
+                PulseTrain::new(*first_us, *period_us)
+                    .next_change_after(t_ns, |_| width_us * 1_000),
+            ),
             Digital::Echo { .. } => None,
+        }
+    }
+}
+
+/// A train of pulses in ns: the first rises at `first`, one every `period`; the width of
+/// each comes from a function of its start (capped at the period).
+struct PulseTrain {
+    first: Nanos,
+    period: Nanos,
+}
+
+impl PulseTrain {
+    fn new(first_us: u64, period_us: u64) -> PulseTrain {
+        PulseTrain {
+            first: first_us * 1_000,
+            period: (period_us * 1_000).max(1),
+        }
+    }
+
+    /// The start of the period `t_ns` is in (`t_ns` at or after `first`).
+    fn start(&self, t_ns: Nanos) -> Nanos {
+        self.first + (t_ns - self.first) / self.period * self.period
+    }
+
+    fn level_at(&self, t_ns: Nanos, width_ns: impl Fn(Nanos) -> Nanos) -> bool {
+        if t_ns < self.first {
+            return false;
+        }
+        let start = self.start(t_ns);
+        t_ns < start + width_ns(start).min(self.period)
+    }
+
+    fn next_change_after(&self, t_ns: Nanos, width_ns: impl Fn(Nanos) -> Nanos) -> Nanos {
+        if t_ns < self.first {
+            return self.first;
+        }
+        let start = self.start(t_ns);
+        let width = width_ns(start).min(self.period);
+        if width > 0 && t_ns < start + width {
+            start + width
+        } else {
+            start + self.period
         }
     }
 }
