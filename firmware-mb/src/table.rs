@@ -38,16 +38,14 @@ pub(crate) struct JobMeta {
     pub(crate) ticket: Ticket,
     pub(crate) db: Address,
     pub(crate) seq: u8,
-    /// PEC state the frame was built with (the reply is checked the same way).
-    pub(crate) pec: bool,
-    /// Bytes to read after a repeated START (0: the request is a single write).
-    pub(crate) read_len: usize,
+    /// Payload bytes to read after a repeated START, besides the reply header and the PEC
+    /// byte (`None`: the request is a single write). The PEC byte is added, or not, when the
+    /// request goes on the bus, as the board's PEC state is then.
+    pub(crate) read: Option<usize>,
     /// A deferred operation (pulse-in): the pin its deferred reply names and how long after
     /// the `pending` answer the board may still send it, in µs. Only such a request may be
     /// answered `pending`.
     pub(crate) deferred: Option<(PinRef, u64)>,
-    /// PEC setting the request asks for (a `set_pec`), applied once the board has it.
-    pub(crate) pec_change: Option<bool>,
     /// Failsafe timeout the request sets (a `set_failsafe`), kept alive once the board has it.
     pub(crate) failsafe_change: Option<u16>,
 }
@@ -166,6 +164,8 @@ pub(crate) struct Table {
     held: [u8; HELD_BUCKETS],
     /// PEC negotiated, one bit per board (32 boards per word: no 128-bit shifts on the M0).
     pec: [u32; BOARDS / 32],
+    /// Boards the dispatcher has prepared (PEC on, failsafe set) since their last boot.
+    ready: [u32; BOARDS / 32],
     pub(crate) diag: MbDiagnostics,
     waiters: [WaiterSlot; MAX_EVENT_WAITERS],
     unclaimed: Vec<PinEvent, UNCLAIMED_EVENTS>,
@@ -194,6 +194,7 @@ impl Table {
             recent_next: 0,
             held: [0; HELD_BUCKETS],
             pec: [0; BOARDS / 32],
+            ready: [0; BOARDS / 32],
             diag: MbDiagnostics {
                 requests: 0,
                 completed: 0,
@@ -244,12 +245,75 @@ impl Table {
         core::mem::take(&mut self.keepalive_changed)
     }
 
-    /// `board` rebooted: its PEC is off, and a failsafe kept alive must be set again.
-    pub(crate) fn booted(&mut self, board: Address) {
+    /// `board` rebooted: its PEC is off, and a failsafe kept alive must be set again (by
+    /// the dispatcher before the board's next request when it `manages` boards, else by the
+    /// keepalive task).
+    pub(crate) fn booted(&mut self, board: Address, manages: bool) {
         self.set_pec(board, false);
-        if self.keepalive.booted(board) {
+        self.set_ready(board, false);
+        if !manages && self.keepalive.booted(board) {
             self.keepalive_changed = true;
         }
+    }
+
+    /// True when the dispatcher has prepared `board` since its last boot.
+    pub(crate) fn ready(&self, board: Address) -> bool {
+        let i = board_index(board);
+        self.ready
+            .get(i / 32)
+            .is_some_and(|w| w >> (i % 32) & 1 != 0)
+    }
+
+    pub(crate) fn set_ready(&mut self, board: Address, on: bool) {
+        let i = board_index(board);
+        if let Some(w) = self.ready.get_mut(i / 32) {
+            let bit = 1u32 << (i % 32);
+            if on {
+                *w |= bit;
+            } else {
+                *w &= !bit;
+            }
+        }
+    }
+
+    /// Room to keep a failsafe alive on `board` (see [`Keepalives::reserve`]).
+    ///
+    /// # Errors
+    /// `()` when every keepalive entry is taken.
+    pub(crate) fn reserve_keepalive(&mut self, board: Address, now: Instant) -> Result<(), ()> {
+        let slots = &self.slots;
+        let in_flight = |b: Address| {
+            slots.iter().any(|s| {
+                s.state != SlotState::Free && s.board == b.get() && s.failsafe_change.is_some()
+            })
+        };
+        self.keepalive.reserve(board, now, in_flight)
+    }
+
+    /// The failsafe of `board` was set to `ms` at `now`: keep it alive.
+    pub(crate) fn failsafe_set(&mut self, board: Address, ms: u16, now: Instant) {
+        self.keepalive.set(board, ms);
+        self.keepalive.sent(board, now);
+        self.keepalive_changed = true;
+    }
+
+    /// A sequence number for a request of the runtime's own that is read back in the same
+    /// transaction (board set-up): the board's next number not held by a pending or recent
+    /// request. It is not held afterwards: its reply can only come in that transaction.
+    pub(crate) fn fresh_seq(&mut self, board: Address) -> u8 {
+        let b = board.get();
+        let start = self.next_seq.get(board_index(board)).copied().unwrap_or(0);
+        let mut seq = start;
+        while self.seq_in_use(b, seq) {
+            seq = seq.wrapping_add(1);
+            if seq == start {
+                break;
+            }
+        }
+        if let Some(n) = self.next_seq.get_mut(board_index(board)) {
+            *n = seq.wrapping_add(1);
+        }
+        seq
     }
 
     /// Queues a job for the dispatcher, or for the internal daughterboard when `internal`
@@ -482,9 +546,6 @@ impl Table {
         meta: &JobMeta,
         now: impl FnOnce() -> Instant,
     ) {
-        if let Some(on) = meta.pec_change {
-            self.set_pec(board, on);
-        }
         if let Some(ms) = meta.failsafe_change {
             if ms > 0 && !self.keepalive.tracks(board) {
                 // The caller gave up while it was on the bus and the reserved entry went to
@@ -780,10 +841,8 @@ mod tests {
             ticket,
             db: addr(board),
             seq,
-            pec: false,
-            read_len: 3,
+            read: Some(0),
             deferred: Some((pin, hold_us)),
-            pec_change: None,
             failsafe_change: None,
         }
     }

@@ -19,7 +19,7 @@ impl World {
             .seen()
             .into_iter()
             .filter_map(|(t, s)| match s {
-                Seen::Write(9, b) => Some((t, b)),
+                Seen::Write(9, b) | Seen::WriteRead(9, b, _) => Some((t, b)),
                 _ => None,
             })
             .collect()
@@ -217,7 +217,10 @@ fn keepalives_are_bounded_and_a_failsafe_beyond_them_is_refused_before_it_is_sen
     let w = World::new();
     let boards: Vec<u8> = (0x30..0x30 + MAX_KEEPALIVES as u8 + 1).collect();
     for &b in &boards {
-        w.bus.attach(b, Node::Script(Box::new(|_| (0, Vec::new()))));
+        w.bus.attach(
+            b,
+            Node::Script(Box::new(|req| (0, vec![req[3], 0x00, 0x00]))),
+        );
     }
     let addr = |b: u8| Address::external(b).unwrap();
     let (first, extra, after_stop) = w.sim(async {
@@ -248,7 +251,7 @@ fn keepalives_are_bounded_and_a_failsafe_beyond_them_is_refused_before_it_is_sen
         .bus
         .seen()
         .iter()
-        .filter(|(_, s)| matches!(s, Seen::Write(b, _) if *b == last))
+        .filter(|(_, s)| matches!(s, Seen::Write(b, _) | Seen::WriteRead(b, _, _) if *b == last))
         .count();
     assert_eq!(sent_to_last, 1);
     assert_eq!(w.mb.keepalive_ms(addr(boards[0])), 0);

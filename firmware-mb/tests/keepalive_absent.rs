@@ -30,7 +30,7 @@ fn writes_to(bus: &LoopBus, board: u8) -> Vec<(u64, Vec<u8>)> {
     bus.seen()
         .into_iter()
         .filter_map(|(t, s)| match s {
-            Seen::Write(b, bytes) if b == board => Some((t, bytes)),
+            Seen::Write(b, bytes) | Seen::WriteRead(b, bytes, _) if b == board => Some((t, bytes)),
             _ => None,
         })
         .collect()
@@ -40,8 +40,10 @@ fn writes_to(bus: &LoopBus, board: u8) -> Vec<(u64, Vec<u8>)> {
 /// at 1 000 µs), after which board 10 goes away; `program` runs beside until 1 s.
 fn run(program: impl Fn(&World) -> Box<dyn std::future::Future<Output = ()> + '_>) -> World {
     let w = World::new();
-    w.bus
-        .attach(10, Node::Script(Box::new(|_| (0, Vec::new()))));
+    w.bus.attach(
+        10,
+        Node::Script(Box::new(|req| (0, vec![req[3], 0x00, 0x00]))),
+    );
     w.bus.attach(0x20, Node::Silent);
     w.sim(async {
         w.clock.sleep_until(Instant(1_000)).await;
