@@ -494,9 +494,16 @@ impl MbCore {
         }
     }
 
-    /// True while the request is waiting for the dispatcher.
+    /// True while the request's caller still waits for it to be sent. When not, a slot the
+    /// request kept while on the bus is freed ([`Table::transfer_ended`]).
     pub(crate) fn is_queued(&self, t: Ticket) -> bool {
-        self.with(|tb| tb.state(t) == SlotState::Queued)
+        self.with(|tb| {
+            let wanted = tb.wanted(t);
+            if !wanted {
+                tb.transfer_ended(t);
+            }
+            wanted
+        })
     }
 
     /// Wakes the keepalive task when a failsafe setting changed.
@@ -563,9 +570,12 @@ impl MbCore {
                         if let Some(s) = self.done.get(meta.ticket.index) {
                             s.signal(r);
                         }
-                    } else if replied {
-                        // The caller gave up while the transfer was on the bus.
-                        bump(&mut t.diag.late_replies);
+                    } else {
+                        if replied {
+                            // The caller gave up while the transfer was on the bus.
+                            bump(&mut t.diag.late_replies);
+                        }
+                        t.transfer_ended(meta.ticket);
                     }
                 }
             }

@@ -71,6 +71,10 @@ fn held_bucket(board: u8, seq: u8) -> usize {
     usize::from(seq.wrapping_add(board.wrapping_mul(37))) % HELD_BUCKETS
 }
 
+/// `until` of a slot whose caller gave up while its request was on the bus: held until the
+/// transfer ends, whatever the time.
+const ON_THE_BUS: Instant = Instant(u64::MAX);
+
 /// A recently ended request: its board, its sequence number and how it ended.
 type RecentEntry = Option<(u8, u8, Ended)>;
 
@@ -80,6 +84,10 @@ pub(crate) enum SlotState {
     Free,
     /// Waiting for the dispatcher (or the internal board).
     Queued,
+    /// Taken by the dispatcher (or the internal worker): on the bus. A caller that gives up
+    /// now leaves the slot `Abandoned` until the transfer ends, so that a `pending` answer
+    /// always finds its request's slot to hold the number in.
+    Sending,
     /// Answered `pending`: waiting for the deferred-reply event.
     Deferred,
     /// Answered `pending`, then given up by its caller: nobody waits, but the pair (board,
@@ -332,10 +340,33 @@ impl Table {
     /// The oldest job queued for the dispatcher, or for the internal daughterboard when
     /// `internal`.
     pub(crate) fn pop_job(&mut self, internal: bool) -> Option<Job> {
-        if internal {
+        let job = if internal {
             self.internal_queue.pop_front()
         } else {
             self.queue.pop_front()
+        }?;
+        if let Some(s) = self.slot_mut(job.meta.ticket) {
+            if s.state == SlotState::Queued {
+                s.state = SlotState::Sending;
+            }
+        }
+        Some(job)
+    }
+
+    /// True while the request's caller still waits for it to be sent (queued or on the bus).
+    pub(crate) fn wanted(&self, t: Ticket) -> bool {
+        matches!(self.state(t), SlotState::Queued | SlotState::Sending)
+    }
+
+    /// The transfer of request `t` ended (or will not happen): a slot whose caller gave up
+    /// while it was on the bus, and that no `pending` answer turned into a held deferred
+    /// request, is freed now.
+    pub(crate) fn transfer_ended(&mut self, t: Ticket) {
+        let in_flight = self
+            .slot(t)
+            .is_some_and(|s| s.state == SlotState::Abandoned && s.until == ON_THE_BUS);
+        if in_flight {
+            self.retire(t.index, Ended::GaveUp);
         }
     }
 
@@ -481,31 +512,24 @@ impl Table {
             return false;
         };
         let until = now.plus_us(hold_us);
-        if let Some(s) = self.slot_mut(meta.ticket) {
-            if s.state == SlotState::Queued {
-                s.state = SlotState::Deferred;
-                s.pin = pin;
-                s.until = until;
-                return true;
-            }
-        }
-        let Some(slot) = self.slots.iter_mut().find(|s| s.state == SlotState::Free) else {
+        let Some(s) = self.slot_mut(meta.ticket) else {
             return false;
         };
-        self.generation = self.generation.wrapping_add(1);
-        *slot = Slot {
-            generation: self.generation,
-            board: meta.db.get(),
-            seq: meta.seq,
-            state: SlotState::Abandoned,
-            failsafe_change: None,
-            pin,
-            until,
-        };
-        if let Some(h) = self.held.get_mut(held_bucket(meta.db.get(), meta.seq)) {
-            *h = h.wrapping_add(1);
+        s.pin = pin;
+        match s.state {
+            SlotState::Queued | SlotState::Sending => {
+                s.state = SlotState::Deferred;
+                s.until = until;
+                true
+            }
+            // Its caller gave up while it was on the bus: the slot it kept holds the number
+            // until the board's deadline.
+            SlotState::Abandoned if s.until == ON_THE_BUS => {
+                s.until = until;
+                false
+            }
+            _ => false,
         }
-        false
     }
 
     /// Ends a queued or deferred request with `result` (the caller signals it). Counts the
@@ -518,7 +542,10 @@ impl Table {
         let Some(s) = self.slot_mut(t) else {
             return false;
         };
-        if !matches!(s.state, SlotState::Queued | SlotState::Deferred) {
+        if !matches!(
+            s.state,
+            SlotState::Queued | SlotState::Sending | SlotState::Deferred
+        ) {
             return false;
         }
         s.state = SlotState::Done;
@@ -582,6 +609,12 @@ impl Table {
         };
         if s.state == SlotState::Deferred && ended == Ended::GaveUp {
             s.state = SlotState::Abandoned;
+            return;
+        }
+        if s.state == SlotState::Sending && ended == Ended::GaveUp {
+            // On the bus: held until the transfer ends (see `transfer_ended`, `defer`).
+            s.state = SlotState::Abandoned;
+            s.until = ON_THE_BUS;
             return;
         }
         if s.state == SlotState::Abandoned {
@@ -744,6 +777,10 @@ mod tests {
 
     fn alloc(t: &mut Table, board: u8) -> Result<(Ticket, u8), LinkError> {
         t.alloc(addr(board), None, Instant(0))
+    }
+
+    fn alloc9(t: &mut Table, board: u8) -> (Ticket, u8) {
+        alloc(t, board).unwrap()
     }
 
     /// (late, duplicate, unknown) after classifying one stray reply.
@@ -911,6 +948,16 @@ mod tests {
     fn pending_for_a_request_already_given_up_holds_its_number_all_the_same() {
         let mut t = Table::new();
         let (ticket, seq) = alloc(&mut t, 9).unwrap();
+        let meta = pulse_meta(ticket, 9, seq, pin(0x80), 1_000);
+        t.enqueue(
+            Job {
+                meta,
+                frame: Vec::new(),
+            },
+            false,
+        )
+        .unwrap();
+        assert!(t.pop_job(false).is_some());
         // The caller gave up while the request was on the bus; the board answered `pending`.
         t.release(ticket, Ended::GaveUp);
         assert!(!t.defer(&pulse_meta(ticket, 9, seq, pin(0x80), 1_000), Instant(100)));
@@ -927,6 +974,59 @@ mod tests {
         assert_eq!(t.take_deferred(addr(9), seq, pin(0x80)), None);
         assert_eq!(t.diag.late_replies, 1);
         assert!(t.slots.iter().all(|s| s.state == SlotState::Free));
+        assert_eq!(t.held, held_from_scratch(&t));
+    }
+
+    /// Finding "wrong caller": a pulse-in whose caller gave up while it was on the bus freed
+    /// its slot; when its `pending` answer came, a free slot was needed to hold its number,
+    /// and with every slot taken there was none. The board's numbers then wrapped, the
+    /// number went to a new pulse-in on the same pin, and the late deferred reply completed
+    /// that request. Now a request on the bus keeps its slot until its transfer ends.
+    #[test]
+    fn a_deferred_reply_never_reaches_another_caller_when_every_slot_was_taken() {
+        let mut t = Table::new();
+        let (ticket, seq) = alloc9(&mut t, 9);
+        assert_eq!(seq, 0);
+        let meta = pulse_meta(ticket, 9, seq, pin(0x80), 1_000_000);
+        t.enqueue(
+            Job {
+                meta,
+                frame: Vec::new(),
+            },
+            false,
+        )
+        .unwrap();
+        // The dispatcher takes it; its caller gives up while it is on the bus.
+        assert!(t.pop_job(false).is_some());
+        t.release(ticket, Ended::GaveUp);
+        // Other tasks take every slot there is.
+        let mut others = Vec::<Ticket, MAX_PENDING>::new();
+        while let Ok((tk, _)) = alloc(&mut t, 0x20) {
+            others.push(tk).unwrap();
+        }
+        // The board answers `pending` at 100: it will send the width by 1 000 100.
+        assert!(!t.defer(&meta, Instant(100)));
+        for tk in others {
+            t.release(tk, Ended::Completed);
+        }
+        // Board 9's numbers wrap; a new pulse-in on the same pin is pending at the end.
+        let mut last = None;
+        for _ in 0..300 {
+            let (tk, s) = t.alloc(addr(9), None, Instant(200)).unwrap();
+            assert_ne!(
+                s, seq,
+                "number 0 reused while the board may still answer it"
+            );
+            let m = pulse_meta(tk, 9, s, pin(0x80), 1_000_000);
+            assert!(t.defer(&m, Instant(200)));
+            if let Some((old, _)) = last.replace((tk, s)) {
+                t.release(old, Ended::Completed);
+            }
+        }
+        // The first pulse-in's reply comes: late, and nobody's.
+        let late = t.diag.late_replies;
+        assert_eq!(t.take_deferred(addr(9), seq, pin(0x80)), None);
+        assert_eq!(t.diag.late_replies, late + 1);
         assert_eq!(t.held, held_from_scratch(&t));
     }
 
