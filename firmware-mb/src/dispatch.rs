@@ -1,7 +1,7 @@
 //! The dispatcher: the only user of the bus controller role, and, while idle, the
 //! DB-interrupt listener at the motherboard's own address.
 
-use embassy_futures::select::{select, Either};
+use embassy_futures::select::{select, select3, Either, Either3};
 use heapless::Vec;
 use x10_devices::LinkError;
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
@@ -10,6 +10,7 @@ use x10_hal::time::Instant;
 use x10_microcode::{Address, Op, Request, Status, MAX_FRAME_LEN, REPLY_HEADER_LEN};
 
 use crate::diag::bump;
+use crate::keepalive::{KeepaliveOp, Next};
 use crate::motherboard::{link_error, now, pec_change, request_op, sleep_until, MbCore, Outcome};
 use crate::table::{Job, JobMeta, Ticket};
 
@@ -38,21 +39,102 @@ impl MbCore {
     /// Retries go on only while the caller waits, so forgiven attempts are bounded by the
     /// request's deadline. A bus timeout ends the request in `Timeout`, a bus fault in
     /// `Bus`. A request whose caller already gave up is not sent.
+    ///
+    /// Between two jobs it keeps the external boards' failsafes alive (see
+    /// [`crate::keepalive`]): a keepalive that is due goes before the next job, with a
+    /// sequence number of its own and no pending slot, so callers that keep every slot busy
+    /// delay it by one transfer at most.
     pub async fn run_dispatcher<B: MultiMaster>(&self, mut bus: B) -> ! {
         let mut rx = [0u8; MAX_FRAME_LEN];
         let mut nth: u32 = 0;
         loop {
-            let r = select(bus.addressed(), self.next_job()).await;
+            let t_now = now();
+            let timeout = self.config.request_timeout_us;
+            let next = self.with(|t| t.keepalive.next(t_now, false, timeout));
+            let wake = match next {
+                Next::Send(board, op, timeout_us) => {
+                    nth = nth.wrapping_add(1);
+                    self.keepalive(&mut bus, board, op, timeout_us, nth, &mut rx)
+                        .await;
+                    continue;
+                }
+                Next::At(at) => Some(at),
+                Next::Idle => None,
+            };
+            let keepalive_due = async {
+                match wake {
+                    Some(at) => {
+                        select(sleep_until(at), self.keepalive_changed.wait()).await;
+                    }
+                    None => self.keepalive_changed.wait().await,
+                }
+            };
+            let r = select3(bus.addressed(), self.next_job(), keepalive_due).await;
             match r {
-                Either::First(addressed) => {
+                Either3::First(addressed) => {
                     self.receive(&mut bus, addressed, &mut rx).await;
                 }
-                Either::Second(job) => {
+                Either3::Second(job) => {
                     nth = nth.wrapping_add(1);
                     self.dispatch(&mut bus, &job, nth, &mut rx).await;
                 }
+                Either3::Third(()) => {}
             }
         }
+    }
+
+    /// Sends the keepalive due for external board `board`, giving up after `timeout_us`: a
+    /// heartbeat (a single write, with PEC when the board has it), or after a reboot the
+    /// board's failsafe set again (with the safe defaults: the board prepared again, PEC
+    /// then failsafe), read back. Counted in the keepalive counters.
+    async fn keepalive<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        board: Address,
+        op: KeepaliveOp,
+        timeout_us: u64,
+        nth: u32,
+        rx: &mut [u8],
+    ) {
+        let seed = self.config.seed ^ nth.rotate_left(16) ^ (u32::from(board.get()) << 8);
+        let deadline = now().plus_us(timeout_us);
+        let r = match op {
+            KeepaliveOp::SetFailsafe(_) if self.config.manages_boards() => {
+                self.with(|t| t.set_ready(board, false));
+                self.ensure_ready(bus, board, seed, rx).await
+            }
+            KeepaliveOp::SetFailsafe(ms) => {
+                let r = self
+                    .own_op(
+                        bus,
+                        board,
+                        Op::SetFailsafe { timeout_ms: ms },
+                        deadline,
+                        seed,
+                        rx,
+                    )
+                    .await;
+                if r.is_ok() {
+                    let t_now = now();
+                    self.with(|t| t.failsafe_set(board, ms, t_now));
+                }
+                r
+            }
+            KeepaliveOp::Heartbeat
+                if !self.with(|t| t.ready(board)) && self.config.manages_boards() =>
+            {
+                self.ensure_ready(bus, board, seed, rx).await
+            }
+            KeepaliveOp::Heartbeat => {
+                self.own_op(bus, board, Op::Heartbeat, deadline, seed, rx)
+                    .await
+            }
+        };
+        if let Err(e) = r {
+            warn!("keepalive of board {} failed: {}", board.get(), e);
+        }
+        let t_now = now();
+        self.with(|t| t.keepalive.done(board, op, r.is_ok(), t_now, &mut t.diag));
     }
 
     /// After [`MultiMaster::addressed`] returned: receives and serves that transaction, never
@@ -296,16 +378,11 @@ impl MbCore {
             ms => ms,
         };
         if ms > 0 {
-            let t_now = now();
-            if self.with(|t| t.reserve_keepalive(db, t_now)).is_err() {
-                self.with(|t| bump(&mut t.diag.busy));
-                return Err(LinkError::Busy);
-            }
             self.setup_op(bus, db, Op::SetFailsafe { timeout_ms: ms }, seed, rx)
                 .await?;
             let t_now = now();
             self.with(|t| t.failsafe_set(db, ms, t_now));
-            self.wake_keepalive_workers();
+            self.notify_keepalive();
         }
         Ok(())
     }
@@ -313,12 +390,29 @@ impl MbCore {
     /// Sends one of the runtime's own set-up operations to `db` as a write-then-read and
     /// checks its reply ([`MbCore::interpret`]): Ok when the board confirmed it (for
     /// `set_pec(1)`: an `ok` checked with PEC, or a `pec_mismatch` checked with PEC, which
-    /// shows PEC is on already).
+    /// shows PEC is on already). Gives up after the request timeout.
     async fn setup_op<B: MultiMaster>(
         &self,
         bus: &mut B,
         db: Address,
         op: Op<'_>,
+        seed: u32,
+        rx: &mut [u8],
+    ) -> Result<(), LinkError> {
+        let deadline = now().plus_us(self.config.request_timeout_us);
+        self.own_op(bus, db, op, deadline, seed, rx).await
+    }
+
+    /// Sends an operation of the runtime's own to `db` with a fresh sequence number and no
+    /// pending slot, retried until `deadline`: a heartbeat as a single write (Ok once
+    /// acknowledged), anything else as a write-then-read whose reply is checked as in
+    /// [`MbCore::setup_op`].
+    async fn own_op<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        db: Address,
+        op: Op<'_>,
+        deadline: Instant,
         seed: u32,
         rx: &mut [u8],
     ) -> Result<(), LinkError> {
@@ -328,6 +422,7 @@ impl MbCore {
         let _ = frame.resize(req.buffer_len().min(MAX_FRAME_LEN), 0);
         let n = req.emit(&mut frame).map_err(LinkError::Invalid)?;
         frame.truncate(n);
+        let reads = op != Op::Heartbeat;
         let job = Job {
             meta: JobMeta {
                 ticket: Ticket {
@@ -336,22 +431,26 @@ impl MbCore {
                 },
                 db,
                 seq,
-                read: Some(op.reply_capacity()),
+                read: reads.then(|| op.reply_capacity()),
                 deferred: None,
                 failsafe_change: None,
             },
             frame,
         };
         let mut backoff = Backoff::new(self.config.retry, seed ^ u32::from(seq));
-        let deadline = now().plus_us(self.config.request_timeout_us);
         let mut read = [0u8; MAX_FRAME_LEN];
         loop {
             let (tx, pec) = self.frame_to_send(&job);
             let pec_read = pec || pec_change(&op) == Some(true);
-            let read_len = Some(REPLY_HEADER_LEN + op.reply_capacity() + usize::from(pec_read));
+            let read_len =
+                reads.then(|| REPLY_HEADER_LEN + op.reply_capacity() + usize::from(pec_read));
             match self.attempt(bus, db.get(), &tx, read_len, &mut read).await {
-                Ok(bytes) => {
-                    let bytes = bytes.unwrap_or(&[]);
+                Ok(None) => {
+                    let t_now = now();
+                    self.with(|t| t.keepalive.sent(db, t_now));
+                    return Ok(());
+                }
+                Ok(Some(bytes)) => {
                     let (outcome, state) = self.interpret(&job.meta, pec, &op, bytes);
                     self.board_pec_is(db, state);
                     let t_now = now();

@@ -9,8 +9,8 @@
 use core::cell::RefCell;
 use core::ops::Deref;
 
-use embassy_futures::join::join5;
-use embassy_futures::select::{select, Either};
+use embassy_futures::join::join4;
+use embassy_futures::select::{select, select3, Either, Either3};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
 use embassy_sync::signal::Signal;
@@ -25,7 +25,7 @@ use x10_microcode::{
 
 use crate::config::MbConfig;
 use crate::diag::{bump, MbDiagnostics};
-use crate::keepalive::{failsafe_change, KEEPALIVE_WORKERS};
+use crate::keepalive::{failsafe_change, KeepaliveOp, Next};
 use crate::observe::{CallObserver, CallRecord};
 use crate::table::{
     Ended, Job, JobMeta, SlotState, Table, Ticket, WaiterTicket, MAX_EVENT_WAITERS, MAX_PENDING,
@@ -58,9 +58,11 @@ pub struct MbCore {
     job_ready: Signal<M, ()>,
     /// Signalled when a job for the internal daughterboard is queued.
     internal_ready: Signal<M, ()>,
-    /// Signalled (one per keepalive worker) when a failsafe kept alive changes (set,
-    /// stopped, board rebooted) or a keepalive ended.
-    pub(crate) keepalive_changed: [Signal<M, ()>; KEEPALIVE_WORKERS],
+    /// Signalled for the dispatcher when a failsafe kept alive changes (set, stopped, board
+    /// rebooted): its next keepalive may be due sooner.
+    pub(crate) keepalive_changed: Signal<M, ()>,
+    /// The same for the internal daughterboard's worker.
+    internal_keepalive_changed: Signal<M, ()>,
     table: BlockingMutex<M, RefCell<Table>>,
     done: [Signal<M, Result<Payload, LinkError>>; MAX_PENDING],
     waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
@@ -207,7 +209,8 @@ impl<P: Ports> Motherboard<P> {
                 config,
                 job_ready: Signal::new(),
                 internal_ready: Signal::new(),
-                keepalive_changed: [const { Signal::new() }; KEEPALIVE_WORKERS],
+                keepalive_changed: Signal::new(),
+                internal_keepalive_changed: Signal::new(),
                 table: BlockingMutex::new(RefCell::new(Table::new())),
                 done: [const { Signal::new() }; MAX_PENDING],
                 waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
@@ -241,25 +244,52 @@ impl<P: Ports> Motherboard<P> {
 
     /// Runs the motherboard; never returns. Run it in a task of its own: the dispatcher with
     /// its DB-interrupt listener on `bus`, the internal daughterboard (its requests, its
-    /// background work, the routing of its events) and the failsafe keepalive
-    /// ([`MbCore::run_keepalive`]).
+    /// background work, the routing of its events). The failsafe keepalive needs no task of
+    /// its own: the dispatcher sends it to external boards between jobs, the internal
+    /// worker to the internal board.
     pub async fn run<B: MultiMaster>(&self, bus: B) -> ! {
-        let (never, _, _, _, _) = join5(
+        let (never, _, _, _) = join4(
             self.core.run_dispatcher(bus),
             self.run_internal_requests(),
             self.internal.run_background(EmbassyClock),
             self.run_internal_events(),
-            self.core.run_keepalive(),
         )
         .await;
         never
     }
 
     /// Serves the requests to the internal daughterboard, oldest first: the same bytes as on
-    /// the bus, the same reply parsing. Never returns. Part of [`Motherboard::run`].
+    /// the bus, the same reply parsing; and keeps a failsafe set on it alive, between two
+    /// requests, as the dispatcher does for external boards. Never returns. Part of
+    /// [`Motherboard::run`].
     pub async fn run_internal_requests(&self) -> ! {
         loop {
-            let job = self.core.next_internal_job().await;
+            let t_now = now();
+            let timeout = self.core.config.request_timeout_us;
+            let next = self.core.with(|t| t.keepalive.next(t_now, true, timeout));
+            let changed = &self.core.internal_keepalive_changed;
+            let job = match next {
+                Next::Send(board, op, _) => {
+                    self.internal_keepalive(board, op).await;
+                    continue;
+                }
+                Next::At(at) => {
+                    match select3(
+                        self.core.next_internal_job(),
+                        sleep_until(at),
+                        changed.wait(),
+                    )
+                    .await
+                    {
+                        Either3::First(job) => job,
+                        Either3::Second(()) | Either3::Third(()) => continue,
+                    }
+                }
+                Next::Idle => match select(self.core.next_internal_job(), changed.wait()).await {
+                    Either::First(job) => job,
+                    Either::Second(()) => continue,
+                },
+            };
             let meta = &job.meta;
             if !self.core.is_queued(meta.ticket) {
                 self.core.with(|t| bump(&mut t.diag.abandoned));
@@ -276,6 +306,34 @@ impl<P: Ports> Motherboard<P> {
                 self.core.finish_transfer(&job, pec, Ok(None));
             }
         }
+    }
+
+    /// A keepalive to the internal board: a heartbeat, or its failsafe set again, as a
+    /// write with a fresh sequence number (the internal board always takes it).
+    async fn internal_keepalive(&self, board: Address, op: KeepaliveOp) {
+        let seq = self.core.with(|t| t.fresh_seq(board));
+        let op_sent = match op {
+            KeepaliveOp::Heartbeat => Op::Heartbeat,
+            KeepaliveOp::SetFailsafe(timeout_ms) => Op::SetFailsafe { timeout_ms },
+        };
+        let req = Request {
+            db: board,
+            seq,
+            op: op_sent,
+        };
+        let mut frame = [0u8; MAX_FRAME_LEN];
+        let ok = match req.emit(&mut frame) {
+            Ok(n) => {
+                self.internal
+                    .handle_write(frame.get(..n).unwrap_or(&[]), false)
+                    .await;
+                true
+            }
+            Err(_) => false,
+        };
+        let t_now = now();
+        self.core
+            .with(|t| t.keepalive.done(board, op, ok, t_now, &mut t.diag));
     }
 
     /// Routes the internal daughterboard's events (deferred replies, pin events, rejections)
@@ -401,7 +459,7 @@ impl MbCore {
         let now = now();
         let deadline = now.plus_us(timeout_us);
         let (ticket, seq) = self.with(|t| {
-            let (ticket, seq) = t.alloc(db, failsafe_change(&op), now)?;
+            let (ticket, seq) = t.alloc(db, now)?;
             if let Some(s) = self.done.get(ticket.index) {
                 s.reset();
             }
@@ -506,11 +564,18 @@ impl MbCore {
         })
     }
 
-    /// Wakes the keepalive task when a failsafe setting changed.
-    fn notify_keepalive(&self) {
+    /// Wakes the dispatcher and the internal worker when a failsafe setting changed: a
+    /// keepalive may be due sooner than they planned.
+    pub(crate) fn notify_keepalive(&self) {
         if self.with(Table::take_keepalive_changed) {
-            self.wake_keepalive_workers();
+            self.keepalive_changed.signal(());
+            self.internal_keepalive_changed.signal(());
         }
+    }
+
+    /// The failsafe timeout the motherboard keeps alive for `db`, in ms (0: none).
+    pub fn keepalive_ms(&self, db: Address) -> u16 {
+        self.with(|t| t.keepalive.timeout_ms(db))
     }
 
     /// The bytes of `job` as they go to its board now: with a PEC byte when PEC is on for
@@ -778,7 +843,7 @@ impl MbCore {
                 info!("board {} booted", ev.source.get());
                 self.with(|t| {
                     bump(&mut t.diag.boots);
-                    t.booted(ev.source, self.config.manages_boards());
+                    t.booted(ev.source, now());
                 });
             }
             EventKind::Unknown(_) => self.with(|t| bump(&mut t.diag.bad_events)),

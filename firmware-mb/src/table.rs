@@ -103,9 +103,6 @@ struct Slot {
     board: u8,
     seq: u8,
     state: SlotState,
-    /// Failsafe timeout the request sets (a `set_failsafe`): its keepalive entry is in use
-    /// while the request is.
-    failsafe_change: Option<u16>,
     /// Deferred or abandoned: the pin the deferred reply must name.
     pin: PinRef,
     /// Deferred or abandoned: the latest the board may send the deferred reply.
@@ -117,7 +114,6 @@ const FREE_SLOT: Slot = Slot {
     board: 0,
     seq: 0,
     state: SlotState::Free,
-    failsafe_change: None,
     pin: PinRef::from_byte(0),
     until: Instant(0),
 };
@@ -253,13 +249,14 @@ impl Table {
         core::mem::take(&mut self.keepalive_changed)
     }
 
-    /// `board` rebooted: its PEC is off, and a failsafe kept alive must be set again (by
-    /// the dispatcher before the board's next request when it `manages` boards, else by the
-    /// keepalive task).
-    pub(crate) fn booted(&mut self, board: Address, manages: bool) {
+    /// `board` rebooted at `now`: its PEC is off, and a failsafe kept alive must be set
+    /// again, at once (by the dispatcher, or the internal worker for the internal board;
+    /// with the safe defaults the dispatcher prepares the board again, at the latest before
+    /// its next request).
+    pub(crate) fn booted(&mut self, board: Address, now: Instant) {
         self.set_pec(board, false);
         self.set_ready(board, false);
-        if !manages && self.keepalive.booted(board) {
+        if self.keepalive.booted(board, now) {
             self.keepalive_changed = true;
         }
     }
@@ -284,29 +281,14 @@ impl Table {
         }
     }
 
-    /// Room to keep a failsafe alive on `board` (see [`Keepalives::reserve`]).
-    ///
-    /// # Errors
-    /// `()` when every keepalive entry is taken.
-    pub(crate) fn reserve_keepalive(&mut self, board: Address, now: Instant) -> Result<(), ()> {
-        let slots = &self.slots;
-        let in_flight = |b: Address| {
-            slots.iter().any(|s| {
-                s.state != SlotState::Free && s.board == b.get() && s.failsafe_change.is_some()
-            })
-        };
-        self.keepalive.reserve(board, now, in_flight)
-    }
-
     /// The failsafe of `board` was set to `ms` at `now`: keep it alive.
     pub(crate) fn failsafe_set(&mut self, board: Address, ms: u16, now: Instant) {
-        self.keepalive.set(board, ms);
-        self.keepalive.sent(board, now);
+        self.keepalive.set(board, ms, now);
         self.keepalive_changed = true;
     }
 
-    /// A sequence number for a request of the runtime's own that is read back in the same
-    /// transaction (board set-up): the board's next number not held by a pending or recent
+    /// A sequence number for a request of the runtime's own (board set-up, keepalive), read
+    /// back in the same transaction or not read at all: the board's next number not held by a pending or recent
     /// request. It is not held afterwards: its reply can only come in that transaction.
     pub(crate) fn fresh_seq(&mut self, board: Address) -> u8 {
         let b = board.get();
@@ -418,17 +400,14 @@ impl Table {
     }
 
     /// Claims a slot and the next free sequence number of `board` (skipping numbers still
-    /// pending, held by an abandoned deferred request, or recently ended). A request that sets
-    /// a failsafe (`failsafe_change` non-zero) also claims room to keep it alive.
+    /// pending, held by an abandoned deferred request, or recently ended).
     ///
     /// # Errors
     /// [`LinkError::Busy`] when every slot is in use (abandoned deferred requests included),
-    /// or every sequence number of the board, or (for a failsafe)
-    /// [`crate::MAX_KEEPALIVES`] boards already have one.
+    /// or every sequence number of the board.
     pub(crate) fn alloc(
         &mut self,
         board: Address,
-        failsafe_change: Option<u16>,
         now: Instant,
     ) -> Result<(Ticket, u8), LinkError> {
         self.expire_abandoned(now);
@@ -436,18 +415,6 @@ impl Table {
             bump(&mut self.diag.busy);
             return Err(LinkError::Busy);
         };
-        if failsafe_change.is_some_and(|t| t > 0) {
-            let slots = &self.slots;
-            let in_flight = |b: Address| {
-                slots.iter().any(|s| {
-                    s.state != SlotState::Free && s.board == b.get() && s.failsafe_change.is_some()
-                })
-            };
-            if self.keepalive.reserve(board, now, in_flight).is_err() {
-                bump(&mut self.diag.busy);
-                return Err(LinkError::Busy);
-            }
-        }
         let b = board.get();
         let start = self.next_seq.get(board_index(board)).copied().unwrap_or(0);
         let mut candidate = start;
@@ -475,7 +442,6 @@ impl Table {
             board: b,
             seq,
             state: SlotState::Queued,
-            failsafe_change,
             pin: PinRef::from_byte(0),
             until: Instant(0),
         };
@@ -574,21 +540,7 @@ impl Table {
         now: impl FnOnce() -> Instant,
     ) {
         if let Some(ms) = meta.failsafe_change {
-            if ms > 0 && !self.keepalive.tracks(board) {
-                // The caller gave up while it was on the bus and the reserved entry went to
-                // another board meanwhile: take one again (none free: nothing to keep alive
-                // with, as when the reservation failed).
-                let slots = &self.slots;
-                let in_flight = |b: Address| {
-                    slots.iter().any(|s| {
-                        s.state != SlotState::Free
-                            && s.board == b.get()
-                            && s.failsafe_change.is_some()
-                    })
-                };
-                let _ = self.keepalive.reserve(board, now(), in_flight);
-            }
-            self.keepalive.set(board, ms);
+            self.keepalive.set(board, ms, now());
             self.keepalive_changed = true;
         }
     }
@@ -776,7 +728,7 @@ mod tests {
     }
 
     fn alloc(t: &mut Table, board: u8) -> Result<(Ticket, u8), LinkError> {
-        t.alloc(addr(board), None, Instant(0))
+        t.alloc(addr(board), Instant(0))
     }
 
     fn alloc9(t: &mut Table, board: u8) -> (Ticket, u8) {
@@ -908,19 +860,19 @@ mod tests {
         assert_eq!(t.held, held_from_scratch(&t));
         // More than RECENT_LEN requests later, and with the counter back at 0, 0 is held.
         for _ in 0..RECENT_LEN + 1 {
-            let (tk, s) = t.alloc(addr(9), None, Instant(1_099)).unwrap();
+            let (tk, s) = t.alloc(addr(9), Instant(1_099)).unwrap();
             assert_ne!(s, 0);
             t.release(tk, Ended::Completed);
         }
         // (1 has left the ring; 0 has not, being held by its slot.)
         t.next_seq[9] = 0;
-        let (tk, s) = t.alloc(addr(9), None, Instant(1_099)).unwrap();
+        let (tk, s) = t.alloc(addr(9), Instant(1_099)).unwrap();
         assert_eq!(s, 1);
         t.release(tk, Ended::Completed);
         assert_eq!(t.state(ticket), SlotState::Abandoned);
         // At the deadline the slot is freed; the pair goes to the ring as given up.
         t.next_seq[9] = 0;
-        let (tk, s) = t.alloc(addr(9), None, Instant(1_100)).unwrap();
+        let (tk, s) = t.alloc(addr(9), Instant(1_100)).unwrap();
         assert_eq!(t.state(ticket), SlotState::Free);
         // 0 and 1 are the newest entries of the ring: not reused yet, and a reply is late.
         assert_eq!(s, 2);
@@ -1012,7 +964,7 @@ mod tests {
         // Board 9's numbers wrap; a new pulse-in on the same pin is pending at the end.
         let mut last = None;
         for _ in 0..300 {
-            let (tk, s) = t.alloc(addr(9), None, Instant(200)).unwrap();
+            let (tk, s) = t.alloc(addr(9), Instant(200)).unwrap();
             assert_ne!(
                 s, seq,
                 "number 0 reused while the board may still answer it"

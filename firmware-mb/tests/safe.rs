@@ -76,7 +76,8 @@ fn by_default_pec_and_the_failsafe_are_on_before_the_first_request() {
 }
 
 /// A board that reset has PEC off: after its boot event nothing reaches it before PEC is on
-/// again, and requests queued meanwhile go out with PEC.
+/// again, and requests queued meanwhile go out with PEC. The dispatcher prepares it again at
+/// once (its failsafe was off too), not only before its next request.
 #[test]
 fn after_a_boot_pec_is_turned_on_again_before_anything_else_reaches_the_board() {
     let w = World::safe();
@@ -92,11 +93,12 @@ fn after_a_boot_pec_is_turned_on_again_before_anything_else_reaches_the_board() 
         boot.extend_from_slice(&w.db9.identity().to_bytes());
         w.bus.to_mb(boot);
         w.at(11_000).await;
-        assert!(!w.mb.pec_enabled(db(9)));
+        assert!(w.mb.pec_enabled(db(9)) && w.db9.pec_enabled());
+        assert_eq!(w.db9.failsafe_timeout_ms(), 300);
         w.mb.call(db(9), Op::Ping).await.unwrap();
     });
     assert!(w.db9.pec_enabled());
-    let after: Vec<_> = to(&w, 9).into_iter().filter(|t| t.0 >= 11_000).collect();
+    let after: Vec<_> = to(&w, 9).into_iter().filter(|t| t.0 >= 10_000).collect();
     assert_eq!(after.len(), 3, "{after:?}");
     assert_eq!(after[0].1[..4], [0x07, 0x09, 0x00, after[0].1[3]]);
     assert_eq!(after[0].1.len(), 5, "set_pec(1) goes without PEC");
