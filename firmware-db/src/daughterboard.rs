@@ -274,7 +274,10 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         let (head, done) = self.execute_frame(bytes, pec_on).await;
         self.with(|s| count_status(&mut s.diag, done.status));
         if head.expects_reply || read_follows {
-            self.store_reply(head.seq, done.status, &done.value, pec_on);
+            // In the PEC mode the board has now: the reply to a `set_pec` the board applied
+            // is sent in the new mode, so that a motherboard reading it back knows the
+            // switch happened (with PEC on: a reply with a valid PEC byte).
+            self.store_reply(head.seq, done.status, &done.value, self.pec_enabled());
         } else if !matches!(done.status, Status::Ok | Status::Pending) {
             self.push_event(
                 EventKind::Rejected,

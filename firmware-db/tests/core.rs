@@ -8,7 +8,8 @@ use embassy_futures::block_on;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{Daughterboard, DbConfig, OutEvent, EVENT_QUEUE_LEN};
 use x10_microcode::{
-    pec, Address, BoardKind, Diagnostics, EventConfig, EventKind, Level, PinRef, Port, Status,
+    pec, Address, BoardKind, Capabilities, Diagnostics, EventConfig, EventKind, Level, PinRef,
+    Port, Status,
 };
 
 type Db = Daughterboard<NoopRawMutex, FakePorts>;
@@ -171,12 +172,18 @@ fn system_functions_heartbeat_failsafe_events_diagnostics() {
 #[test]
 fn pec_is_negotiated_and_then_checked_on_requests_and_added_to_replies() {
     let db = board();
-    // set_pec(1): its own reply (if read) still has no PEC: PEC starts with the next frame.
+    // set_pec(1): the request has no PEC (the old mode); its reply, when read, is sent in the
+    // new mode, with PEC, so that the motherboard reading it knows PEC is on.
     assert_eq!(
         exchange(&db, &[0x07, 0x09, 0x00, 0x01, 0x01]),
-        [0x01, 0x00, 0x00]
+        [0x01, 0x00, 0x00, pec::compute(0x13, &[0x01, 0x00, 0x00])]
     );
     assert!(db.pec_enabled());
+    // Another set_pec(1) without PEC: refused with pec_mismatch, in the mode the board has.
+    assert_eq!(
+        exchange(&db, &[0x07, 0x09, 0x00, 0x07, 0x01]),
+        [0x07, 0x08, 0x00, pec::compute(0x13, &[0x07, 0x08, 0x00])]
+    );
 
     // ping with a correct PEC byte over (0x09 << 1, frame)
     let frame = [0x00, 0x09, 0x00, 0x02];
@@ -196,7 +203,7 @@ fn pec_is_negotiated_and_then_checked_on_requests_and_added_to_replies() {
     // a frame without PEC byte: the last byte is taken as PEC and does not match
     let reply = exchange(&db, &[0x00, 0x09, 0x00, 0x04]);
     assert_eq!(reply[1], 0x08);
-    assert_eq!(db.diagnostics().pec_errors, 2);
+    assert_eq!(db.diagnostics().pec_errors, 3);
 
     // no_request also carries PEC
     assert_eq!(
@@ -211,6 +218,20 @@ fn pec_is_negotiated_and_then_checked_on_requests_and_added_to_replies() {
     write(&db, &req);
     assert!(!db.pec_enabled());
     assert_eq!(exchange(&db, &[0x00, 0x09, 0x00, 0x06]), [0x06, 0x00, 0x00]);
+    // set_pec(1) refused (a board without the PEC capability): its reply stays in the old
+    // mode, without PEC.
+    let plain = Daughterboard::new(
+        FakePorts::new(TestClock::new(), 3, 2),
+        DbConfig {
+            capabilities: Capabilities(firmware_db::ALL_CAPABILITIES.0 & !Capabilities::PEC),
+            ..DbConfig::new(Address::external(9).unwrap(), BoardKind::SIMULATED)
+        },
+    );
+    assert_eq!(
+        exchange(&plain, &[0x07, 0x09, 0x00, 0x08, 0x01]),
+        [0x08, 0x0a, 0x00]
+    );
+    assert!(!plain.pec_enabled());
 }
 
 #[test]

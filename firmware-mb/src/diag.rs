@@ -26,7 +26,7 @@ pub struct MbDiagnostics {
     pub arbitration_lost: u32,
     /// Bus transactions NACKed (each attempt).
     pub nacked: u32,
-    /// Heartbeats the failsafe keepalive sent (see `Motherboard::run_keepalive`).
+    /// Heartbeats the failsafe keepalive sent (by the dispatcher, or the internal worker, between jobs).
     pub keepalives: u32,
     /// Failsafes the keepalive set again after the board's `boot` event.
     pub failsafe_resends: u32,

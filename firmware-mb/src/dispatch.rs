@@ -1,15 +1,18 @@
 //! The dispatcher: the only user of the bus controller role, and, while idle, the
 //! DB-interrupt listener at the motherboard's own address.
 
-use embassy_futures::select::{select, Either};
+use embassy_futures::select::{select, select3, Either, Either3};
+use heapless::Vec;
+use x10_devices::LinkError;
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::retry::Backoff;
 use x10_hal::time::Instant;
-use x10_microcode::MAX_FRAME_LEN;
+use x10_microcode::{Address, Op, Request, Status, MAX_FRAME_LEN, REPLY_HEADER_LEN};
 
 use crate::diag::bump;
-use crate::motherboard::{now, sleep_until, MbCore};
-use crate::table::Job;
+use crate::keepalive::{KeepaliveOp, Next};
+use crate::motherboard::{link_error, now, pec_change, request_op, sleep_until, MbCore, Outcome};
+use crate::table::{Job, JobMeta, Ticket};
 
 impl MbCore {
     /// The dispatcher and the DB-interrupt listener on `bus`; never returns. Part of
@@ -36,21 +39,102 @@ impl MbCore {
     /// Retries go on only while the caller waits, so forgiven attempts are bounded by the
     /// request's deadline. A bus timeout ends the request in `Timeout`, a bus fault in
     /// `Bus`. A request whose caller already gave up is not sent.
+    ///
+    /// Between two jobs it keeps the external boards' failsafes alive (see
+    /// [`crate::keepalive`]): a keepalive that is due goes before the next job, with a
+    /// sequence number of its own and no pending slot, so callers that keep every slot busy
+    /// delay it by one transfer at most.
     pub async fn run_dispatcher<B: MultiMaster>(&self, mut bus: B) -> ! {
         let mut rx = [0u8; MAX_FRAME_LEN];
         let mut nth: u32 = 0;
         loop {
-            let r = select(bus.addressed(), self.next_job()).await;
+            let t_now = now();
+            let timeout = self.config.request_timeout_us;
+            let next = self.with(|t| t.keepalive.next(t_now, false, timeout));
+            let wake = match next {
+                Next::Send(board, op, timeout_us) => {
+                    nth = nth.wrapping_add(1);
+                    self.keepalive(&mut bus, board, op, timeout_us, nth, &mut rx)
+                        .await;
+                    continue;
+                }
+                Next::At(at) => Some(at),
+                Next::Idle => None,
+            };
+            let keepalive_due = async {
+                match wake {
+                    Some(at) => {
+                        select(sleep_until(at), self.keepalive_changed.wait()).await;
+                    }
+                    None => self.keepalive_changed.wait().await,
+                }
+            };
+            let r = select3(bus.addressed(), self.next_job(), keepalive_due).await;
             match r {
-                Either::First(addressed) => {
+                Either3::First(addressed) => {
                     self.receive(&mut bus, addressed, &mut rx).await;
                 }
-                Either::Second(job) => {
+                Either3::Second(job) => {
                     nth = nth.wrapping_add(1);
                     self.dispatch(&mut bus, &job, nth, &mut rx).await;
                 }
+                Either3::Third(()) => {}
             }
         }
+    }
+
+    /// Sends the keepalive due for external board `board`, giving up after `timeout_us`: a
+    /// heartbeat (a single write, with PEC when the board has it), or after a reboot the
+    /// board's failsafe set again (with the safe defaults: the board prepared again, PEC
+    /// then failsafe), read back. Counted in the keepalive counters.
+    async fn keepalive<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        board: Address,
+        op: KeepaliveOp,
+        timeout_us: u64,
+        nth: u32,
+        rx: &mut [u8],
+    ) {
+        let seed = self.config.seed ^ nth.rotate_left(16) ^ (u32::from(board.get()) << 8);
+        let deadline = now().plus_us(timeout_us);
+        let r = match op {
+            KeepaliveOp::SetFailsafe(_) if self.config.manages_boards() => {
+                self.with(|t| t.set_ready(board, false));
+                self.ensure_ready(bus, board, seed, rx).await
+            }
+            KeepaliveOp::SetFailsafe(ms) => {
+                let r = self
+                    .own_op(
+                        bus,
+                        board,
+                        Op::SetFailsafe { timeout_ms: ms },
+                        deadline,
+                        seed,
+                        rx,
+                    )
+                    .await;
+                if r.is_ok() {
+                    let t_now = now();
+                    self.with(|t| t.failsafe_set(board, ms, t_now));
+                }
+                r
+            }
+            KeepaliveOp::Heartbeat
+                if !self.with(|t| t.ready(board)) && self.config.manages_boards() =>
+            {
+                self.ensure_ready(bus, board, seed, rx).await
+            }
+            KeepaliveOp::Heartbeat => {
+                self.own_op(bus, board, Op::Heartbeat, deadline, seed, rx)
+                    .await
+            }
+        };
+        if let Err(e) = r {
+            warn!("keepalive of board {} failed: {}", board.get(), e);
+        }
+        let t_now = now();
+        self.with(|t| t.keepalive.done(board, op, r.is_ok(), t_now, &mut t.diag));
     }
 
     /// After [`MultiMaster::addressed`] returned: receives and serves that transaction, never
@@ -126,87 +210,269 @@ impl MbCore {
         let mut backoff = Backoff::new(self.config.retry, seed);
         let mut read = [0u8; MAX_FRAME_LEN];
         let addr = meta.db.get();
+        let switches_pec_on = request_op(&job.frame).and_then(|op| pec_change(&op)) == Some(true);
         loop {
-            let result = if meta.read_len > 0 {
-                match read.get_mut(..meta.read_len) {
-                    Some(buf) => bus.write_read(addr, &job.frame, buf).await.map(|()| true),
-                    None => Err(BusError::Overrun),
-                }
-            } else {
-                bus.write(addr, &job.frame).await.map(|()| false)
-            };
-            let e = match result {
-                Ok(was_read) => {
-                    let bytes = if was_read {
-                        read.get(..meta.read_len)
-                    } else {
-                        None
-                    };
-                    self.finish_transfer(meta, Ok(bytes));
+            // The board is prepared (PEC on, failsafe set) before anything else reaches it,
+            // at first contact and after each boot; the frame gets its PEC byte as the board
+            // is now (a boot event may have come in while this job waited or backed off).
+            if let Err(e) = self.ensure_ready(bus, meta.db, seed, rx).await {
+                self.end_job(meta, Outcome::Complete(Err(e)), false, false);
+                return;
+            }
+            let (frame, pec) = self.frame_to_send(job);
+            // A reply to `set_pec(1)` comes in the new mode, with PEC.
+            let pec_read = pec || switches_pec_on;
+            let read_len = meta
+                .read
+                .map(|cap| REPLY_HEADER_LEN + cap + usize::from(pec_read));
+            match self.attempt(bus, addr, &frame, read_len, &mut read).await {
+                Ok(bytes) => {
+                    self.finish_transfer(job, pec, Ok(bytes));
                     return;
                 }
-                Err(e) => e,
-            };
-            let retry = match e {
-                BusError::Nack => {
-                    self.with(|t| bump(&mut t.diag.nacked));
-                    true
+                Err(e) => {
+                    if !self.after_failure(bus, e, &mut backoff, addr, rx).await {
+                        warn!("request {} to {} failed", meta.seq, addr);
+                        self.finish_transfer(job, pec, Err(e));
+                        return;
+                    }
                 }
-                BusError::ArbitrationLost => {
-                    self.with(|t| bump(&mut t.diag.arbitration_lost));
-                    true
-                }
-                BusError::Timeout | BusError::Bus | BusError::Overrun => false,
-            };
-            // The attempt counts only if no write to us arrives while we wait: decide on a
-            // copy of the backoff.
-            let mut counted = backoff.clone();
-            let delay = if retry { counted.next_delay_us() } else { None };
-            let wait = match (e, delay) {
-                (BusError::ArbitrationLost, d) => {
-                    Some(d.unwrap_or(0).max(self.config.arbitration_wait_us))
-                }
-                (_, d) => d,
-            };
-            let Some(wait) = wait else {
-                warn!(
-                    "request {} to {} failed after {} attempts",
-                    meta.seq,
-                    addr,
-                    counted.attempts()
-                );
-                self.finish_transfer(meta, Err(e));
-                return;
-            };
-            let until = now().plus_us(u64::from(wait));
-            // After a lost arbitration any write to us may be what won the bus (or what a
-            // single-role port was too busy to ACK); after a NACK only one from the board we
-            // addressed is (it was busy sending it to us).
-            let yielded = if e == BusError::ArbitrationLost {
-                self.listen_until(bus, until, rx, |_| true).await
-            } else {
-                self.listen_until(bus, until, rx, |source| source == addr)
-                    .await
-            };
-            if yielded {
-                // The bus is free again: retry at once, and the attempt does not count.
-                self.with(|t| bump(&mut t.diag.yields));
-            } else if delay.is_none() {
-                warn!(
-                    "request {} to {} failed after {} attempts",
-                    meta.seq,
-                    addr,
-                    counted.attempts()
-                );
-                self.finish_transfer(meta, Err(e));
-                return;
-            } else {
-                backoff = counted;
             }
-            self.with(|t| bump(&mut t.diag.retries));
             if !self.is_queued(meta.ticket) {
                 self.with(|t| bump(&mut t.diag.abandoned));
                 return;
+            }
+        }
+    }
+
+    /// One transaction: `frame` written to `addr`, then `read_len` bytes read after a
+    /// repeated START (`None`: a single write). The bytes read, if any.
+    async fn attempt<'r, B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        addr: u8,
+        frame: &[u8],
+        read_len: Option<usize>,
+        read: &'r mut [u8],
+    ) -> Result<Option<&'r [u8]>, BusError> {
+        match read_len {
+            Some(n) => match read.get_mut(..n) {
+                Some(buf) => {
+                    bus.write_read(addr, frame, buf).await?;
+                    Ok(Some(buf))
+                }
+                None => Err(BusError::Overrun),
+            },
+            None => bus.write(addr, frame).await.map(|()| None),
+        }
+    }
+
+    /// After a failed attempt with error `e`: listens for the backoff delay (after a lost
+    /// arbitration at least `MbConfig::arbitration_wait_us`). A write to the motherboard
+    /// that arrives meanwhile (after a NACK: from the board addressed) forgives the attempt.
+    /// True to try again at once, false when the attempts are used up or `e` is not retried.
+    async fn after_failure<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        e: BusError,
+        backoff: &mut Backoff,
+        addr: u8,
+        rx: &mut [u8],
+    ) -> bool {
+        let retry = match e {
+            BusError::Nack => {
+                self.with(|t| bump(&mut t.diag.nacked));
+                true
+            }
+            BusError::ArbitrationLost => {
+                self.with(|t| bump(&mut t.diag.arbitration_lost));
+                true
+            }
+            BusError::Timeout | BusError::Bus | BusError::Overrun => false,
+        };
+        // The attempt counts only if no write to us arrives while we wait: decide on a
+        // copy of the backoff.
+        let mut counted = backoff.clone();
+        let delay = if retry { counted.next_delay_us() } else { None };
+        let wait = match (e, delay) {
+            (BusError::ArbitrationLost, d) => {
+                Some(d.unwrap_or(0).max(self.config.arbitration_wait_us))
+            }
+            (_, d) => d,
+        };
+        let Some(wait) = wait else {
+            return false;
+        };
+        let until = now().plus_us(u64::from(wait));
+        // After a lost arbitration any write to us may be what won the bus (or what a
+        // single-role port was too busy to ACK); after a NACK only one from the board we
+        // addressed is (it was busy sending it to us).
+        let yielded = if e == BusError::ArbitrationLost {
+            self.listen_until(bus, until, rx, |_| true).await
+        } else {
+            self.listen_until(bus, until, rx, |source| source == addr)
+                .await
+        };
+        if yielded {
+            // The bus is free again: retry at once, and the attempt does not count.
+            self.with(|t| bump(&mut t.diag.yields));
+        } else if delay.is_none() {
+            return false;
+        } else {
+            *backoff = counted;
+        }
+        self.with(|t| bump(&mut t.diag.retries));
+        true
+    }
+
+    /// Prepares external board `db` when the configuration asks for it and it has not been
+    /// since its last boot: PEC on (`MbConfig::pec`), confirmed by the board's reply checked
+    /// with PEC, then the failsafe (a program's own, else `MbConfig::failsafe_ms`),
+    /// confirmed by its reply, and kept alive. A boot event that comes in meanwhile turns
+    /// PEC off again and the preparation starts over (three rounds at most).
+    async fn ensure_ready<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        db: Address,
+        seed: u32,
+        rx: &mut [u8],
+    ) -> Result<(), LinkError> {
+        if db.is_internal() || !self.config.manages_boards() {
+            return Ok(());
+        }
+        let mut last = Err(LinkError::BadReply);
+        for _ in 0..3 {
+            if self.with(|t| t.ready(db)) {
+                return Ok(());
+            }
+            last = self.prepare(bus, db, seed, rx).await;
+            if last.is_err() {
+                continue;
+            }
+            let pec_wanted = self.config.pec;
+            if self.with(|t| {
+                let done = !pec_wanted || t.pec(db);
+                if done {
+                    t.set_ready(db, true);
+                }
+                done
+            }) {
+                return Ok(());
+            }
+        }
+        last
+    }
+
+    async fn prepare<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        db: Address,
+        seed: u32,
+        rx: &mut [u8],
+    ) -> Result<(), LinkError> {
+        if self.config.pec && !self.with(|t| t.pec(db)) {
+            self.setup_op(bus, db, Op::SetPec(true), seed, rx).await?;
+        }
+        let ms = match self.with(|t| t.keepalive.timeout_ms(db)) {
+            0 => self.config.failsafe_ms,
+            ms => ms,
+        };
+        if ms > 0 {
+            self.setup_op(bus, db, Op::SetFailsafe { timeout_ms: ms }, seed, rx)
+                .await?;
+            let t_now = now();
+            self.with(|t| t.failsafe_set(db, ms, t_now));
+            self.notify_keepalive();
+        }
+        Ok(())
+    }
+
+    /// Sends one of the runtime's own set-up operations to `db` as a write-then-read and
+    /// checks its reply ([`MbCore::interpret`]): Ok when the board confirmed it (for
+    /// `set_pec(1)`: an `ok` checked with PEC, or a `pec_mismatch` checked with PEC, which
+    /// shows PEC is on already). Gives up after the request timeout.
+    async fn setup_op<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        db: Address,
+        op: Op<'_>,
+        seed: u32,
+        rx: &mut [u8],
+    ) -> Result<(), LinkError> {
+        let deadline = now().plus_us(self.config.request_timeout_us);
+        self.own_op(bus, db, op, deadline, seed, rx).await
+    }
+
+    /// Sends an operation of the runtime's own to `db` with a fresh sequence number and no
+    /// pending slot, retried until `deadline`: a heartbeat as a single write (Ok once
+    /// acknowledged), anything else as a write-then-read whose reply is checked as in
+    /// [`MbCore::setup_op`].
+    async fn own_op<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        db: Address,
+        op: Op<'_>,
+        deadline: Instant,
+        seed: u32,
+        rx: &mut [u8],
+    ) -> Result<(), LinkError> {
+        let seq = self.with(|t| t.fresh_seq(db));
+        let req = Request { db, seq, op };
+        let mut frame: Vec<u8, MAX_FRAME_LEN> = Vec::new();
+        let _ = frame.resize(req.buffer_len().min(MAX_FRAME_LEN), 0);
+        let n = req.emit(&mut frame).map_err(LinkError::Invalid)?;
+        frame.truncate(n);
+        let reads = op != Op::Heartbeat;
+        let job = Job {
+            meta: JobMeta {
+                ticket: Ticket {
+                    index: usize::MAX,
+                    generation: 0,
+                },
+                db,
+                seq,
+                read: reads.then(|| op.reply_capacity()),
+                deferred: None,
+                failsafe_change: None,
+            },
+            frame,
+        };
+        let mut backoff = Backoff::new(self.config.retry, seed ^ u32::from(seq));
+        let mut read = [0u8; MAX_FRAME_LEN];
+        loop {
+            let (tx, pec) = self.frame_to_send(&job);
+            let pec_read = pec || pec_change(&op) == Some(true);
+            let read_len =
+                reads.then(|| REPLY_HEADER_LEN + op.reply_capacity() + usize::from(pec_read));
+            match self.attempt(bus, db.get(), &tx, read_len, &mut read).await {
+                Ok(None) => {
+                    let t_now = now();
+                    self.with(|t| t.keepalive.sent(db, t_now));
+                    return Ok(());
+                }
+                Ok(Some(bytes)) => {
+                    let (outcome, state) = self.interpret(&job.meta, pec, &op, bytes);
+                    self.board_pec_is(db, state);
+                    let t_now = now();
+                    self.with(|t| t.keepalive.sent(db, t_now));
+                    return match outcome {
+                        Outcome::Complete(Ok(_)) => Ok(()),
+                        Outcome::Complete(Err(LinkError::Status(Status::PecMismatch)))
+                            if state == Some(true) && op == Op::SetPec(true) =>
+                        {
+                            Ok(())
+                        }
+                        Outcome::Complete(Err(e)) => Err(e),
+                        Outcome::Defer => Err(LinkError::BadReply),
+                    };
+                }
+                Err(e) => {
+                    if now() >= deadline
+                        || !self.after_failure(bus, e, &mut backoff, db.get(), rx).await
+                    {
+                        return Err(link_error(e));
+                    }
+                }
             }
         }
     }

@@ -10,9 +10,10 @@
 //! * [`Motherboard::run`], in a task of its own, serves them: the dispatcher with its
 //!   DB-interrupt listener ([`MbCore::run_dispatcher`]), the internal daughterboard (address
 //!   0: the `firmware-db` core on the board's own [`firmware_db::Ports`], its requests queued
-//!   like bus requests and its events routed like bus events), and the failsafe keepalive
-//!   ([`MbCore::run_keepalive`]: a board whose failsafe a program set hears a heartbeat
-//!   whenever nothing was sent to it for a third of the timeout).
+//!   like bus requests and its events routed like bus events); the failsafe keepalive is
+//!   sent by the dispatcher itself between jobs (and by the internal worker for the
+//!   internal board): a board with a failsafe hears a heartbeat whenever nothing was sent
+//!   to it for a third of the timeout, with no pending slot needed.
 //!
 //! Time is embassy-time's (on boards its chip driver; in the simulator a virtual-time
 //! driver). Nothing here is an `#[embassy_executor::task]`: a board crate wraps
@@ -44,7 +45,7 @@ mod table;
 pub use config::MbConfig;
 pub use diag::MbDiagnostics;
 pub use handle::X10;
-pub use keepalive::{BUSY_RETRY_US, MAX_KEEPALIVES};
+pub use keepalive::KEEPALIVE_RAM_BYTES;
 pub use motherboard::{MbCore, Motherboard, REQUEST_QUEUE_LEN};
 pub use observe::{CallObserver, CallRecord};
 pub use table::{MAX_EVENT_WAITERS, MAX_PENDING, RECENT_LEN, UNCLAIMED_EVENTS};

@@ -9,8 +9,8 @@
 use core::cell::RefCell;
 use core::ops::Deref;
 
-use embassy_futures::join::join5;
-use embassy_futures::select::{select, Either};
+use embassy_futures::join::join4;
+use embassy_futures::select::{select, select3, Either, Either3};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
 use embassy_sync::signal::Signal;
@@ -21,12 +21,11 @@ use x10_hal::bus::{BusError, MultiMaster};
 use x10_hal::time::{EmbassyClock, Instant};
 use x10_microcode::{
     Address, Event, EventKind, Op, Payload, PinRef, Reply, Request, Status, MAX_FRAME_LEN,
-    REPLY_HEADER_LEN,
 };
 
 use crate::config::MbConfig;
 use crate::diag::{bump, MbDiagnostics};
-use crate::keepalive::{failsafe_change, KEEPALIVE_WORKERS};
+use crate::keepalive::{failsafe_change, KeepaliveOp, Next};
 use crate::observe::{CallObserver, CallRecord};
 use crate::table::{
     Ended, Job, JobMeta, SlotState, Table, Ticket, WaiterTicket, MAX_EVENT_WAITERS, MAX_PENDING,
@@ -59,9 +58,11 @@ pub struct MbCore {
     job_ready: Signal<M, ()>,
     /// Signalled when a job for the internal daughterboard is queued.
     internal_ready: Signal<M, ()>,
-    /// Signalled (one per keepalive worker) when a failsafe kept alive changes (set,
-    /// stopped, board rebooted) or a keepalive ended.
-    pub(crate) keepalive_changed: [Signal<M, ()>; KEEPALIVE_WORKERS],
+    /// Signalled for the dispatcher when a failsafe kept alive changes (set, stopped, board
+    /// rebooted): its next keepalive may be due sooner.
+    pub(crate) keepalive_changed: Signal<M, ()>,
+    /// The same for the internal daughterboard's worker.
+    internal_keepalive_changed: Signal<M, ()>,
     table: BlockingMutex<M, RefCell<Table>>,
     done: [Signal<M, Result<Payload, LinkError>>; MAX_PENDING],
     waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
@@ -163,7 +164,7 @@ impl Drop for WaiterGuard<'_> {
 }
 
 /// The last `set_pec` of an operation (or of a batch's items).
-fn pec_change(op: &Op<'_>) -> Option<bool> {
+pub(crate) fn pec_change(op: &Op<'_>) -> Option<bool> {
     match op {
         Op::SetPec(on) => Some(*on),
         Op::Batch(b) => b.iter().fold(None, |acc, item| match item {
@@ -174,7 +175,7 @@ fn pec_change(op: &Op<'_>) -> Option<bool> {
     }
 }
 
-fn link_error(e: BusError) -> LinkError {
+pub(crate) fn link_error(e: BusError) -> LinkError {
     match e {
         BusError::Nack => LinkError::Nack,
         BusError::ArbitrationLost => LinkError::ArbitrationLost,
@@ -183,8 +184,16 @@ fn link_error(e: BusError) -> LinkError {
     }
 }
 
+/// The operation of a request frame (PEC byte excluded).
+pub(crate) fn request_op(frame: &[u8]) -> Option<Op<'_>> {
+    let f = x10_microcode::RequestFrame::new_checked(frame).ok()?;
+    let (fn_op, port) = (f.fn_op(), f.port_byte());
+    let data = frame.get(x10_microcode::REQUEST_HEADER_LEN..)?;
+    Op::parse(fn_op, port, data).ok()
+}
+
 /// What a finished transfer means for its request.
-enum Outcome {
+pub(crate) enum Outcome {
     Complete(Result<Payload, LinkError>),
     Defer,
 }
@@ -200,7 +209,8 @@ impl<P: Ports> Motherboard<P> {
                 config,
                 job_ready: Signal::new(),
                 internal_ready: Signal::new(),
-                keepalive_changed: [const { Signal::new() }; KEEPALIVE_WORKERS],
+                keepalive_changed: Signal::new(),
+                internal_keepalive_changed: Signal::new(),
                 table: BlockingMutex::new(RefCell::new(Table::new())),
                 done: [const { Signal::new() }; MAX_PENDING],
                 waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
@@ -234,40 +244,96 @@ impl<P: Ports> Motherboard<P> {
 
     /// Runs the motherboard; never returns. Run it in a task of its own: the dispatcher with
     /// its DB-interrupt listener on `bus`, the internal daughterboard (its requests, its
-    /// background work, the routing of its events) and the failsafe keepalive
-    /// ([`MbCore::run_keepalive`]).
+    /// background work, the routing of its events). The failsafe keepalive needs no task of
+    /// its own: the dispatcher sends it to external boards between jobs, the internal
+    /// worker to the internal board.
     pub async fn run<B: MultiMaster>(&self, bus: B) -> ! {
-        let (never, _, _, _, _) = join5(
+        let (never, _, _, _) = join4(
             self.core.run_dispatcher(bus),
             self.run_internal_requests(),
             self.internal.run_background(EmbassyClock),
             self.run_internal_events(),
-            self.core.run_keepalive(),
         )
         .await;
         never
     }
 
     /// Serves the requests to the internal daughterboard, oldest first: the same bytes as on
-    /// the bus, the same reply parsing. Never returns. Part of [`Motherboard::run`].
+    /// the bus, the same reply parsing; and keeps a failsafe set on it alive, between two
+    /// requests, as the dispatcher does for external boards. Never returns. Part of
+    /// [`Motherboard::run`].
     pub async fn run_internal_requests(&self) -> ! {
         loop {
-            let job = self.core.next_internal_job().await;
+            let t_now = now();
+            let timeout = self.core.config.request_timeout_us;
+            let next = self.core.with(|t| t.keepalive.next(t_now, true, timeout));
+            let changed = &self.core.internal_keepalive_changed;
+            let job = match next {
+                Next::Send(board, op, _) => {
+                    self.internal_keepalive(board, op).await;
+                    continue;
+                }
+                Next::At(at) => {
+                    match select3(
+                        self.core.next_internal_job(),
+                        sleep_until(at),
+                        changed.wait(),
+                    )
+                    .await
+                    {
+                        Either3::First(job) => job,
+                        Either3::Second(()) | Either3::Third(()) => continue,
+                    }
+                }
+                Next::Idle => match select(self.core.next_internal_job(), changed.wait()).await {
+                    Either::First(job) => job,
+                    Either::Second(()) => continue,
+                },
+            };
             let meta = &job.meta;
             if !self.core.is_queued(meta.ticket) {
                 self.core.with(|t| bump(&mut t.diag.abandoned));
                 continue;
             }
-            let read = meta.read_len > 0;
-            self.internal.handle_write(&job.frame, read).await;
+            let read = meta.read.is_some();
+            let (frame, pec) = self.core.frame_to_send(&job);
+            self.internal.handle_write(&frame, read).await;
             if read {
                 let mut reply = [0u8; REPLY_BUF_LEN];
                 let n = self.internal.take_reply(&mut reply);
-                self.core.finish_transfer(meta, Ok(reply.get(..n)));
+                self.core.finish_transfer(&job, pec, Ok(reply.get(..n)));
             } else {
-                self.core.finish_transfer(meta, Ok(None));
+                self.core.finish_transfer(&job, pec, Ok(None));
             }
         }
+    }
+
+    /// A keepalive to the internal board: a heartbeat, or its failsafe set again, as a
+    /// write with a fresh sequence number (the internal board always takes it).
+    async fn internal_keepalive(&self, board: Address, op: KeepaliveOp) {
+        let seq = self.core.with(|t| t.fresh_seq(board));
+        let op_sent = match op {
+            KeepaliveOp::Heartbeat => Op::Heartbeat,
+            KeepaliveOp::SetFailsafe(timeout_ms) => Op::SetFailsafe { timeout_ms },
+        };
+        let req = Request {
+            db: board,
+            seq,
+            op: op_sent,
+        };
+        let mut frame = [0u8; MAX_FRAME_LEN];
+        let ok = match req.emit(&mut frame) {
+            Ok(n) => {
+                self.internal
+                    .handle_write(frame.get(..n).unwrap_or(&[]), false)
+                    .await;
+                true
+            }
+            Err(_) => false,
+        };
+        let t_now = now();
+        self.core
+            .with(|t| t.keepalive.done(board, op, ok, t_now, &mut t.diag));
     }
 
     /// Routes the internal daughterboard's events (deferred replies, pin events, rejections)
@@ -381,6 +447,10 @@ impl MbCore {
         timeout_us: u64,
     ) -> Result<Payload, LinkError> {
         op.validate()?;
+        if self.config.pec && !db.is_internal() && pec_change(&op) == Some(false) {
+            // PEC stays on with the safe defaults (MbConfig::pec).
+            return Err(LinkError::Invalid(x10_microcode::Error::BadArgument));
+        }
         if db == self.config.address {
             return Err(LinkError::Invalid(x10_microcode::Error::BadAddress(
                 db.get(),
@@ -388,12 +458,12 @@ impl MbCore {
         }
         let now = now();
         let deadline = now.plus_us(timeout_us);
-        let (ticket, seq, pec_on) = self.with(|t| {
-            let (ticket, seq) = t.alloc(db, failsafe_change(&op), now)?;
+        let (ticket, seq) = self.with(|t| {
+            let (ticket, seq) = t.alloc(db, now)?;
             if let Some(s) = self.done.get(ticket.index) {
                 s.reset();
             }
-            Ok::<_, LinkError>((ticket, seq, t.pec(db)))
+            Ok::<_, LinkError>((ticket, seq))
         })?;
         let guard = SlotGuard {
             mb: self,
@@ -402,18 +472,11 @@ impl MbCore {
         };
         let req = Request { db, seq, op };
         // The frame is encoded in place, into as many bytes as it needs (a request too long
-        // for any board fails in `emit` as it would in a full-size buffer).
+        // for any board fails in `emit` as it would in a full-size buffer). Its PEC byte is
+        // added when it goes to the board, as the board's PEC state is then.
         let mut frame: Vec<u8, MAX_FRAME_LEN> = Vec::new();
-        let _ = frame.resize(
-            (req.buffer_len() + usize::from(pec_on)).min(MAX_FRAME_LEN),
-            0,
-        );
-        let emitted = if pec_on {
-            req.emit_with_pec(&mut frame)
-        } else {
-            req.emit(&mut frame)
-        };
-        let len = match emitted {
+        let _ = frame.resize(req.buffer_len().min(MAX_FRAME_LEN), 0);
+        let len = match req.emit(&mut frame) {
             Ok(n) => n,
             Err(e) => {
                 guard.release(Ended::GaveUp);
@@ -425,12 +488,12 @@ impl MbCore {
             ticket,
             db,
             seq,
-            pec: pec_on,
-            read_len: if op.expects_reply() {
-                REPLY_HEADER_LEN + op.reply_capacity() + usize::from(pec_on)
-            } else {
-                0
-            },
+            // A set_pec or set_failsafe is read back too: it takes effect on the
+            // motherboard's side only once the board's reply confirms it.
+            read: (op.expects_reply()
+                || pec_change(&op).is_some()
+                || failsafe_change(&op).is_some())
+            .then(|| op.reply_capacity()),
             // The board answers a pulse-in no later than acceptance + its pulse timeout
             // (firmware-db counts it from acceptance), and acceptance is before the `pending`
             // answer: the request timeout on top leaves room for the event's delivery.
@@ -438,7 +501,6 @@ impl MbCore {
                 Op::PulseIn { pin, .. } => Some((pin, self.timeout_us(&op))),
                 _ => None,
             },
-            pec_change: pec_change(&op),
             failsafe_change: failsafe_change(&op),
         };
         let internal = db.is_internal();
@@ -490,56 +552,69 @@ impl MbCore {
         }
     }
 
-    /// True while the request is waiting for the dispatcher.
+    /// True while the request's caller still waits for it to be sent. When not, a slot the
+    /// request kept while on the bus is freed ([`Table::transfer_ended`]).
     pub(crate) fn is_queued(&self, t: Ticket) -> bool {
-        self.with(|tb| tb.state(t) == SlotState::Queued)
+        self.with(|tb| {
+            let wanted = tb.wanted(t);
+            if !wanted {
+                tb.transfer_ended(t);
+            }
+            wanted
+        })
     }
 
-    /// Ends a transfer: `Ok(None)` a write acknowledged, `Ok(Some(bytes))` the bytes read, or
-    /// the bus error after every retry.
-    pub(crate) fn finish_transfer(&self, meta: &JobMeta, r: Result<Option<&[u8]>, BusError>) {
+    /// Wakes the dispatcher and the internal worker when a failsafe setting changed: a
+    /// keepalive may be due sooner than they planned.
+    pub(crate) fn notify_keepalive(&self) {
+        if self.with(Table::take_keepalive_changed) {
+            self.keepalive_changed.signal(());
+            self.internal_keepalive_changed.signal(());
+        }
+    }
+
+    /// The failsafe timeout the motherboard keeps alive for `db`, in ms (0: none).
+    pub fn keepalive_ms(&self, db: Address) -> u16 {
+        self.with(|t| t.keepalive.timeout_ms(db))
+    }
+
+    /// The bytes of `job` as they go to its board now: with a PEC byte when PEC is on for
+    /// the board at this moment (whatever it was when the job was queued), and that state.
+    pub(crate) fn frame_to_send(&self, job: &Job) -> (Vec<u8, MAX_FRAME_LEN>, bool) {
+        let db = job.meta.db;
+        let pec = self.with(|t| t.pec(db));
+        let mut frame = job.frame.clone();
+        if pec {
+            let _ = frame.push(x10_microcode::pec::compute(db.addr_byte(false), &job.frame));
+        }
+        (frame, pec)
+    }
+
+    /// Ends a transfer sent with PEC `pec`: `Ok(None)` a write acknowledged,
+    /// `Ok(Some(bytes))` the bytes read, or the bus error after every retry.
+    pub(crate) fn finish_transfer(&self, job: &Job, pec: bool, r: Result<Option<&[u8]>, BusError>) {
+        let meta = &job.meta;
         let replied = matches!(r, Ok(Some(_)));
         // The board saw a transaction: that keeps its failsafe alive (recorded below).
         let acked = r.is_ok();
         let outcome = match r {
             Ok(None) => Outcome::Complete(Ok(Payload::new())),
-            Ok(Some(read)) => match Reply::parse_read(meta.db, meta.pec, read) {
-                Err(_) => {
-                    self.resync_pec_off(meta, read);
-                    Outcome::Complete(Err(LinkError::BadReply))
+            Ok(Some(read)) => match request_op(&job.frame) {
+                Some(op) => {
+                    let (outcome, state) = self.interpret(meta, pec, &op, read);
+                    self.board_pec_is(meta.db, state);
+                    outcome
                 }
-                Ok(reply) if reply.seq != meta.seq => {
-                    warn!(
-                        "reply from {} has seq {} for request {}",
-                        meta.db.get(),
-                        reply.seq,
-                        meta.seq
-                    );
-                    self.with(|t| t.stray(meta.db, reply.seq));
-                    Outcome::Complete(Err(LinkError::BadReply))
-                }
-                Ok(reply) => match reply.status {
-                    Status::Ok => match Payload::from_slice(reply.payload) {
-                        Ok(p) => Outcome::Complete(Ok(p)),
-                        Err(_) => Outcome::Complete(Err(LinkError::BadReply)),
-                    },
-                    Status::Pending if meta.deferred.is_some() => Outcome::Defer,
-                    Status::Pending => Outcome::Complete(Err(LinkError::BadReply)),
-                    Status::PecMismatch if !meta.pec => {
-                        // Only a board that checks PEC answers this: it has PEC on (its
-                        // boot event was older than our set_pec, or ours was lost).
-                        warn!("board {} checks PEC: PEC on", meta.db.get());
-                        self.with(|t| {
-                            bump(&mut t.diag.pec_resyncs);
-                            t.set_pec(meta.db, true);
-                        });
-                        Outcome::Complete(Err(LinkError::Status(Status::PecMismatch)))
-                    }
-                    s => Outcome::Complete(Err(LinkError::Status(s))),
-                },
+                None => Outcome::Complete(Err(LinkError::BadReply)),
             },
             Err(e) => Outcome::Complete(Err(link_error(e))),
         };
+        self.end_job(meta, outcome, acked, replied);
+    }
+
+    /// Ends request `meta` with `outcome` (`acked`: the board saw the transaction;
+    /// `replied`: a reply was read).
+    pub(crate) fn end_job(&self, meta: &JobMeta, outcome: Outcome, acked: bool, replied: bool) {
         self.with(|t| {
             // The clock is read only for a board whose failsafe is kept alive.
             if acked && t.keepalive.tracks(meta.db) {
@@ -560,9 +635,12 @@ impl MbCore {
                         if let Some(s) = self.done.get(meta.ticket.index) {
                             s.signal(r);
                         }
-                    } else if replied {
-                        // The caller gave up while the transfer was on the bus.
-                        bump(&mut t.diag.late_replies);
+                    } else {
+                        if replied {
+                            // The caller gave up while the transfer was on the bus.
+                            bump(&mut t.diag.late_replies);
+                        }
+                        t.transfer_ended(meta.ticket);
                     }
                 }
             }
@@ -570,28 +648,105 @@ impl MbCore {
         self.notify_keepalive();
     }
 
-    /// Wakes the keepalive task when a failsafe setting changed.
-    fn notify_keepalive(&self) {
-        if self.with(Table::take_keepalive_changed) {
-            self.wake_keepalive_workers();
+    /// What the bytes read for request `meta` (operation `op`, sent with PEC `pec`) mean, and
+    /// the PEC state of the board when the reply proves it.
+    ///
+    /// The reply must fit the operation ([`Reply::parse_read_for`]: an `ok` of a length the
+    /// operation allows, anything else empty; the PEC byte located without trusting an
+    /// unchecked byte). A `set_pec` is answered in its new mode: its reply is parsed that way
+    /// first, and only a reply checked in the new mode (for `set_pec(1)`: with its PEC)
+    /// confirms the switch. A `pec_mismatch` answer to a frame sent without PEC counts only
+    /// with a valid PEC byte (only a board with PEC on sends it, and a flipped status bit
+    /// must not turn it into `ok`): it proves the board has PEC on.
+    pub(crate) fn interpret(
+        &self,
+        meta: &JobMeta,
+        pec: bool,
+        op: &Op<'_>,
+        read: &[u8],
+    ) -> (Outcome, Option<bool>) {
+        let db = meta.db;
+        let switch = pec_change(op);
+        let mode = switch.unwrap_or(pec);
+        // A board that refused the switch answers in the old mode.
+        let parsed = match Reply::parse_read_for(db, mode, read, op) {
+            Ok(r) => Some((r, mode)),
+            Err(_) if mode != pec => Reply::parse_read_for(db, pec, read, op)
+                .ok()
+                .map(|r| (r, pec)),
+            Err(_) => None,
+        };
+        let Some((reply, answered_in)) = parsed else {
+            let state = self.pec_off_sign(meta, pec, op, read);
+            return (Outcome::Complete(Err(LinkError::BadReply)), state);
+        };
+        if reply.seq != meta.seq {
+            warn!(
+                "reply from {} has seq {} for request {}",
+                db.get(),
+                reply.seq,
+                meta.seq
+            );
+            self.with(|t| t.stray(db, reply.seq));
+            return (Outcome::Complete(Err(LinkError::BadReply)), None);
         }
+        match reply.status {
+            // A switch is confirmed only by an `ok` in its new mode.
+            Status::Ok if switch.is_some() && answered_in != mode => {
+                (Outcome::Complete(Err(LinkError::BadReply)), None)
+            }
+            Status::Ok => match Payload::from_slice(reply.payload) {
+                Ok(p) => (Outcome::Complete(Ok(p)), switch),
+                Err(_) => (Outcome::Complete(Err(LinkError::BadReply)), None),
+            },
+            Status::Pending if meta.deferred.is_some() => (Outcome::Defer, None),
+            Status::Pending => (Outcome::Complete(Err(LinkError::BadReply)), None),
+            Status::PecMismatch if !pec => {
+                // Only a board that checks PEC answers this, with its PEC byte: check it.
+                match Reply::parse_read_for(db, true, read, op) {
+                    Ok(r) if r.seq == meta.seq && r.status == Status::PecMismatch => {
+                        warn!("board {} checks PEC: PEC on", db.get());
+                        self.with(|t| bump(&mut t.diag.pec_resyncs));
+                        (
+                            Outcome::Complete(Err(LinkError::Status(Status::PecMismatch))),
+                            Some(true),
+                        )
+                    }
+                    _ => (Outcome::Complete(Err(LinkError::BadReply)), None),
+                }
+            }
+            s => (Outcome::Complete(Err(LinkError::Status(s))), None),
+        }
+    }
+
+    /// Records the PEC state a reply proved for `db`. With the safe defaults a board found
+    /// with PEC off is prepared again before its next request.
+    pub(crate) fn board_pec_is(&self, db: Address, state: Option<bool>) {
+        let Some(on) = state else { return };
+        let manages = self.config.pec;
+        self.with(|t| {
+            t.set_pec(db, on);
+            if !on && manages {
+                t.set_ready(db, false);
+            }
+        });
     }
 
     /// A reply that failed its PEC check but reads, without PEC, as `bad_length`: the board
     /// took our PEC byte for data, so it has PEC off (it restarted and its boot event was
-    /// lost). Follow it.
-    fn resync_pec_off(&self, meta: &JobMeta, read: &[u8]) {
-        if !meta.pec {
-            return;
+    /// lost). `Some(false)` then (unchecked, so it only ever leads to switching PEC on
+    /// again, never to accepting a value).
+    fn pec_off_sign(&self, meta: &JobMeta, pec: bool, op: &Op<'_>, read: &[u8]) -> Option<bool> {
+        if !pec {
+            return None;
         }
-        if let Ok(reply) = Reply::parse_read(meta.db, false, read) {
-            if reply.seq == meta.seq && reply.status == Status::BadLength {
+        match Reply::parse_read_for(meta.db, false, read, op) {
+            Ok(reply) if reply.seq == meta.seq && reply.status == Status::BadLength => {
                 warn!("board {} has PEC off", meta.db.get());
-                self.with(|t| {
-                    bump(&mut t.diag.pec_resyncs);
-                    t.set_pec(meta.db, false);
-                });
+                self.with(|t| bump(&mut t.diag.pec_resyncs));
+                Some(false)
             }
+            _ => None,
         }
     }
 
@@ -688,7 +843,7 @@ impl MbCore {
                 info!("board {} booted", ev.source.get());
                 self.with(|t| {
                     bump(&mut t.diag.boots);
-                    t.booted(ev.source);
+                    t.booted(ev.source, now());
                 });
             }
             EventKind::Unknown(_) => self.with(|t| bump(&mut t.diag.bad_events)),

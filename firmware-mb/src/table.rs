@@ -38,16 +38,14 @@ pub(crate) struct JobMeta {
     pub(crate) ticket: Ticket,
     pub(crate) db: Address,
     pub(crate) seq: u8,
-    /// PEC state the frame was built with (the reply is checked the same way).
-    pub(crate) pec: bool,
-    /// Bytes to read after a repeated START (0: the request is a single write).
-    pub(crate) read_len: usize,
+    /// Payload bytes to read after a repeated START, besides the reply header and the PEC
+    /// byte (`None`: the request is a single write). The PEC byte is added, or not, when the
+    /// request goes on the bus, as the board's PEC state is then.
+    pub(crate) read: Option<usize>,
     /// A deferred operation (pulse-in): the pin its deferred reply names and how long after
     /// the `pending` answer the board may still send it, in µs. Only such a request may be
     /// answered `pending`.
     pub(crate) deferred: Option<(PinRef, u64)>,
-    /// PEC setting the request asks for (a `set_pec`), applied once the board has it.
-    pub(crate) pec_change: Option<bool>,
     /// Failsafe timeout the request sets (a `set_failsafe`), kept alive once the board has it.
     pub(crate) failsafe_change: Option<u16>,
 }
@@ -73,6 +71,10 @@ fn held_bucket(board: u8, seq: u8) -> usize {
     usize::from(seq.wrapping_add(board.wrapping_mul(37))) % HELD_BUCKETS
 }
 
+/// `until` of a slot whose caller gave up while its request was on the bus: held until the
+/// transfer ends, whatever the time.
+const ON_THE_BUS: Instant = Instant(u64::MAX);
+
 /// A recently ended request: its board, its sequence number and how it ended.
 type RecentEntry = Option<(u8, u8, Ended)>;
 
@@ -82,6 +84,10 @@ pub(crate) enum SlotState {
     Free,
     /// Waiting for the dispatcher (or the internal board).
     Queued,
+    /// Taken by the dispatcher (or the internal worker): on the bus. A caller that gives up
+    /// now leaves the slot `Abandoned` until the transfer ends, so that a `pending` answer
+    /// always finds its request's slot to hold the number in.
+    Sending,
     /// Answered `pending`: waiting for the deferred-reply event.
     Deferred,
     /// Answered `pending`, then given up by its caller: nobody waits, but the pair (board,
@@ -97,9 +103,6 @@ struct Slot {
     board: u8,
     seq: u8,
     state: SlotState,
-    /// Failsafe timeout the request sets (a `set_failsafe`): its keepalive entry is in use
-    /// while the request is.
-    failsafe_change: Option<u16>,
     /// Deferred or abandoned: the pin the deferred reply must name.
     pin: PinRef,
     /// Deferred or abandoned: the latest the board may send the deferred reply.
@@ -111,7 +114,6 @@ const FREE_SLOT: Slot = Slot {
     board: 0,
     seq: 0,
     state: SlotState::Free,
-    failsafe_change: None,
     pin: PinRef::from_byte(0),
     until: Instant(0),
 };
@@ -166,6 +168,8 @@ pub(crate) struct Table {
     held: [u8; HELD_BUCKETS],
     /// PEC negotiated, one bit per board (32 boards per word: no 128-bit shifts on the M0).
     pec: [u32; BOARDS / 32],
+    /// Boards the dispatcher has prepared (PEC on, failsafe set) since their last boot.
+    ready: [u32; BOARDS / 32],
     pub(crate) diag: MbDiagnostics,
     waiters: [WaiterSlot; MAX_EVENT_WAITERS],
     unclaimed: Vec<PinEvent, UNCLAIMED_EVENTS>,
@@ -194,6 +198,7 @@ impl Table {
             recent_next: 0,
             held: [0; HELD_BUCKETS],
             pec: [0; BOARDS / 32],
+            ready: [0; BOARDS / 32],
             diag: MbDiagnostics {
                 requests: 0,
                 completed: 0,
@@ -244,12 +249,61 @@ impl Table {
         core::mem::take(&mut self.keepalive_changed)
     }
 
-    /// `board` rebooted: its PEC is off, and a failsafe kept alive must be set again.
-    pub(crate) fn booted(&mut self, board: Address) {
+    /// `board` rebooted at `now`: its PEC is off, and a failsafe kept alive must be set
+    /// again, at once (by the dispatcher, or the internal worker for the internal board;
+    /// with the safe defaults the dispatcher prepares the board again, at the latest before
+    /// its next request).
+    pub(crate) fn booted(&mut self, board: Address, now: Instant) {
         self.set_pec(board, false);
-        if self.keepalive.booted(board) {
+        self.set_ready(board, false);
+        if self.keepalive.booted(board, now) {
             self.keepalive_changed = true;
         }
+    }
+
+    /// True when the dispatcher has prepared `board` since its last boot.
+    pub(crate) fn ready(&self, board: Address) -> bool {
+        let i = board_index(board);
+        self.ready
+            .get(i / 32)
+            .is_some_and(|w| w >> (i % 32) & 1 != 0)
+    }
+
+    pub(crate) fn set_ready(&mut self, board: Address, on: bool) {
+        let i = board_index(board);
+        if let Some(w) = self.ready.get_mut(i / 32) {
+            let bit = 1u32 << (i % 32);
+            if on {
+                *w |= bit;
+            } else {
+                *w &= !bit;
+            }
+        }
+    }
+
+    /// The failsafe of `board` was set to `ms` at `now`: keep it alive.
+    pub(crate) fn failsafe_set(&mut self, board: Address, ms: u16, now: Instant) {
+        self.keepalive.set(board, ms, now);
+        self.keepalive_changed = true;
+    }
+
+    /// A sequence number for a request of the runtime's own (board set-up, keepalive), read
+    /// back in the same transaction or not read at all: the board's next number not held by a pending or recent
+    /// request. It is not held afterwards: its reply can only come in that transaction.
+    pub(crate) fn fresh_seq(&mut self, board: Address) -> u8 {
+        let b = board.get();
+        let start = self.next_seq.get(board_index(board)).copied().unwrap_or(0);
+        let mut seq = start;
+        while self.seq_in_use(b, seq) {
+            seq = seq.wrapping_add(1);
+            if seq == start {
+                break;
+            }
+        }
+        if let Some(n) = self.next_seq.get_mut(board_index(board)) {
+            *n = seq.wrapping_add(1);
+        }
+        seq
     }
 
     /// Queues a job for the dispatcher, or for the internal daughterboard when `internal`
@@ -268,10 +322,33 @@ impl Table {
     /// The oldest job queued for the dispatcher, or for the internal daughterboard when
     /// `internal`.
     pub(crate) fn pop_job(&mut self, internal: bool) -> Option<Job> {
-        if internal {
+        let job = if internal {
             self.internal_queue.pop_front()
         } else {
             self.queue.pop_front()
+        }?;
+        if let Some(s) = self.slot_mut(job.meta.ticket) {
+            if s.state == SlotState::Queued {
+                s.state = SlotState::Sending;
+            }
+        }
+        Some(job)
+    }
+
+    /// True while the request's caller still waits for it to be sent (queued or on the bus).
+    pub(crate) fn wanted(&self, t: Ticket) -> bool {
+        matches!(self.state(t), SlotState::Queued | SlotState::Sending)
+    }
+
+    /// The transfer of request `t` ended (or will not happen): a slot whose caller gave up
+    /// while it was on the bus, and that no `pending` answer turned into a held deferred
+    /// request, is freed now.
+    pub(crate) fn transfer_ended(&mut self, t: Ticket) {
+        let in_flight = self
+            .slot(t)
+            .is_some_and(|s| s.state == SlotState::Abandoned && s.until == ON_THE_BUS);
+        if in_flight {
+            self.retire(t.index, Ended::GaveUp);
         }
     }
 
@@ -323,17 +400,14 @@ impl Table {
     }
 
     /// Claims a slot and the next free sequence number of `board` (skipping numbers still
-    /// pending, held by an abandoned deferred request, or recently ended). A request that sets
-    /// a failsafe (`failsafe_change` non-zero) also claims room to keep it alive.
+    /// pending, held by an abandoned deferred request, or recently ended).
     ///
     /// # Errors
     /// [`LinkError::Busy`] when every slot is in use (abandoned deferred requests included),
-    /// or every sequence number of the board, or (for a failsafe)
-    /// [`crate::MAX_KEEPALIVES`] boards already have one.
+    /// or every sequence number of the board.
     pub(crate) fn alloc(
         &mut self,
         board: Address,
-        failsafe_change: Option<u16>,
         now: Instant,
     ) -> Result<(Ticket, u8), LinkError> {
         self.expire_abandoned(now);
@@ -341,18 +415,6 @@ impl Table {
             bump(&mut self.diag.busy);
             return Err(LinkError::Busy);
         };
-        if failsafe_change.is_some_and(|t| t > 0) {
-            let slots = &self.slots;
-            let in_flight = |b: Address| {
-                slots.iter().any(|s| {
-                    s.state != SlotState::Free && s.board == b.get() && s.failsafe_change.is_some()
-                })
-            };
-            if self.keepalive.reserve(board, now, in_flight).is_err() {
-                bump(&mut self.diag.busy);
-                return Err(LinkError::Busy);
-            }
-        }
         let b = board.get();
         let start = self.next_seq.get(board_index(board)).copied().unwrap_or(0);
         let mut candidate = start;
@@ -380,7 +442,6 @@ impl Table {
             board: b,
             seq,
             state: SlotState::Queued,
-            failsafe_change,
             pin: PinRef::from_byte(0),
             until: Instant(0),
         };
@@ -417,31 +478,24 @@ impl Table {
             return false;
         };
         let until = now.plus_us(hold_us);
-        if let Some(s) = self.slot_mut(meta.ticket) {
-            if s.state == SlotState::Queued {
-                s.state = SlotState::Deferred;
-                s.pin = pin;
-                s.until = until;
-                return true;
-            }
-        }
-        let Some(slot) = self.slots.iter_mut().find(|s| s.state == SlotState::Free) else {
+        let Some(s) = self.slot_mut(meta.ticket) else {
             return false;
         };
-        self.generation = self.generation.wrapping_add(1);
-        *slot = Slot {
-            generation: self.generation,
-            board: meta.db.get(),
-            seq: meta.seq,
-            state: SlotState::Abandoned,
-            failsafe_change: None,
-            pin,
-            until,
-        };
-        if let Some(h) = self.held.get_mut(held_bucket(meta.db.get(), meta.seq)) {
-            *h = h.wrapping_add(1);
+        s.pin = pin;
+        match s.state {
+            SlotState::Queued | SlotState::Sending => {
+                s.state = SlotState::Deferred;
+                s.until = until;
+                true
+            }
+            // Its caller gave up while it was on the bus: the slot it kept holds the number
+            // until the board's deadline.
+            SlotState::Abandoned if s.until == ON_THE_BUS => {
+                s.until = until;
+                false
+            }
+            _ => false,
         }
-        false
     }
 
     /// Ends a queued or deferred request with `result` (the caller signals it). Counts the
@@ -454,7 +508,10 @@ impl Table {
         let Some(s) = self.slot_mut(t) else {
             return false;
         };
-        if !matches!(s.state, SlotState::Queued | SlotState::Deferred) {
+        if !matches!(
+            s.state,
+            SlotState::Queued | SlotState::Sending | SlotState::Deferred
+        ) {
             return false;
         }
         s.state = SlotState::Done;
@@ -482,25 +539,8 @@ impl Table {
         meta: &JobMeta,
         now: impl FnOnce() -> Instant,
     ) {
-        if let Some(on) = meta.pec_change {
-            self.set_pec(board, on);
-        }
         if let Some(ms) = meta.failsafe_change {
-            if ms > 0 && !self.keepalive.tracks(board) {
-                // The caller gave up while it was on the bus and the reserved entry went to
-                // another board meanwhile: take one again (none free: nothing to keep alive
-                // with, as when the reservation failed).
-                let slots = &self.slots;
-                let in_flight = |b: Address| {
-                    slots.iter().any(|s| {
-                        s.state != SlotState::Free
-                            && s.board == b.get()
-                            && s.failsafe_change.is_some()
-                    })
-                };
-                let _ = self.keepalive.reserve(board, now(), in_flight);
-            }
-            self.keepalive.set(board, ms);
+            self.keepalive.set(board, ms, now());
             self.keepalive_changed = true;
         }
     }
@@ -521,6 +561,12 @@ impl Table {
         };
         if s.state == SlotState::Deferred && ended == Ended::GaveUp {
             s.state = SlotState::Abandoned;
+            return;
+        }
+        if s.state == SlotState::Sending && ended == Ended::GaveUp {
+            // On the bus: held until the transfer ends (see `transfer_ended`, `defer`).
+            s.state = SlotState::Abandoned;
+            s.until = ON_THE_BUS;
             return;
         }
         if s.state == SlotState::Abandoned {
@@ -682,7 +728,11 @@ mod tests {
     }
 
     fn alloc(t: &mut Table, board: u8) -> Result<(Ticket, u8), LinkError> {
-        t.alloc(addr(board), None, Instant(0))
+        t.alloc(addr(board), Instant(0))
+    }
+
+    fn alloc9(t: &mut Table, board: u8) -> (Ticket, u8) {
+        alloc(t, board).unwrap()
     }
 
     /// (late, duplicate, unknown) after classifying one stray reply.
@@ -780,10 +830,8 @@ mod tests {
             ticket,
             db: addr(board),
             seq,
-            pec: false,
-            read_len: 3,
+            read: Some(0),
             deferred: Some((pin, hold_us)),
-            pec_change: None,
             failsafe_change: None,
         }
     }
@@ -812,19 +860,19 @@ mod tests {
         assert_eq!(t.held, held_from_scratch(&t));
         // More than RECENT_LEN requests later, and with the counter back at 0, 0 is held.
         for _ in 0..RECENT_LEN + 1 {
-            let (tk, s) = t.alloc(addr(9), None, Instant(1_099)).unwrap();
+            let (tk, s) = t.alloc(addr(9), Instant(1_099)).unwrap();
             assert_ne!(s, 0);
             t.release(tk, Ended::Completed);
         }
         // (1 has left the ring; 0 has not, being held by its slot.)
         t.next_seq[9] = 0;
-        let (tk, s) = t.alloc(addr(9), None, Instant(1_099)).unwrap();
+        let (tk, s) = t.alloc(addr(9), Instant(1_099)).unwrap();
         assert_eq!(s, 1);
         t.release(tk, Ended::Completed);
         assert_eq!(t.state(ticket), SlotState::Abandoned);
         // At the deadline the slot is freed; the pair goes to the ring as given up.
         t.next_seq[9] = 0;
-        let (tk, s) = t.alloc(addr(9), None, Instant(1_100)).unwrap();
+        let (tk, s) = t.alloc(addr(9), Instant(1_100)).unwrap();
         assert_eq!(t.state(ticket), SlotState::Free);
         // 0 and 1 are the newest entries of the ring: not reused yet, and a reply is late.
         assert_eq!(s, 2);
@@ -852,6 +900,16 @@ mod tests {
     fn pending_for_a_request_already_given_up_holds_its_number_all_the_same() {
         let mut t = Table::new();
         let (ticket, seq) = alloc(&mut t, 9).unwrap();
+        let meta = pulse_meta(ticket, 9, seq, pin(0x80), 1_000);
+        t.enqueue(
+            Job {
+                meta,
+                frame: Vec::new(),
+            },
+            false,
+        )
+        .unwrap();
+        assert!(t.pop_job(false).is_some());
         // The caller gave up while the request was on the bus; the board answered `pending`.
         t.release(ticket, Ended::GaveUp);
         assert!(!t.defer(&pulse_meta(ticket, 9, seq, pin(0x80), 1_000), Instant(100)));
@@ -868,6 +926,59 @@ mod tests {
         assert_eq!(t.take_deferred(addr(9), seq, pin(0x80)), None);
         assert_eq!(t.diag.late_replies, 1);
         assert!(t.slots.iter().all(|s| s.state == SlotState::Free));
+        assert_eq!(t.held, held_from_scratch(&t));
+    }
+
+    /// Finding "wrong caller": a pulse-in whose caller gave up while it was on the bus freed
+    /// its slot; when its `pending` answer came, a free slot was needed to hold its number,
+    /// and with every slot taken there was none. The board's numbers then wrapped, the
+    /// number went to a new pulse-in on the same pin, and the late deferred reply completed
+    /// that request. Now a request on the bus keeps its slot until its transfer ends.
+    #[test]
+    fn a_deferred_reply_never_reaches_another_caller_when_every_slot_was_taken() {
+        let mut t = Table::new();
+        let (ticket, seq) = alloc9(&mut t, 9);
+        assert_eq!(seq, 0);
+        let meta = pulse_meta(ticket, 9, seq, pin(0x80), 1_000_000);
+        t.enqueue(
+            Job {
+                meta,
+                frame: Vec::new(),
+            },
+            false,
+        )
+        .unwrap();
+        // The dispatcher takes it; its caller gives up while it is on the bus.
+        assert!(t.pop_job(false).is_some());
+        t.release(ticket, Ended::GaveUp);
+        // Other tasks take every slot there is.
+        let mut others = Vec::<Ticket, MAX_PENDING>::new();
+        while let Ok((tk, _)) = alloc(&mut t, 0x20) {
+            others.push(tk).unwrap();
+        }
+        // The board answers `pending` at 100: it will send the width by 1 000 100.
+        assert!(!t.defer(&meta, Instant(100)));
+        for tk in others {
+            t.release(tk, Ended::Completed);
+        }
+        // Board 9's numbers wrap; a new pulse-in on the same pin is pending at the end.
+        let mut last = None;
+        for _ in 0..300 {
+            let (tk, s) = t.alloc(addr(9), Instant(200)).unwrap();
+            assert_ne!(
+                s, seq,
+                "number 0 reused while the board may still answer it"
+            );
+            let m = pulse_meta(tk, 9, s, pin(0x80), 1_000_000);
+            assert!(t.defer(&m, Instant(200)));
+            if let Some((old, _)) = last.replace((tk, s)) {
+                t.release(old, Ended::Completed);
+            }
+        }
+        // The first pulse-in's reply comes: late, and nobody's.
+        let late = t.diag.late_replies;
+        assert_eq!(t.take_deferred(addr(9), seq, pin(0x80)), None);
+        assert_eq!(t.diag.late_replies, late + 1);
         assert_eq!(t.held, held_from_scratch(&t));
     }
 

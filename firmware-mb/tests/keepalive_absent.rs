@@ -30,7 +30,7 @@ fn writes_to(bus: &LoopBus, board: u8) -> Vec<(u64, Vec<u8>)> {
     bus.seen()
         .into_iter()
         .filter_map(|(t, s)| match s {
-            Seen::Write(b, bytes) if b == board => Some((t, bytes)),
+            Seen::Write(b, bytes) | Seen::WriteRead(b, bytes, _) if b == board => Some((t, bytes)),
             _ => None,
         })
         .collect()
@@ -40,8 +40,10 @@ fn writes_to(bus: &LoopBus, board: u8) -> Vec<(u64, Vec<u8>)> {
 /// at 1 000 µs), after which board 10 goes away; `program` runs beside until 1 s.
 fn run(program: impl Fn(&World) -> Box<dyn std::future::Future<Output = ()> + '_>) -> World {
     let w = World::new();
-    w.bus
-        .attach(10, Node::Script(Box::new(|_| (0, Vec::new()))));
+    w.bus.attach(
+        10,
+        Node::Script(Box::new(|req| (0, vec![req[3], 0x00, 0x00]))),
+    );
     w.bus.attach(0x20, Node::Silent);
     w.sim(async {
         w.clock.sleep_until(Instant(1_000)).await;
@@ -75,10 +77,12 @@ fn check(w: &World) -> Vec<u64> {
         assert_eq!(last_nacked.1, heartbeat(10, k as u8));
         assert_eq!(*at, last_nacked.0 + T, "round {k}");
     }
+    // Keepalives are the dispatcher's own, not requests: their NACKed attempts are counted
+    // (`nacked`), no request ended in `Nack`.
     let d = w.mb.diagnostics();
     assert_eq!(
         (d.keepalives, d.keepalive_failures, d.nacks, d.nacked),
-        (9, 9, 9, 45)
+        (9, 9, 0, 45)
     );
     let dd = w.db9.diagnostics();
     assert_eq!((dd.failsafe_trips, dd.frames_ok), (0, 10));
@@ -107,12 +111,12 @@ fn an_absent_board_costs_another_boards_heartbeat_only_its_retries() {
 #[test]
 fn a_heartbeat_waits_for_an_absent_board_and_one_stalled_read_at_most() {
     // A program keeps the bus busy with reads of a board that stretches the clock (25 ms
-    // each, then `Timeout`). Heartbeats go out one at a time (one keepalive worker: each
-    // holds a whole call future, and RAM on a Cortex-M0 is the limit): DB 9's, due while
-    // board 10's is being NACKed, is queued once board 10's gave up, behind the program's
-    // read queued meanwhile. So it waits for both, 25 ms in all, far inside its 300 ms
-    // failsafe: heartbeats are due at a third of the timeout, and each keepalive gives up
-    // after a sixth.
+    // each, then `Timeout`). The dispatcher sends keepalives itself, between jobs, due ones
+    // first: DB 9's, due while board 10's is being NACKed, goes right after board 10's gave
+    // up, before the program's next read. So a heartbeat waits for one stalled read (the
+    // one on the bus when it fell due) and the absent board's retries at most, far inside
+    // the 300 ms failsafe: heartbeats are due at a third of the timeout, and each keepalive
+    // gives up after a sixth.
     let s1 = Port::sensor(1).unwrap();
     let w = run(|w| {
         Box::new(async move {
@@ -126,12 +130,13 @@ fn a_heartbeat_waits_for_an_absent_board_and_one_stalled_read_at_most() {
     let times: Vec<u64> = to9.iter().map(|(t, _)| *t).collect();
     assert_eq!(
         times,
-        [1_100, 129_216, 232_160, 334_893, 437_638, 540_369, 643_283, 746_410, 849_097, 951_734]
+        [1_100, 104_116, 207_060, 309_793, 412_538, 515_269, 618_183, 721_310, 823_997, 926_634]
     );
     for (k, (_, bytes)) in to9.iter().enumerate().skip(1) {
         assert_eq!(bytes, &heartbeat(9, k as u8));
     }
-    // Round 1: board 10's heartbeat NACKed five times, then the program's read, then DB 9's.
+    // Round 1: board 10's heartbeat NACKed five times, then DB 9's at once (the dispatcher
+    // sends due keepalives before the next job), then the program's read.
     let round1: Vec<_> = w
         .bus
         .seen()
@@ -146,11 +151,11 @@ fn a_heartbeat_waits_for_an_absent_board_and_one_stalled_read_at_most() {
             (102_197, Seen::Write(10, heartbeat(10, 1))),
             (102_726, Seen::Write(10, heartbeat(10, 1))),
             (104_016, Seen::Write(10, heartbeat(10, 1))),
+            (104_116, Seen::Write(9, heartbeat(9, 1))),
             (
-                104_116,
+                104_216,
                 Seen::WriteRead(0x20, vec![0x30, 0x20, 0x80, 0x04], 5)
             ),
-            (129_216, Seen::Write(9, heartbeat(9, 1))),
             (
                 129_316,
                 Seen::WriteRead(0x20, vec![0x30, 0x20, 0x80, 0x05], 5)

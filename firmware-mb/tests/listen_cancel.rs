@@ -129,7 +129,7 @@ impl MultiMaster for PartialBus {
 
 fn motherboard(clock: &TestClock) -> Motherboard<FakePorts> {
     Motherboard::new(
-        MbConfig::new(mb_address()),
+        MbConfig::thesis_compatible(mb_address()),
         FakePorts::new(clock.clone(), 2, 2),
     )
 }

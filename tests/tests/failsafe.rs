@@ -70,9 +70,9 @@ fn a_silent_mb_trips_the_failsafe_once() {
         .max()
         .unwrap();
     let trip = last / 1_000 * 1_000 + ms(200);
-    // Driven at 10 ms (set_failsafe, then io high), safe (all low, PWM 0) 200 ms after the MB
-    // fell silent.
-    let high_at = ms(10) + t.write_ns(6) + t.buf_ns + t.write_ns(4);
+    // Driven at 10 ms (set_failsafe, read back for its 3-byte reply, then io high), safe
+    // (all low, PWM 0) 200 ms after the MB fell silent.
+    let high_at = ms(10) + t.write_read_ns(6, 3) + t.buf_ns + t.write_ns(4);
     assert_eq!(
         levels(&o.log, "db09", a1a),
         vec![(0, false), (high_at, true), (trip, false)]

@@ -55,7 +55,7 @@ mod types;
 pub use batch::{Batch, BatchItem, BatchItems, BatchResults, BatchWriter};
 pub use error::Error;
 pub use event::{Event, EventFrame, EventKind};
-pub use op::{Function, Op, Operand};
+pub use op::{Function, Op, Operand, ReplyLen};
 pub use reply::{Payload, Reply, ReplyFrame};
 pub use request::{Request, RequestFrame};
 pub use status::Status;

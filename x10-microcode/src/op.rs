@@ -597,4 +597,133 @@ impl<'a> Op<'a> {
     pub const fn is_deferred(&self) -> bool {
         matches!(self, Op::PulseIn { .. })
     }
+
+    /// The payload lengths a reply with status `ok` to this operation may have (a reply with
+    /// any other status, `pending` included, has an empty payload). An output read back in a
+    /// write-then-read (as the motherboard does for `set_pec`) is answered `ok` with an empty
+    /// payload. The motherboard refuses any other length as a bad reply, and checks the LEN
+    /// byte against this before it looks for the PEC byte.
+    pub fn reply_len(&self) -> ReplyLen {
+        match self {
+            Op::DigitalRead(_) => ReplyLen::Exact(1),
+            Op::AnalogRead(_) => ReplyLen::Exact(2),
+            Op::Identify => ReplyLen::Exact(crate::Identity::LEN as u8),
+            Op::ReadDiagnostics => ReplyLen::Exact(crate::Diagnostics::LEN as u8),
+            Op::SerialRead(_, n) => ReplyLen::Range {
+                min: 0,
+                max: *n,
+                step: 1,
+            },
+            Op::Scan => ReplyLen::Range {
+                min: 3,
+                max: crate::ScanResult::MAX_LEN as u8,
+                step: 2,
+            },
+            Op::Batch(b) => ReplyLen::Batch {
+                max: b.reply_capacity().min(MAX_PAYLOAD) as u8,
+            },
+            // `pending` (empty) comes first; the width follows in the deferred reply.
+            Op::PulseIn { .. } => ReplyLen::Exact(0),
+            Op::Ping
+            | Op::Heartbeat
+            | Op::SetFailsafe { .. }
+            | Op::EventEnable(..)
+            | Op::ClearDiagnostics
+            | Op::SetPec(_)
+            | Op::DigitalWrite(..)
+            | Op::PwmDuty(..)
+            | Op::PwmFrequency(..)
+            | Op::PwmPulseWidth(..)
+            | Op::SerialWrite(..)
+            | Op::SerialConfig(..) => ReplyLen::Exact(0),
+        }
+    }
+
+    /// Length of the payload of a `deferred_reply` event with status `ok` for this operation
+    /// (the pulse width, u32), `None` for operations that are never deferred.
+    pub const fn deferred_len(&self) -> Option<usize> {
+        match self {
+            Op::PulseIn { .. } => Some(4),
+            _ => None,
+        }
+    }
+
+    /// Checks a reply payload against this operation: `ok` must carry a length
+    /// [`Op::reply_len`] allows (for a batch: one well-formed result per item, each of a
+    /// length its item allows), every other status an empty payload.
+    ///
+    /// # Errors
+    /// [`Error::BadLength`] when the payload does not fit.
+    pub fn check_reply(&self, status: crate::Status, payload: &[u8]) -> Result<()> {
+        if status != crate::Status::Ok {
+            return if payload.is_empty() {
+                Ok(())
+            } else {
+                Err(Error::BadLength)
+            };
+        }
+        let Ok(len) = u8::try_from(payload.len()) else {
+            return Err(Error::BadLength);
+        };
+        if !self.reply_len().allows(len) {
+            return Err(Error::BadLength);
+        }
+        if let Op::Batch(b) = self {
+            let mut results = crate::BatchResults::new(payload);
+            for item in b.iter() {
+                let r = results.next().ok_or(Error::BadLength)?;
+                let r = r.map_err(|_| Error::BadLength)?;
+                item.check_reply(r.status, r.value)?;
+            }
+            if results.next().is_some() {
+                return Err(Error::BadLength);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The payload lengths an `ok` reply to an operation may have ([`Op::reply_len`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ReplyLen {
+    /// Exactly this many bytes: the reply's length, and so where its PEC byte is, is known
+    /// before a byte of it is read.
+    Exact(u8),
+    /// `min`, `min + step`, … up to `max` bytes.
+    Range {
+        /// Shortest payload.
+        min: u8,
+        /// Longest payload.
+        max: u8,
+        /// Step between allowed lengths (1: every length).
+        step: u8,
+    },
+    /// A batch's results: at most `max` bytes, checked item by item ([`Op::check_reply`]).
+    Batch {
+        /// The longest the results can be (the sum of `2 + capacity` over the items).
+        max: u8,
+    },
+}
+
+impl ReplyLen {
+    /// True when an `ok` payload of `len` bytes is allowed (for a batch: not longer than its
+    /// capacity and at least one result header per item is for [`Op::check_reply`]).
+    pub const fn allows(self, len: u8) -> bool {
+        match self {
+            ReplyLen::Exact(n) => len == n,
+            ReplyLen::Range { min, max, step } => {
+                len >= min && len <= max && (step <= 1 || (len - min).is_multiple_of(step))
+            }
+            ReplyLen::Batch { max } => len >= 2 && len <= max,
+        }
+    }
+
+    /// The longest allowed payload.
+    pub const fn max(self) -> u8 {
+        match self {
+            ReplyLen::Exact(n) => n,
+            ReplyLen::Range { max, .. } | ReplyLen::Batch { max } => max,
+        }
+    }
 }

@@ -184,6 +184,54 @@ impl<'a> Reply<'a> {
         Self::parse(bytes)
     }
 
+    /// Parses the reply to `op` at the start of a fixed-size read from `db` (with `pec`, PEC
+    /// byte after the frame, covering `db << 1 | 1`), and checks it against the operation
+    /// ([`crate::Op::check_reply`]): an `ok` reply must have a length the operation allows,
+    /// any other status an empty payload.
+    ///
+    /// Where the PEC byte is never depends on a byte the PEC has not checked yet: for an
+    /// operation whose `ok` payload has one length *n* ([`crate::ReplyLen::Exact`]) the PEC
+    /// byte is looked for after *n* payload bytes (an `ok` reply) and, if it does not match
+    /// there, right after the header (a status-only reply); the received LEN byte must then
+    /// agree. For the others the LEN byte is checked against the lengths the operation allows
+    /// before it is used to locate the PEC byte.
+    ///
+    /// # Errors
+    /// [`Error::BadLength`] for a length the operation does not allow, [`Error::Truncated`],
+    /// [`Error::TooLong`], [`Error::PecMismatch`].
+    pub fn parse_read_for(
+        db: Address,
+        pec_on: bool,
+        read: &'a [u8],
+        op: &crate::Op<'_>,
+    ) -> Result<Reply<'a>> {
+        let ok_len = op.reply_len();
+        let reply = match ok_len {
+            crate::ReplyLen::Exact(n) if pec_on => {
+                let at = |payload: usize| -> Result<Reply<'a>> {
+                    let with = read
+                        .get(..REPLY_HEADER_LEN + payload + 1)
+                        .ok_or(Error::Truncated)?;
+                    Self::parse(pec::strip(db.addr_byte(true), with)?)
+                };
+                match at(usize::from(n)) {
+                    Ok(r) => r,
+                    Err(e) if n > 0 => at(0).map_err(|_| e)?,
+                    Err(e) => return Err(e),
+                }
+            }
+            _ => {
+                let len = *read.get(field::LEN).ok_or(Error::Truncated)?;
+                if len != 0 && !ok_len.allows(len) {
+                    return Err(Error::BadLength);
+                }
+                Self::parse_read(db, pec_on, read)?
+            }
+        };
+        op.check_reply(reply.status, reply.payload)?;
+        Ok(reply)
+    }
+
     /// A reply with no payload.
     pub const fn status_only(seq: u8, status: Status) -> Reply<'static> {
         Reply {

@@ -74,6 +74,10 @@ pub struct SimConfig {
     pub stop_when_tasks_done: bool,
     /// Keep the wire symbols of every transaction, for [`SimOutcome::vcd`].
     pub record_wire: bool,
+    /// The motherboard's safe defaults ([`MbConfig::new`]: PEC and a failsafe on every
+    /// board). `false` (for now the simulator's default, which its recorded timelines and
+    /// figures were measured with) runs [`MbConfig::thesis_compatible`].
+    pub mb_safe_defaults: bool,
 }
 
 /// The default motherboard address (the lowest ordinary I2C address, so events sent to it
@@ -99,6 +103,7 @@ impl Default for SimConfig {
             trace_calls: true,
             stop_when_tasks_done: false,
             record_wire: true,
+            mb_safe_defaults: false,
         }
     }
 }
@@ -509,7 +514,11 @@ impl Sim {
         }
         let nodes = Rc::new(nodes);
 
-        let mut mb_cfg = MbConfig::new(config.mb_address);
+        let mut mb_cfg = if config.mb_safe_defaults {
+            MbConfig::new(config.mb_address)
+        } else {
+            MbConfig::thesis_compatible(config.mb_address)
+        };
         mb_cfg.request_timeout_us = config.request_timeout_us;
         mb_cfg.seed = (config.seed as u32)
             ^ ((config.seed >> 32) as u32)

@@ -307,12 +307,23 @@ pub struct World {
 }
 
 impl World {
-    /// The motherboard with 2 + 2 internal ports, and DB 9 attached.
+    /// The motherboard with 2 + 2 internal ports, and DB 9 attached, in the thesis's exact
+    /// mode (no PEC, no failsafe unless a test asks for them): these tests check the
+    /// dispatcher's mechanisms on the thesis's bytes. [`World::safe`] has the defaults.
     pub fn new() -> World {
+        Self::with_config(MbConfig::thesis_compatible(mb_address()))
+    }
+
+    /// The same with the safe defaults ([`MbConfig::new`]: PEC and a failsafe on every board).
+    pub fn safe() -> World {
+        Self::with_config(MbConfig::new(mb_address()))
+    }
+
+    pub fn with_config(config: MbConfig) -> World {
         let clock = TestClock::new();
         // Robot handles are `'static`: each test leaks its motherboard.
         let mb: &'static Mb = Box::leak(Box::new(Motherboard::new(
-            MbConfig::new(mb_address()),
+            config,
             FakePorts::new(clock.clone(), 2, 2),
         )));
         let bus = LoopBus::new(&clock);
