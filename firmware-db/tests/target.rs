@@ -155,7 +155,10 @@ fn forgiven_attempts_are_bounded_and_a_dropped_event_is_still_reported() {
     );
     assert_eq!(
         ops.last().unwrap().1,
-        BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00])
+        BusOp::Write(
+            MB,
+            vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x06, 0x01, 0x00, 0x01, 0x00, 0x00, 0x00]
+        )
     );
     let d = db.diagnostics();
     assert_eq!(
@@ -184,7 +187,12 @@ fn an_undeliverable_event_is_dropped_counted_and_reported() {
     );
     // A dead MB gets one write of the head event (the overflow report: counter 1, one
     // dropped) every MB_GONE_RETRY_US, no more.
-    let report = BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00]);
+    let report = BusOp::Write(
+        MB,
+        vec![
+            0x09, 0x06, 0x00, 0x01, 0x00, 0x06, 0x01, 0x00, 0x01, 0x00, 0x00, 0x00,
+        ],
+    );
     run_until(&clock, gone_at + 450_000, fut.as_mut());
     let expect: Vec<_> = (1..=4)
         .map(|k| (gone_at + k * MB_GONE_RETRY_US, report.clone()))
@@ -233,7 +241,10 @@ fn a_board_that_took_the_mb_for_gone_delivers_as_soon_as_it_is_addressed() {
         bus.take_ops(),
         vec![(
             150_000,
-            BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00])
+            BusOp::Write(
+                MB,
+                vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x06, 0x01, 0x00, 0x01, 0x00, 0x00, 0x00]
+            )
         )]
     );
     let d = db.diagnostics();
