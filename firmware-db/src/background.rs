@@ -10,7 +10,7 @@ use x10_microcode::{EventConfig, EventKind, Pin, PinRef, Port, Status};
 
 use crate::daughterboard::{bump, port_status, Daughterboard, MAX_EVENT_PINS};
 use crate::event::OutEvent;
-use x10_hal::ports::{PortError, Ports};
+use x10_hal::ports::{EdgeCount, PortError, Ports};
 
 impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// Runs the board's background work; never returns. Call once, next to the transport.
@@ -115,16 +115,32 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         let interval = u64::from(self.config().sample_interval_us.max(1));
         let mut next: Option<Instant> = None;
         loop {
-            if self.with(|s| s.watches.is_empty()) {
+            // Pins that need the sampling grid: analog windows and pins the port cannot latch.
+            let Some(sampled) = self.with(|s| {
+                (!s.watches.is_empty()).then(|| {
+                    s.watches.iter().any(|w| {
+                        w.cfg.analog_window || ((w.cfg.rising || w.cfg.falling) && !w.latched)
+                    })
+                })
+            }) else {
                 next = None;
                 self.watch_changed.wait().await;
                 continue;
-            }
-            let at = match next {
+            };
+            let mut at = match next {
                 Some(t) => t,
                 None => clock.now().plus_us(interval),
             };
+            // At most one pass per interval: a fast pin costs one event per interval at most.
             clock.sleep_until(at).await;
+            if !sampled {
+                // Only latched pins: pass as soon as an edge is latched (at once if one is
+                // waiting), so an isolated edge is reported without waiting for the grid.
+                match select(self.ports().wait_edge(), self.watch_changed.wait()).await {
+                    Either::First(()) => at = clock.now(),
+                    Either::Second(()) => continue,
+                }
+            }
             next = Some(at.plus_us(interval));
             let watches: Vec<(PinRef, EventConfig, u16), MAX_EVENT_PINS> = self.with(|s| {
                 s.watches
@@ -134,8 +150,9 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             });
             for (pin, cfg, generation) in watches {
                 if cfg.rising || cfg.falling {
+                    let edges = self.ports().take_edges(pin);
                     if let Ok(level) = self.ports().digital_read(pin).await {
-                        self.sampled_level(pin, generation, level.is_high());
+                        self.sampled_level(pin, generation, level.is_high(), edges.ok());
                     }
                 }
                 if cfg.analog_window {
@@ -147,22 +164,52 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         }
     }
 
-    fn sampled_level(&self, pin: PinRef, generation: u16, high: bool) {
+    /// One sample of a pin with edge events: adds the edges latched by the port (`latched`)
+    /// or, without a latch, the level change the sample shows, to the pin's count; queues a
+    /// `pin_change` event when an edge in an enabled direction was counted and the pin's last
+    /// event has left the queue. The event carries the level and every edge counted since the
+    /// pin's previous event, rising and falling.
+    fn sampled_level(&self, pin: PinRef, generation: u16, high: bool, latched: Option<EdgeCount>) {
         let fire = self.with(|s| {
             let w = s
                 .watches
                 .iter_mut()
                 .find(|w| w.pin == pin && w.generation == generation)?;
             let prev = w.level.replace(high);
-            let edge = match prev {
-                Some(false) if high => w.cfg.rising,
-                Some(true) if !high => w.cfg.falling,
-                _ => false,
+            let seen = match latched {
+                Some(n) => n,
+                None => match prev {
+                    Some(false) if high => EdgeCount {
+                        rising: 1,
+                        falling: 0,
+                    },
+                    Some(true) if !high => EdgeCount {
+                        rising: 0,
+                        falling: 1,
+                    },
+                    _ => EdgeCount::NONE,
+                },
             };
-            edge.then_some(())
+            w.edges = w.edges.plus(seen);
+            let due =
+                (w.cfg.rising && w.edges.rising > 0) || (w.cfg.falling && w.edges.falling > 0);
+            (due && !w.queued).then(|| core::mem::replace(&mut w.edges, EdgeCount::NONE))
         });
-        if fire.is_some() {
-            self.push_event(EventKind::PinChange, pin, None, Status::Ok, &[high as u8]);
+        if let Some(n) = fire {
+            let [r0, r1] = n.rising.to_le_bytes();
+            let [f0, f1] = n.falling.to_le_bytes();
+            let payload = [high as u8, r0, r1, f0, f1];
+            let queued = self.push_event(EventKind::PinChange, pin, None, Status::Ok, &payload);
+            self.with(|s| {
+                if let Some(w) = s.watches.iter_mut().find(|w| w.pin == pin) {
+                    if queued {
+                        w.queued = true;
+                    } else {
+                        // Dropped (and counted): its edges go with the pin's next event.
+                        w.edges = w.edges.plus(n);
+                    }
+                }
+            });
         }
     }
 

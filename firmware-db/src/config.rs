@@ -73,18 +73,24 @@ impl DbConfig {
 pub struct TargetConfig {
     /// The motherboard's own 7-bit address: events are written there.
     pub mb_address: Address,
-    /// Retry policy for one event (NACK, arbitration lost, bus timeout). When the attempts
-    /// are used up the event is dropped, counted in `events_dropped` and reported in an
-    /// overflow event.
+    /// Retry policy for one event: NACKs, bus timeouts and bus errors use up its attempts;
+    /// arbitration losses never do (their random delay starts at `base_us` and doubles up to
+    /// `max_us`). When the attempts are used up the MB is taken to be gone and the event is
+    /// kept, tried again every [`crate::MB_GONE_RETRY_US`] (never dropped).
     pub retry: RetryPolicy,
+    /// Mean pause between two events written by this board, in µs (each pause is random in
+    /// `[g/2, 3g/2)`, `g` the larger of this and twice the last delivery's duration): bounds
+    /// the board's share of the bus under an event flood (see [`crate::run_target`]).
+    pub event_gap_us: u32,
 }
 
 impl TargetConfig {
-    /// Events to `mb_address` with [`RetryPolicy::DEFAULT`].
+    /// Events to `mb_address` with [`RetryPolicy::DEFAULT`], paced 1 ms apart on average.
     pub const fn new(mb_address: Address) -> TargetConfig {
         TargetConfig {
             mb_address,
             retry: RetryPolicy::DEFAULT,
+            event_gap_us: 1_000,
         }
     }
 }

@@ -16,7 +16,7 @@ use x10_microcode::{
 
 use crate::config::{DbConfig, FIRMWARE_VERSION};
 use crate::event::OutEvent;
-use x10_hal::ports::{PortError, Ports};
+use x10_hal::ports::{EdgeCount, PortError, Ports};
 
 /// Events the queue holds before it overflows.
 pub const EVENT_QUEUE_LEN: usize = 16;
@@ -116,6 +116,14 @@ pub(crate) struct Watch {
     pub(crate) generation: u16,
     pub(crate) level: Option<bool>,
     pub(crate) inside: Option<bool>,
+    /// The port latches this pin's edges ([`Ports::latch_edges`]); otherwise they are
+    /// counted from the level changes the samples see.
+    pub(crate) latched: bool,
+    /// Edges counted since the pin's last `pin_change` event went into the queue.
+    pub(crate) edges: EdgeCount,
+    /// A `pin_change` event of this pin is in the queue: the next one waits until it has been
+    /// taken out, and carries every edge counted meanwhile (coalescing).
+    pub(crate) queued: bool,
 }
 
 /// A pulse-in accepted with `pending`, waiting for a worker.
@@ -138,6 +146,9 @@ pub(crate) struct State {
     event_seq: u8,
     /// Events dropped since the last overflow event went into the queue.
     overflow_pending: u16,
+    /// Events dropped since boot (carried by every overflow event, so a lost report loses
+    /// no count).
+    dropped_total: u32,
     pub(crate) watches: Vec<Watch, MAX_EVENT_PINS>,
     watch_generation: u16,
     /// Pins with a pulse-in queued or running.
@@ -194,6 +205,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 failsafe_ms: config.failsafe_timeout_ms,
                 event_seq: 0,
                 overflow_pending: 0,
+                dropped_total: 0,
                 watches: Vec::new(),
                 watch_generation: 0,
                 pulse_pins: Vec::new(),
@@ -317,13 +329,26 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// pending overflow report goes into the queue.
     pub async fn next_event(&self) -> OutEvent {
         let ev = self.events.receive().await;
+        self.taken_out(&ev);
         self.report_overflow();
         ev
+    }
+
+    /// A `pin_change` event left the queue: the pin may queue its next one.
+    fn taken_out(&self, ev: &OutEvent) {
+        if ev.kind == EventKind::PinChange {
+            self.with(|s| {
+                if let Some(w) = s.watches.iter_mut().find(|w| w.pin == ev.pin) {
+                    w.queued = false;
+                }
+            });
+        }
     }
 
     /// The next event, if one is queued (see [`Daughterboard::next_event`]).
     pub fn try_next_event(&self) -> Option<OutEvent> {
         let ev = self.events.try_receive().ok()?;
+        self.taken_out(&ev);
         self.report_overflow();
         Some(ev)
     }
@@ -385,7 +410,8 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// Puts an event into the queue. `seq: None` numbers it with the board's event counter.
     /// A full queue drops it, counts it in `events_dropped`, and remembers to report it in an
     /// overflow event as soon as there is room; while such a report is waiting, a new event
-    /// goes in only if the report fits in front of it.
+    /// goes in only if the report fits in front of it. A dropped event still takes its
+    /// number from the event counter, so the MB sees the gap. True when it was queued.
     pub(crate) fn push_event(
         &self,
         kind: EventKind,
@@ -393,24 +419,24 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         seq: Option<u8>,
         status: Status,
         payload: &[u8],
-    ) {
+    ) -> bool {
         self.with(|s| {
             if s.overflow_pending > 0 {
                 if self.events.free_capacity() >= 2 {
                     self.queue_overflow(s);
                 } else {
                     let _ = seq.unwrap_or_else(|| next_seq(s));
-                    s.overflow_pending = s.overflow_pending.saturating_add(1);
-                    bump(&mut s.diag.events_dropped);
-                    return;
+                    count_dropped(s);
+                    return false;
                 }
             }
             let seq = seq.unwrap_or_else(|| next_seq(s));
             let ev = OutEvent::new(kind, pin, seq, status, payload);
             if self.events.try_send(ev).is_err() {
-                s.overflow_pending = s.overflow_pending.saturating_add(1);
-                bump(&mut s.diag.events_dropped);
+                count_dropped(s);
+                return false;
             }
+            true
         })
     }
 
@@ -422,10 +448,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// Counts an event that could not be delivered (retries used up) as dropped, to be
     /// reported in an overflow event.
     pub(crate) fn event_lost(&self) {
-        self.with(|s| {
-            s.overflow_pending = s.overflow_pending.saturating_add(1);
-            bump(&mut s.diag.events_dropped);
-        });
+        self.with(count_dropped);
         self.report_overflow();
     }
 
@@ -437,14 +460,22 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         })
     }
 
+    /// Queues an overflow report: the events dropped since the last report (u16) and since
+    /// boot (u32), so that a report that is itself lost loses no count.
     fn queue_overflow(&self, s: &mut State) {
+        if self.events.free_capacity() == 0 {
+            return;
+        }
         let seq = next_seq(s);
+        let [a, b] = s.overflow_pending.to_le_bytes();
+        let [c, d, e, f] = s.dropped_total.to_le_bytes();
+        let payload = [a, b, c, d, e, f];
         let ev = OutEvent::new(
             EventKind::Overflow,
             PinRef::from_byte(0),
             seq,
             Status::Ok,
-            &s.overflow_pending.to_le_bytes(),
+            &payload,
         );
         if self.events.try_send(ev).is_ok() {
             s.overflow_pending = 0;
@@ -605,6 +636,9 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             return Done::status(Status::WrongPortKind);
         }
         let off = !(cfg.rising || cfg.falling || cfg.analog_window);
+        // Edges are latched from now on where the port can (counted from zero again at each
+        // enable); otherwise they are counted from the samples.
+        let latched = (cfg.rising || cfg.falling) && self.ports.latch_edges(pin).is_ok();
         let status = self.with(|s| {
             s.watch_generation = s.watch_generation.wrapping_add(1);
             let generation = s.watch_generation;
@@ -614,6 +648,9 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 generation,
                 level: None,
                 inside: None,
+                latched,
+                edges: EdgeCount::NONE,
+                queued: false,
             };
             match s.watches.iter().position(|w| w.pin == pin) {
                 Some(i) if off => {
@@ -693,6 +730,12 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             Err(_) => Done::status(Status::BadLength),
         }
     }
+}
+
+fn count_dropped(s: &mut State) {
+    s.overflow_pending = s.overflow_pending.saturating_add(1);
+    s.dropped_total = s.dropped_total.saturating_add(1);
+    bump(&mut s.diag.events_dropped);
 }
 
 fn next_seq(s: &mut State) -> u8 {

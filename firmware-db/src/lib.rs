@@ -40,4 +40,4 @@ pub use daughterboard::{
 pub use event::{OutEvent, EVENT_PAYLOAD_LEN};
 pub use target::{run, run_target, MAX_EVENT_YIELDS, MB_GONE_RETRY_US};
 /// The board's ports (defined in `x10-hal`, so that board crates need not depend on this one).
-pub use x10_hal::ports::{self, PortError, Ports, SafeState};
+pub use x10_hal::ports::{self, EdgeCount, PortError, Ports, SafeState};

@@ -5,7 +5,7 @@ use embassy_futures::join::join;
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::RawMutex;
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
-use x10_hal::retry::Backoff;
+use x10_hal::retry::{Backoff, RetryPolicy};
 use x10_hal::time::{Clock, Instant};
 use x10_microcode::MAX_FRAME_LEN;
 
@@ -14,11 +14,10 @@ use crate::daughterboard::{bump, Daughterboard};
 use crate::event::OutEvent;
 use x10_hal::ports::Ports;
 
-/// Attempts of one event that may fail because the board was being addressed without
+/// Attempts of one event that may be NACKed because the board was being addressed without
 /// counting against its [`x10_hal::retry::RetryPolicy`] (see [`run_target`]). Past this many
-/// the attempts count again, so an event cannot be postponed forever by a motherboard that
-/// polls the board back to back and wins every arbitration (an MB whose own address is not the
-/// lowest on the bus).
+/// the NACKs count again, so an MB that NACKs while polling the board back to back is
+/// eventually taken for gone.
 pub const MAX_EVENT_YIELDS: u8 = 16;
 
 /// While the motherboard is taken to be gone (see [`run_target`]), the head event is tried
@@ -41,29 +40,39 @@ pub const MB_GONE_RETRY_US: u64 = 100_000;
 /// MB may be talking to this board: that is often why the write could not go out), then the
 /// event is tried again:
 ///
-/// * `ArbitrationLost` or `Nack`, and within the wait a transaction addressed to this board is
-///   served: this board was being addressed (a port that sees its own address while its write
-///   waits for the bus gives up with `ArbitrationLost`, see [`MultiMaster`]). The event is
-///   retried right after serving that transaction and the attempt does not count: the bus
-///   frees after the STOP, and an event to the MB's (lowest) address wins the arbitration
-///   against the MB's next request. At most [`MAX_EVENT_YIELDS`] attempts per event are
-///   forgiven this way. The wait is the [`Backoff`] delay of `config.retry` (or its
-///   `base_us` once the attempts are used up);
-/// * otherwise (and for `Timeout` or `Bus`) the attempt counts: the [`Backoff`] delay is
-///   waited out, listening, and the event is tried again.
+/// * `ArbitrationLost`: another master has the bus, so the bus and probably the MB are alive.
+///   The attempt never counts against the retry policy, however often it happens: the event is
+///   tried again after a random delay, uniform over a window that starts at `retry.base_us`
+///   and doubles with each loss in a row up to `retry.max_us` (plus `base_us / 2`), or right
+///   after a transaction addressed to this board has been served. A board that loses to a
+///   flood keeps trying at a bounded interval; it never takes the MB for gone;
+/// * `Nack`, and within the wait a transaction addressed to this board is served: this board
+///   was being addressed (a single-role MB NACKs while it is a controller). The attempt does
+///   not count, at most [`MAX_EVENT_YIELDS`] times per event;
+/// * otherwise (`Nack`, `Timeout`, `Bus`) the attempt counts: the [`Backoff`] delay of
+///   `config.retry` is waited out, listening, and the event is tried again.
 ///
-/// Every retry counts in `event_retries`, every arbitration loss in `arbitration_lost`, every
-/// delivery in `events_sent`. When the attempts are used up the event is dropped, counted in
-/// `events_dropped` and reported by an overflow event.
+/// Every retry (every write of an event after its first) counts in `event_retries`, every
+/// arbitration loss in `arbitration_lost`, every delivery in `events_sent`. An event the
+/// board keeps is never counted in `events_dropped`: only the queue's overflows are.
 ///
-/// After an event has been dropped this way the MB is taken to be gone (reset, crashed,
+/// **Pacing**: after an event has been delivered, the next write waits a random delay (while
+/// the board listens), uniform in `[g/2, 3g/2)` where `g` is the larger of
+/// `config.event_gap_us` and twice the time the last delivery took (the wait for the bus
+/// included). So one board uses a bounded share of the bus, whatever its event rate, and two
+/// flooding boards interleave instead of the lower address winning every time. Events that
+/// come faster wait in the queue, where pin events coalesce (one per pin, carrying every edge
+/// counted meanwhile).
+///
+/// When the attempts that count are used up the MB is taken to be gone (reset, crashed,
 /// unpowered, or a single-role MB busy as controller for longer than the retries last). The
-/// board then listens, and tries the head event of its queue (the overflow report, usually)
-/// once every [`MB_GONE_RETRY_US`], each try counted in `event_retries`: no burst of retries,
-/// so a dead MB does not turn into a flooded bus. Other events wait in the queue (what does
-/// not fit is counted in `events_dropped`). The first of those tries that is delivered, or the
-/// first transaction addressed to the board, shows the MB is back, and delivery resumes with
-/// the full retry policy.
+/// event is **kept**, not dropped: the board listens, and tries it once every
+/// [`MB_GONE_RETRY_US`], each try counted in `event_retries`: no burst of retries, so a dead
+/// MB does not turn into a flooded bus. Other events wait in the queue (what does not fit is
+/// counted in `events_dropped` and reported by an overflow event). The first of those tries
+/// that is delivered, or the first transaction addressed to the board, shows the MB is back,
+/// and delivery resumes with the full retry policy. So a `boot` event sent before the MB is
+/// up reaches it as soon as it is.
 ///
 /// Run it next to [`Daughterboard::run_background`] (or use [`run`], which joins both).
 pub async fn run_target<M, P, B, C>(
@@ -80,43 +89,43 @@ where
 {
     let mut rx = [0u8; MAX_FRAME_LEN];
     let mut tx = [0u8; MAX_FRAME_LEN];
-    let mut sent: u32 = 0;
+    let mut jitter = Jitter::new(db.address().get());
     // False once an event could not be delivered, until the MB shows it is back.
     let mut mb_present = true;
-    // The head event, taken out of the queue while the MB is gone.
+    // The head event, kept while the MB is gone.
     let mut held: Option<OutEvent> = None;
     let mut retry_at = clock.now();
+    // Pacing: no event write before this.
+    let mut next_write = clock.now();
     loop {
         if !mb_present {
-            match held.as_ref() {
-                None => match select(bus.addressed(), db.next_event()).await {
-                    Either::First(a) => {
-                        mb_present = receive(db, &mut bus, a, &mut rx, &mut tx).await;
-                    }
-                    Either::Second(ev) => {
-                        held = Some(ev);
+            let Some(ev) = held.as_ref() else {
+                mb_present = true;
+                continue;
+            };
+            match select(bus.addressed(), clock.sleep_until(retry_at)).await {
+                Either::First(a) => {
+                    mb_present = receive(db, &mut bus, a, &mut rx, &mut tx).await;
+                }
+                Either::Second(()) => {
+                    db.with(|s| bump(&mut s.diag.event_retries));
+                    if try_once(db, &mut bus, &config, ev, &mut tx).await {
+                        held = None;
+                        mb_present = true;
+                        next_write = clock.now().plus_us(jitter.gap(config.event_gap_us, 0));
+                    } else {
                         retry_at = clock.now().plus_us(MB_GONE_RETRY_US);
                     }
-                },
-                Some(ev) => match select(bus.addressed(), clock.sleep_until(retry_at)).await {
-                    Either::First(a) => {
-                        mb_present = receive(db, &mut bus, a, &mut rx, &mut tx).await;
-                    }
-                    Either::Second(()) => {
-                        db.with(|s| bump(&mut s.diag.event_retries));
-                        if try_once(db, &mut bus, &config, ev, &mut tx).await {
-                            held = None;
-                            mb_present = true;
-                        } else {
-                            retry_at = clock.now().plus_us(MB_GONE_RETRY_US);
-                        }
-                    }
-                },
+                }
             }
             continue;
         }
         let ev = match held.take() {
-            Some(ev) => ev,
+            // The kept event, again with the full retry policy: the MB showed it is back.
+            Some(ev) => {
+                db.with(|s| bump(&mut s.diag.event_retries));
+                ev
+            }
             None => match select(bus.addressed(), db.next_event()).await {
                 Either::First(a) => {
                     receive(db, &mut bus, a, &mut rx, &mut tx).await;
@@ -125,8 +134,79 @@ where
                 Either::Second(ev) => ev,
             },
         };
-        sent = sent.wrapping_add(1);
-        mb_present = deliver(db, &mut bus, &clock, &config, &ev, sent, &mut rx, &mut tx).await;
+        if clock.now() < next_write {
+            listen_until(db, &mut bus, &clock, next_write, &mut rx, &mut tx, false).await;
+        }
+        let started = clock.now();
+        if deliver(
+            db,
+            &mut bus,
+            &clock,
+            &config,
+            &ev,
+            &mut jitter,
+            &mut rx,
+            &mut tx,
+        )
+        .await
+        {
+            let took = clock.now().0.saturating_sub(started.0);
+            next_write = clock.now().plus_us(jitter.gap(config.event_gap_us, took));
+        } else {
+            held = Some(ev);
+            mb_present = false;
+            retry_at = clock.now().plus_us(MB_GONE_RETRY_US);
+        }
+    }
+}
+
+/// The board's source of random delays (xorshift32, seeded by its address: boards differ, a
+/// simulation replays exactly).
+struct Jitter(u32);
+
+impl Jitter {
+    fn new(address: u8) -> Jitter {
+        Jitter((u32::from(address) << 24 | 0x5A_5A5A).wrapping_mul(0x9E37_79B9) | 1)
+    }
+
+    fn next(&mut self) -> u32 {
+        let mut x = self.0;
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        self.0 = x;
+        x
+    }
+
+    /// Uniform in `[0, n)` (0 when `n` is 0).
+    fn below(&mut self, n: u32) -> u32 {
+        if n == 0 {
+            0
+        } else {
+            self.next() % n
+        }
+    }
+
+    /// The pause after a delivery that took `took_us`: uniform in `[g/2, 3g/2)`, `g` the
+    /// larger of `gap_us` and `2 · took_us`.
+    fn gap(&mut self, gap_us: u32, took_us: u64) -> u64 {
+        let g = u64::from(gap_us)
+            .max(took_us.saturating_mul(2))
+            .min(u64::from(u32::MAX));
+        let g = u32::try_from(g).unwrap_or(u32::MAX);
+        u64::from(g / 2) + u64::from(self.below(g))
+    }
+
+    /// The wait after the `lost`-th arbitration loss in a row: uniform over a window of
+    /// `base · 2^(lost-1)` capped at `max`, plus `base / 2`.
+    fn contention(&mut self, policy: &RetryPolicy, lost: u32) -> u32 {
+        let shift = lost.saturating_sub(1).min(16);
+        let window = policy
+            .base_us
+            .max(1)
+            .saturating_mul(1 << shift)
+            .min(policy.max_us.max(1));
+        policy.base_us / 2 + self.below(window)
     }
 }
 
@@ -221,8 +301,8 @@ async fn serve<M: RawMutex, P: Ports, B: MultiMaster>(
     true
 }
 
-/// Delivers one event, retrying with backoff while serving the listener. False when it was
-/// dropped because every attempt failed (the MB is taken to be gone).
+/// Delivers one event, retrying while serving the listener (see [`run_target`]). False when
+/// the attempts that count are used up (the MB is taken to be gone; the event is kept).
 #[allow(clippy::too_many_arguments)]
 async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
     db: &Daughterboard<M, P>,
@@ -230,14 +310,14 @@ async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
     clock: &C,
     config: &TargetConfig,
     ev: &OutEvent,
-    nth: u32,
+    jitter: &mut Jitter,
     rx: &mut [u8],
     tx: &mut [u8],
 ) -> bool {
     let mut frame = [0u8; MAX_FRAME_LEN];
-    let seed = (u32::from(db.address().get()) << 24) ^ nth;
-    let mut backoff = Backoff::new(config.retry, seed);
+    let mut backoff = Backoff::new(config.retry, jitter.next());
     let mut yields: u8 = 0;
+    let mut lost: u32 = 0;
     loop {
         // Encoded for each attempt: the MB may switch PEC (set_pec, served while this event
         // waited) between two attempts, and the event must go out as the MB now expects it.
@@ -254,14 +334,22 @@ async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
             Err(e) => e,
         };
         if e == BusError::ArbitrationLost {
-            db.with(|s| bump(&mut s.diag.arbitration_lost));
+            // Never counted: someone else has the bus.
+            db.with(|s| {
+                bump(&mut s.diag.arbitration_lost);
+                bump(&mut s.diag.event_retries);
+            });
+            lost = lost.saturating_add(1);
+            let wait = jitter.contention(&config.retry, lost);
+            let until = clock.now().plus_us(u64::from(wait));
+            listen_until(db, bus, clock, until, rx, tx, true).await;
+            continue;
         }
+        lost = 0;
         // The attempt counts only if nobody addresses us while we wait: decide on a copy.
         let mut counted = backoff.clone();
         let delay = counted.next_delay_us();
-        let may_yield =
-            matches!(e, BusError::ArbitrationLost | BusError::Nack) && yields < MAX_EVENT_YIELDS;
-        if may_yield {
+        if e == BusError::Nack && yields < MAX_EVENT_YIELDS {
             let wait = delay.unwrap_or(config.retry.base_us);
             let until = clock.now().plus_us(u64::from(wait));
             if listen_until(db, bus, clock, until, rx, tx, true).await {
@@ -271,15 +359,15 @@ async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
             }
             backoff = counted;
             if delay.is_none() {
-                db.event_lost();
                 return false;
             }
             db.with(|s| bump(&mut s.diag.event_retries));
             continue;
         }
         backoff = counted;
+        // The last counted failure is no retry: the slow tries while the MB is taken for gone
+        // count their own.
         let Some(delay) = delay else {
-            db.event_lost();
             return false;
         };
         db.with(|s| bump(&mut s.diag.event_retries));

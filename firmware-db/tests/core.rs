@@ -471,7 +471,11 @@ fn overflow_is_counted_and_reported_once_there_is_room() {
         last.seq, 0,
         "first event numbered by the board's own counter"
     );
-    assert_eq!(last.payload[..], [2, 0]);
+    assert_eq!(
+        last.payload[..],
+        [2, 0, 2, 0, 0, 0],
+        "2 since the last report, 2 since boot"
+    );
     assert_eq!(rest[EVENT_QUEUE_LEN - 2].seq, EVENT_QUEUE_LEN as u8 - 1);
     assert_eq!(db.diagnostics().events_dropped, 2);
 }
@@ -496,7 +500,7 @@ fn drops_after_a_report_are_reported_again() {
     let mut expect: Vec<(EventKind, u8, Vec<u8>)> = (1..EVENT_QUEUE_LEN as u8)
         .map(|s| (EventKind::Rejected, s, vec![]))
         .collect();
-    expect.push((EventKind::Overflow, 0, vec![1, 0]));
-    expect.push((EventKind::Overflow, 1, vec![1, 0]));
+    expect.push((EventKind::Overflow, 0, vec![1, 0, 1, 0, 0, 0]));
+    expect.push((EventKind::Overflow, 1, vec![1, 0, 2, 0, 0, 0]));
     assert_eq!(got, expect);
 }

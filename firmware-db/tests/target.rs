@@ -76,10 +76,11 @@ fn events_are_retried_with_backoff_while_listening() {
     assert_eq!(ops[1], (50, BusOp::Respond(vec![0x01, 0x00, 0x00])));
     assert_eq!(ops[2].1, BusOp::Write(MB, frame.clone()));
     assert_eq!(ops[3].1, BusOp::Write(MB, frame));
-    // backoff: first delay in 100..150 µs, second in 200..300 µs after the first retry
+    // backoff after the timeout (counted): 100..150 µs; after the arbitration loss (never
+    // counted): a random delay in [base/2, base/2 + base) = 50..150 µs
     let (t1, t2) = (ops[2].0, ops[3].0);
     assert!((100..150).contains(&t1), "{t1}");
-    assert!((200..300).contains(&(t2 - t1)), "{}", t2 - t1);
+    assert!((50..150).contains(&(t2 - t1)), "{}", t2 - t1);
     let d = db.diagnostics();
     assert_eq!(
         (d.events_sent, d.event_retries, d.arbitration_lost),
@@ -124,14 +125,16 @@ fn an_attempt_lost_to_a_transaction_addressed_to_us_is_retried_at_once_and_not_c
 }
 
 #[test]
-fn forgiven_attempts_are_bounded_and_a_dropped_event_is_still_reported() {
+fn forgiven_nacks_are_bounded_then_the_event_is_kept_not_dropped() {
     let (clock, db, bus, tcfg) = setup();
-    // An MB that wins every arbitration while polling us: 16 forgiven attempts, then the
-    // 3 attempts of the policy, then the event is dropped and reported.
+    // A single-role MB that NACKs every event while it polls us back to back: 16 forgiven
+    // NACKs, then the 3 attempts of the policy, and the MB is taken for gone. The boot event
+    // is kept, not dropped: the MB's next request (scripted with the last NACK) shows it is
+    // back, and the event goes out right after it.
     let n = usize::from(firmware_db::MAX_EVENT_YIELDS) + 3;
     for i in 0..n {
         bus.script_addressed(
-            BusError::ArbitrationLost,
+            BusError::Nack,
             Txn::WriteRead(vec![0x00, 0x09, 0x00, i as u8]),
         );
     }
@@ -139,33 +142,71 @@ fn forgiven_attempts_are_bounded_and_a_dropped_event_is_still_reported() {
     let mut fut = core::pin::pin!(fut);
     run_until(&clock, 10_000, fut.as_mut());
     let ops = bus.take_ops();
-    let writes: Vec<u64> = ops
+    let writes: Vec<(u64, &BusOp)> = ops
         .iter()
         .filter(|(_, op)| matches!(op, BusOp::Write(..)))
-        .map(|(t, _)| *t)
+        .map(|(t, op)| (*t, op))
         .collect();
-    // n attempts at the boot event, then the overflow report
+    // n failed attempts at the boot event, then its delivery; no other event (no overflow)
+    let boot = BusOp::Write(MB, boot_frame(&db));
     assert_eq!(writes.len(), n + 1, "{ops:?}");
-    assert!(writes[..=16].iter().all(|&t| t == 0), "{writes:?}");
+    assert!(writes.iter().all(|(_, op)| **op == boot), "{ops:?}");
+    let t: Vec<u64> = writes.iter().map(|(t, _)| *t).collect();
+    assert!(t[..=16].iter().all(|&t| t == 0), "{t:?}");
     // counted attempts wait out their backoff although we were addressed at once
-    assert!((100..150).contains(&writes[17]), "{writes:?}");
-    assert!(
-        (200..300).contains(&(writes[18] - writes[17])),
-        "{writes:?}"
-    );
-    assert_eq!(
-        ops.last().unwrap().1,
-        BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00])
-    );
+    assert!((100..150).contains(&t[17]), "{t:?}");
+    assert!((200..300).contains(&(t[18] - t[17])), "{t:?}");
+    // the third counted NACK uses the attempts up; the request already waiting shows the MB
+    // is there, and the kept event goes right after it is served
+    assert_eq!(t[19], t[18], "{t:?}");
+    assert_eq!(ops.last().unwrap(), &(t[19], boot));
     let d = db.diagnostics();
     assert_eq!(
         (d.events_sent, d.event_retries, d.events_dropped),
-        (1, n as u16 - 1, 1)
+        (1, n as u16, 0),
+        "every write after the first is a retry; nothing dropped"
+    );
+    assert_eq!((d.arbitration_lost, d.frames_ok), (0, n as u16));
+}
+
+#[test]
+fn arbitration_losses_never_use_up_attempts() {
+    let (clock, db, bus, tcfg) = setup();
+    // 40 arbitration losses in a row, nobody addressing us (another master floods the bus):
+    // the policy allows 3 attempts, yet the event is never given up. Each retry waits a random
+    // delay in [base/2, base/2 + window), the window doubling from base (100 µs) up to max
+    // (1 ms).
+    bus.script_writes(&[Err(BusError::ArbitrationLost); 40]);
+    let fut = run(&db, bus.clone(), &clock, tcfg);
+    let mut fut = core::pin::pin!(fut);
+    run_until(&clock, 100_000, fut.as_mut());
+    let ops = bus.take_ops();
+    let boot = BusOp::Write(MB, boot_frame(&db));
+    assert_eq!(ops.len(), 41, "{ops:?}");
+    assert!(ops.iter().all(|(_, op)| *op == boot), "{ops:?}");
+    for (k, w) in ops.windows(2).enumerate() {
+        let window = (100u64 << k.min(16)).min(1_000);
+        let wait = w[1].0 - w[0].0;
+        assert!(
+            (50..50 + window).contains(&wait),
+            "wait {wait} after loss {}",
+            k + 1
+        );
+    }
+    let d = db.diagnostics();
+    assert_eq!(
+        (
+            d.events_sent,
+            d.event_retries,
+            d.arbitration_lost,
+            d.events_dropped
+        ),
+        (1, 40, 40, 0)
     );
 }
 
 #[test]
-fn an_undeliverable_event_is_dropped_counted_and_reported() {
+fn an_undeliverable_event_is_kept_and_tried_every_100_ms_until_the_mb_is_back() {
     let (clock, db, bus, tcfg) = setup();
     // Three failed attempts at the boot event, then four failed slow retries.
     bus.script_writes(&[Err(BusError::Nack); 7]);
@@ -175,44 +216,52 @@ fn an_undeliverable_event_is_dropped_counted_and_reported() {
     let ops = bus.take_ops();
     // three attempts at the boot event; then the MB is taken to be gone
     assert_eq!(ops.len(), 3, "{ops:?}");
-    // the last attempt is followed by a listening wait of `base_us` (100 µs), then the drop
+    // the last attempt is followed by a listening wait of `base_us` (100 µs)
     let gone_at = ops[2].0 + 100;
     let d = db.diagnostics();
     assert_eq!(
         (d.events_sent, d.event_retries, d.events_dropped),
-        (0, 2, 1)
+        (0, 2, 0),
+        "the event is kept: nothing dropped, no overflow report"
     );
-    // A dead MB gets one write of the head event (the overflow report: counter 1, one
-    // dropped) every MB_GONE_RETRY_US, no more.
-    let report = BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00]);
+    // A dead MB gets one write of the kept event (the boot event itself) every
+    // MB_GONE_RETRY_US, no more.
+    let boot = BusOp::Write(MB, boot_frame(&db));
     run_until(&clock, gone_at + 450_000, fut.as_mut());
     let expect: Vec<_> = (1..=4)
-        .map(|k| (gone_at + k * MB_GONE_RETRY_US, report.clone()))
+        .map(|k| (gone_at + k * MB_GONE_RETRY_US, boot.clone()))
         .collect();
     assert_eq!(bus.take_ops(), expect);
     let d = db.diagnostics();
     assert_eq!(
         (d.events_sent, d.event_retries, d.events_dropped),
-        (0, 6, 1)
+        (0, 6, 0)
     );
-    // The MB is back without ever addressing the board: the fifth slow try is delivered and
-    // the board is back to normal delivery (a new event goes at once).
+    // The MB is back without ever addressing the board: the fifth slow try is delivered, so
+    // the MB learns of the boot after all, and the board is back to normal delivery.
     run_until(&clock, gone_at + 550_000, fut.as_mut());
     assert_eq!(
         bus.take_ops(),
-        vec![(gone_at + 5 * MB_GONE_RETRY_US, report.clone())]
+        vec![(gone_at + 5 * MB_GONE_RETRY_US, boot.clone())]
     );
     let d = db.diagnostics();
     assert_eq!(
         (d.events_sent, d.event_retries, d.events_dropped),
-        (1, 7, 1)
+        (1, 7, 0)
     );
-    // a refused output (actuator port 5 of 2) gives a rejected event, sent at once
+    // a refused output (actuator port 5 of 2) gives a rejected event, sent at once (the pause
+    // that paces events, 0.5..1.5 ms after the last delivery, is long over)
     bus.push(Txn::Write(vec![0x12, 0x09, 0x08, 0x02]));
     run_until(&clock, gone_at + 560_000, fut.as_mut());
     let ops = bus.take_ops();
     assert_eq!(ops.len(), 1, "{ops:?}");
     assert_eq!(ops[0].0, gone_at + 550_000);
+    assert_eq!(
+        ops[0].1,
+        BusOp::Write(MB, vec![0x09, 0x05, 0x08, 0x02, 0x05, 0x00])
+    );
+    let d = db.diagnostics();
+    assert_eq!((d.events_sent, d.events_dropped), (2, 0));
 }
 
 #[test]
@@ -223,23 +272,25 @@ fn a_board_that_took_the_mb_for_gone_delivers_as_soon_as_it_is_addressed() {
     let mut fut = core::pin::pin!(fut);
     run_until(&clock, 150_000, fut.as_mut());
     let ops = bus.take_ops();
-    // three attempts at the boot event, one failed slow retry of the overflow report
+    // three attempts at the boot event, one failed slow retry of it
+    let boot = BusOp::Write(MB, boot_frame(&db));
     assert_eq!(ops.len(), 4, "{ops:?}");
+    assert!(ops.iter().all(|(_, op)| *op == boot), "{ops:?}");
     assert_eq!(ops[3].0, ops[2].0 + 100 + MB_GONE_RETRY_US);
-    // The MB is back (it sends a heartbeat): the report goes right after it.
+    // The MB is back (it sends a heartbeat): the kept boot event goes right after it.
     bus.push(Txn::Write(vec![0x02, 0x09, 0x00, 0x05]));
     run_until(&clock, 160_000, fut.as_mut());
-    assert_eq!(
-        bus.take_ops(),
-        vec![(
-            150_000,
-            BusOp::Write(MB, vec![0x09, 0x06, 0x00, 0x01, 0x00, 0x02, 0x01, 0x00])
-        )]
-    );
+    assert_eq!(bus.take_ops(), vec![(150_000, boot)]);
     let d = db.diagnostics();
     assert_eq!(
-        (d.events_sent, d.event_retries, d.events_dropped),
-        (1, 3, 1)
+        (
+            d.events_sent,
+            d.event_retries,
+            d.events_dropped,
+            d.frames_ok
+        ),
+        (1, 4, 0, 1),
+        "5 writes of one event: 4 retries; nothing dropped"
     );
 }
 
@@ -257,11 +308,15 @@ fn events_carry_pec_when_negotiated_and_overruns_count_as_bad_length() {
     req.push(pec::compute(0x12, &frame));
     bus.push(Txn::Write(req));
     bus.push(Txn::Overrun);
-    run_until(&clock, 100, fut.as_mut());
+    run_until(&clock, 2_000, fut.as_mut());
     let ev = [0x09, 0x05, 0x08, 0x02, 0x05, 0x00];
     let mut with_pec = ev.to_vec();
     with_pec.push(pec::compute(MB << 1, &ev));
-    assert_eq!(bus.take_ops(), [(0, BusOp::Write(MB, with_pec))]);
+    let ops = bus.take_ops();
+    assert_eq!(ops.len(), 1, "{ops:?}");
+    assert_eq!(ops[0].1, BusOp::Write(MB, with_pec));
+    // paced: 0.5..1.5 ms after the boot event (event_gap_us = 1 ms, randomized)
+    assert!((500..1_500).contains(&ops[0].0), "{ops:?}");
     let d = db.diagnostics();
     let expect = Diagnostics {
         frames_ok: 1,

@@ -63,6 +63,13 @@ pub struct MbDiagnostics {
     pub boots: u32,
     /// `overflow` events (a board dropped events).
     pub overflows: u32,
+    /// Events missing from a board's event counter (byte 3 of every event but
+    /// `deferred_reply` and `rejected`): events the board dropped (also reported in
+    /// `events_lost`) or that were lost on the bus (then in `bad_events` or nowhere else).
+    pub event_gaps: u32,
+    /// Events the boards reported dropped, from the cumulative count of their `overflow`
+    /// events (so a lost report loses no count).
+    pub events_lost: u32,
     /// Times the PEC setting of a board was corrected from its replies (it answered
     /// `pec_mismatch` to a frame without PEC, or `bad_length` without PEC to one with PEC).
     pub pec_resyncs: u32,

@@ -36,6 +36,7 @@ mod fmt;
 mod config;
 mod diag;
 mod dispatch;
+mod events_in;
 mod handle;
 mod keepalive;
 mod motherboard;

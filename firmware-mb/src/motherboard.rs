@@ -786,7 +786,10 @@ impl MbCore {
     /// Routes one event: a deferred reply to its waiting request, a pin event to its waiters
     /// (or the unclaimed queue), the rest to the counters and the log.
     pub(crate) fn route_event(&self, ev: &Event<'_>) {
-        self.with(|t| bump(&mut t.diag.events));
+        self.with(|t| {
+            bump(&mut t.diag.events);
+            t.events_in.received(ev, &mut t.diag);
+        });
         match ev.kind {
             EventKind::DeferredReply => self.with(|t| {
                 // Matched by board, sequence number and pin; a reply for a request that gave

@@ -182,6 +182,8 @@ pub(crate) struct Table {
     pub(crate) keepalive: Keepalives,
     /// A failsafe setting changed (the keepalive task must look again).
     keepalive_changed: bool,
+    /// Per board: the event counter expected next, and the drops reported so far.
+    pub(crate) events_in: crate::events_in::EventBook,
 }
 
 fn board_index(a: Address) -> usize {
@@ -228,6 +230,8 @@ impl Table {
                 failsafe_trips: 0,
                 boots: 0,
                 overflows: 0,
+                event_gaps: 0,
+                events_lost: 0,
                 pec_resyncs: 0,
                 unexpected_reads: 0,
                 listener_errors: 0,
@@ -241,6 +245,7 @@ impl Table {
             internal_queue: Deque::new(),
             keepalive: Keepalives::new(),
             keepalive_changed: false,
+            events_in: crate::events_in::EventBook::new(),
         }
     }
 

@@ -103,15 +103,14 @@ fn run(mb_role: Role) -> Run {
 }
 
 fn check(r: &Run, role: &str) {
-    // Events were enabled at 0.4 ms; the DB samples every 10 ms from then on, and its first
-    // sample (10.4 ms, the input already high since 5 ms) is a silent baseline. So the 39
-    // edges from 30 ms to 980 ms (edge k at 5 ms + 25 ms·k) each become one event, falling
-    // first, seen at the next sample and delivered within a few hundred µs more.
+    // Events were enabled at 0.4 ms and the simulated port latches edges from then on, so
+    // the 40 edges from 5 ms to 980 ms (edge k at 5 ms + 25 ms·k) each become one event,
+    // rising first, reported when latched and delivered within a few hundred µs more.
     let levels: Vec<u8> = r.events.iter().map(|(_, v)| *v).collect();
-    let expected: Vec<u8> = (0..39).map(|i| u8::from(i % 2 == 1)).collect();
+    let expected: Vec<u8> = (0..40).map(|i| u8::from(i % 2 == 0)).collect();
     assert_eq!(levels, expected, "{role}");
     for (i, (t, _)) in r.events.iter().enumerate() {
-        let edge = ms(5) + ms(25) * (i as u64 + 1);
+        let edge = ms(5) + ms(25) * i as u64;
         assert!(
             (edge..edge + ms(11)).contains(t),
             "{role}: event {i} at {t}"
@@ -200,7 +199,7 @@ fn events_survive_a_slow_single_role_mb() {
     let o = &r.outcome;
     assert!(collisions(o) >= 30);
     // Every pin event was NACKed once and delivered by its first retry.
-    assert_eq!(o.board("db09").unwrap().event_retries, 39);
+    assert_eq!(o.board("db09").unwrap().event_retries, 40);
     assert_eq!(o.mb.arbitration_failures + o.mb.nacks + o.mb.timeouts, 0);
 }
 
@@ -264,28 +263,28 @@ fn events_survive_back_to_back_polling_of_the_same_board() {
         )
         .run()
         .unwrap();
-    // The same 39 edges as above, each one event, in order, within a sample period.
+    // The same 40 edges as above, each one event, in order, within a sample period.
     let events = events.take();
     let levels: Vec<u8> = events.iter().map(|(_, v)| *v).collect();
-    let expected: Vec<u8> = (0..39).map(|i| u8::from(i % 2 == 1)).collect();
+    let expected: Vec<u8> = (0..40).map(|i| u8::from(i % 2 == 0)).collect();
     assert_eq!(levels, expected);
     for (i, (t, _)) in events.iter().enumerate() {
-        let edge = ms(5) + ms(25) * (i as u64 + 1);
+        let edge = ms(5) + ms(25) * i as u64;
         assert!((edge..edge + ms(11)).contains(t), "event {i} at {t}");
     }
     assert!(*reads.borrow() > 3_000, "{}", reads.borrow());
     let d = o.board("db09").unwrap();
     assert_eq!(d.events_dropped, 0);
     // An event queued while a request to db09 is being received waits for the end of that
-    // transaction (a transfer under way is never cut) and then goes out first. Only 4 times
-    // did its write find the bus taken by a request addressed to it (its address already
+    // transaction (a transfer under way is never cut) and then goes out first. Only 6 times
+    // (events now go out when the edge is latched, not on the 10 ms grid) did its write find the bus taken by a request addressed to it (its address already
     // matched); each such event went out on the one retry right after serving the request.
-    assert_eq!(d.arbitration_lost, 4);
+    assert_eq!(d.arbitration_lost, 6);
     assert_eq!(d.event_retries, d.arbitration_lost);
     // No node dropped a transfer it had started to receive.
     assert_eq!(o.bus.lost_transfers, 0);
-    // Boot and 39 pin events from db09, and the internal board's boot.
-    assert_eq!((d.events_sent, o.mb.events), (40, 41));
+    // Boot and 40 pin events from db09, and the internal board's boot.
+    assert_eq!((d.events_sent, o.mb.events), (41, 42));
     assert_eq!(o.mb.overflows + o.mb.events_dropped + o.mb.bad_events, 0);
     assert_eq!(o.mb.arbitration_failures + o.mb.nacks + o.mb.timeouts, 0);
 }

@@ -92,42 +92,40 @@ fn a_silent_mb_trips_the_failsafe_once() {
         "{last}"
     );
     // The board tried to tell the MB (a failsafe_tripped event, payload 200 ms): the stopped MB
-    // NACKs its address, so the board made its 5 attempts (RetryPolicy::DEFAULT), then dropped
-    // the event and counted it; nothing was dropped silently.
+    // NACKs its address, so the board made its 5 attempts (RetryPolicy::DEFAULT), then took
+    // the MB for gone and kept the event (never dropped): no burst of retries, the kept event
+    // tried once every 100 ms (MB_GONE_RETRY_US), counted from the end of the previous try
+    // (the last attempt's 100 µs wait, then each NACKed address: 25 µs at 400 kHz), five
+    // times until the run ends at 1 s.
     let tripped: Vec<_> = o
         .records
         .iter()
         .filter(|r| r.addr == 0x08 && r.written.get(1) == Some(&4))
         .collect();
-    assert_eq!(tripped.len(), 5);
+    assert_eq!(tripped.len(), 10);
     for r in &tripped {
         assert_eq!(r.written[6..8], 200u16.to_le_bytes());
         assert_eq!(r.outcome, Outcome::Nack { byte: 0 });
     }
     assert!(tripped[0].start_ns >= trip);
-    // Then the MB is taken to be gone: no burst of retries, only the head event (the overflow
-    // report: counter 2, one event dropped) tried once every 100 ms (MB_GONE_RETRY_US),
-    // counted from the end of the previous try (the last attempt's 100 µs wait, then each
-    // NACKed address: 25 µs at 400 kHz), five times until the run ends at 1 s.
-    let reports: Vec<_> = o
+    // Nothing else went to the MB after the first attempt (no overflow report: nothing was
+    // dropped).
+    let to_mb = o
         .records
         .iter()
-        .filter(|r| r.addr == 0x08 && r.start_ns > tripped[4].start_ns)
-        .collect();
-    assert_eq!(reports.len(), 5);
-    for r in &reports {
-        assert_eq!(r.written, [0x09, 0x06, 0x00, 0x02, 0x00, 0x02, 0x01, 0x00]);
-        assert_eq!(r.outcome, Outcome::Nack { byte: 0 });
-    }
-    assert_eq!(reports[0].start_ns - tripped[4].start_ns, ms(100) + 125_000);
-    for w in reports.windows(2) {
+        .filter(|r| r.addr == 0x08 && r.start_ns >= tripped[0].start_ns)
+        .count();
+    assert_eq!(to_mb, 10);
+    let slow = &tripped[5..];
+    assert_eq!(slow[0].start_ns - tripped[4].start_ns, ms(100) + 125_000);
+    for w in slow.windows(2) {
         assert_eq!(w[1].start_ns - w[0].start_ns, ms(100) + 25_000);
     }
     let db09 = o.board("db09").unwrap();
     assert_eq!(db09.failsafe_trips, 1);
-    // 4 retries of the tripped event, 5 slow tries of the report.
+    // 9 retries of the tripped event (4 fast, 5 slow); the boot event sent, nothing dropped.
     assert_eq!(db09.event_retries, 9);
-    assert_eq!((db09.events_sent, db09.events_dropped), (1, 1));
+    assert_eq!((db09.events_sent, db09.events_dropped), (1, 0));
     // The stopped MB saw nothing of it.
     assert_eq!(o.mb.failsafe_trips, 0);
 }

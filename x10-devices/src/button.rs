@@ -139,9 +139,10 @@ impl<L: Link> Button<L> {
             if event.kind != EventKind::PinChange {
                 continue;
             }
+            // The level, then the edge counts (protocol: pin_change payload).
             let level = match *event.value {
-                [0] => Level::Low,
-                [1] => Level::High,
+                [0, ..] => Level::Low,
+                [1, ..] => Level::High,
                 _ => return Err(Error::Link(LinkError::BadReply)),
             };
             let mut state = self.debouncer.update(level == self.pressed_level);

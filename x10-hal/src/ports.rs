@@ -41,6 +41,37 @@ impl SafeState {
     };
 }
 
+/// Edges counted on one pin by [`Ports::take_edges`], each saturating at `u16::MAX`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct EdgeCount {
+    /// Low-to-high transitions.
+    pub rising: u16,
+    /// High-to-low transitions.
+    pub falling: u16,
+}
+
+impl EdgeCount {
+    /// No edge.
+    pub const NONE: EdgeCount = EdgeCount {
+        rising: 0,
+        falling: 0,
+    };
+
+    /// True when no edge was counted.
+    pub const fn is_none(&self) -> bool {
+        self.rising == 0 && self.falling == 0
+    }
+
+    /// Both counts added, saturating.
+    pub const fn plus(self, other: EdgeCount) -> EdgeCount {
+        EdgeCount {
+            rising: self.rising.saturating_add(other.rising),
+            falling: self.falling.saturating_add(other.falling),
+        }
+    }
+}
+
 /// A board's sensor ports (2 digital I/O + 1 analog each) and actuator ports (2 PWM + 2
 /// digital I/O each).
 ///
@@ -101,6 +132,40 @@ pub trait Ports {
     /// # Errors
     /// [`PortError::Timeout`], [`PortError::NoSuchPin`], [`PortError::Unsupported`].
     async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError>;
+
+    /// Starts latching the edges of a digital input `pin` in hardware (an edge interrupt that
+    /// counts, a timer in counter mode, a latched interrupt flag), from now on, with its
+    /// counts at zero. Edges are counted until the board resets; calling it again restarts the
+    /// counts. The daughterboard calls it when events are enabled on the pin.
+    ///
+    /// A board that cannot latch edges on `pin` answers [`PortError::Unsupported`] (the
+    /// default); the runtime then samples the pin and counts the level changes it sees, which
+    /// misses pulses shorter than the sample interval.
+    ///
+    /// # Errors
+    /// [`PortError::Unsupported`], [`PortError::NoSuchPin`].
+    fn latch_edges(&self, pin: PinRef) -> Result<(), PortError> {
+        let _ = pin;
+        Err(PortError::Unsupported)
+    }
+
+    /// The edges latched on `pin` since [`Ports::latch_edges`] or the previous call, and
+    /// starts counting again from zero. Every edge is counted exactly once: none is lost
+    /// between two calls (a count that would pass `u16::MAX` stays there).
+    ///
+    /// # Errors
+    /// [`PortError::Unsupported`] when the pin is not latched.
+    fn take_edges(&self, pin: PinRef) -> Result<EdgeCount, PortError> {
+        let _ = pin;
+        Err(PortError::Unsupported)
+    }
+
+    /// Returns once an edge has been latched on some latched pin and not yet taken (at once if
+    /// one is waiting). Without edge latching (the default) it never returns; the runtime
+    /// races it against its sampling timer.
+    async fn wait_edge(&self) {
+        core::future::pending::<()>().await
+    }
 
     /// The safe state of an actuator port (default: all low).
     fn safe_state(&self, port: Port) -> SafeState {

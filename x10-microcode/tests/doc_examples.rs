@@ -282,6 +282,13 @@ fn event_fields(e: &Event<'_>) -> Flat {
     put(&mut m, "payload", list(e.payload));
     match (e.kind, e.payload) {
         (EventKind::PinChange, &[l]) => put(&mut m, "level", Val::Int(l.into())),
+        (EventKind::PinChange, &[l, r0, r1, f0, f1]) => {
+            put(&mut m, "level", Val::Int(l.into()));
+            let rising = u16::from_le_bytes([r0, r1]);
+            put(&mut m, "rising_edges", Val::Int(rising.into()));
+            let falling = u16::from_le_bytes([f0, f1]);
+            put(&mut m, "falling_edges", Val::Int(falling.into()));
+        }
         (EventKind::AnalogThreshold, &[a, b, inside]) if inside <= 1 => {
             put(&mut m, "value", Val::Int(u16::from_le_bytes([a, b]).into()));
             put(&mut m, "inside", Val::Bool(inside == 1));
@@ -301,6 +308,18 @@ fn event_fields(e: &Event<'_>) -> Flat {
             "dropped",
             Val::Int(u16::from_le_bytes([a, b]).into()),
         ),
+        (EventKind::Overflow, &[a, b, c, d, e, f]) => {
+            put(
+                &mut m,
+                "dropped",
+                Val::Int(u16::from_le_bytes([a, b]).into()),
+            );
+            put(
+                &mut m,
+                "dropped_total",
+                Val::Int(u32::from_le_bytes([c, d, e, f]).into()),
+            );
+        }
         (EventKind::Boot, p) => identity_fields(&mut m, &Identity::parse(p).unwrap()),
         _ => {}
     }

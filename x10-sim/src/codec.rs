@@ -367,6 +367,9 @@ const EVENT_KEYS: &[&str] = &[
     "timeout_ms",
     "dropped",
     "identity",
+    "rising_edges",
+    "falling_edges",
+    "dropped_total",
     "pec_addr",
     "pec",
 ];
@@ -751,6 +754,11 @@ fn event_value(e: &Event<'_>) -> Map<String, Value> {
         (EventKind::PinChange, &[level]) => {
             m.insert("level".into(), json!(level));
         }
+        (EventKind::PinChange, &[level, r0, r1, f0, f1]) => {
+            m.insert("level".into(), json!(level));
+            m.insert("rising_edges".into(), json!(u16::from_le_bytes([r0, r1])));
+            m.insert("falling_edges".into(), json!(u16::from_le_bytes([f0, f1])));
+        }
         (EventKind::AnalogThreshold, &[a, b, inside]) if inside <= 1 => {
             m.insert("value".into(), json!(u16::from_le_bytes([a, b])));
             m.insert("inside".into(), json!(inside == 1));
@@ -763,6 +771,13 @@ fn event_value(e: &Event<'_>) -> Map<String, Value> {
         }
         (EventKind::Overflow, &[a, b]) => {
             m.insert("dropped".into(), json!(u16::from_le_bytes([a, b])));
+        }
+        (EventKind::Overflow, &[a, b, c, d, e, f]) => {
+            m.insert("dropped".into(), json!(u16::from_le_bytes([a, b])));
+            m.insert(
+                "dropped_total".into(),
+                json!(u32::from_le_bytes([c, d, e, f])),
+            );
         }
         (EventKind::Boot, p) => {
             if let Ok(id) = Identity::parse(p) {
@@ -1316,7 +1331,12 @@ fn event_payload_from_fields(o: &Map<String, Value>, kind: EventKind) -> Result<
     };
     Ok(match kind {
         EventKind::PinChange if o.contains_key("level") => {
-            vec![u8_of(need_int(o, "level", 255, what)?)]
+            let mut p = vec![u8_of(need_int(o, "level", 255, what)?)];
+            if o.contains_key("rising_edges") || o.contains_key("falling_edges") {
+                p.extend(le16("rising_edges")?);
+                p.extend(le16("falling_edges")?);
+            }
+            p
         }
         EventKind::AnalogThreshold if o.contains_key("value") => {
             let mut p = le16("value")?;
@@ -1328,7 +1348,14 @@ fn event_payload_from_fields(o: &Map<String, Value>, kind: EventKind) -> Result<
             u32::try_from(v).unwrap_or(0).to_le_bytes().to_vec()
         }
         EventKind::FailsafeTripped if o.contains_key("timeout_ms") => le16("timeout_ms")?,
-        EventKind::Overflow if o.contains_key("dropped") => le16("dropped")?,
+        EventKind::Overflow if o.contains_key("dropped") => {
+            let mut p = le16("dropped")?;
+            if o.contains_key("dropped_total") {
+                let v = need_int(o, "dropped_total", u32::MAX.into(), what)?;
+                p.extend(u32::try_from(v).unwrap_or(0).to_le_bytes());
+            }
+            p
+        }
         EventKind::Boot if o.contains_key("identity") => {
             let id = o
                 .get("identity")
@@ -1444,7 +1471,10 @@ const EVENT_VALUE_KEYS: &[&str] = &[
     "inside",
     "width_us",
     "timeout_ms",
+    "rising_edges",
+    "falling_edges",
     "dropped",
+    "dropped_total",
     "identity",
 ];
 

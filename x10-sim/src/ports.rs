@@ -13,7 +13,7 @@ use std::cell::RefCell;
 use std::fmt;
 use std::rc::Rc;
 
-use firmware_db::{PortError, Ports, SafeState};
+use firmware_db::{EdgeCount, PortError, Ports, SafeState};
 use x10_microcode::{Edge, Level, Pin, PinRef, Port, PortKind};
 
 use crate::exec::{Nanos, SimClock};
@@ -428,6 +428,9 @@ struct State {
     sensor_out: Vec<[Option<Level>; 2]>,
     actuators: Vec<ActuatorState>,
     busy: Vec<PinRef>,
+    /// Pins whose edges are latched, with the instant of the last take (edges after it are
+    /// counted by the next take).
+    latched: Vec<(PinRef, Nanos)>,
 }
 
 /// One board's simulated ports.
@@ -468,6 +471,7 @@ impl SimPorts {
                 sensor_out: vec![[None, None]; s],
                 actuators: vec![ActuatorState::default(); a],
                 busy: Vec::new(),
+                latched: Vec::new(),
             }),
             log,
         }
@@ -516,6 +520,7 @@ impl SimPorts {
                 sensor_out: vec![[None, None]; self.sensors.len()],
                 actuators: vec![ActuatorState::default(); self.actuator_inputs.len()],
                 busy: Vec::new(),
+                latched: Vec::new(),
             }),
             log: self.log.clone(),
         }
@@ -595,6 +600,21 @@ impl SimPorts {
         let start = from.saturating_add(delay_us.saturating_mul(1_000));
         let width = u64::from(width_us.value_at(start)) * 1_000;
         (start >= now && width > 0).then(|| (start, start + width))
+    }
+
+    /// Edges of `signal` in `(from_ns, to_ns]`.
+    fn edges_between(signal: &Digital, from_ns: Nanos, to_ns: Nanos) -> EdgeCount {
+        let mut n = EdgeCount::NONE;
+        let mut t = from_ns;
+        while let Some(at) = signal.next_change_after(t).filter(|&at| at <= to_ns) {
+            if signal.level_at(at) {
+                n.rising = n.rising.saturating_add(1);
+            } else {
+                n.falling = n.falling.saturating_add(1);
+            }
+            t = at;
+        }
+        n
     }
 
     async fn take(&self, ns: Nanos) {
@@ -809,6 +829,54 @@ impl Ports for SimPorts {
         .await;
         self.state.borrow_mut().busy.retain(|p| *p != pin);
         result
+    }
+
+    /// Latches every scripted edge of the pin's input from now on (exactly: see
+    /// [`Ports::take_edges`]).
+    fn latch_edges(&self, pin: PinRef) -> Result<(), PortError> {
+        self.input(pin)?;
+        let now = self.clock.now_ns();
+        let mut st = self.state.borrow_mut();
+        match st.latched.iter_mut().find(|(p, _)| *p == pin) {
+            Some(l) => l.1 = now,
+            None => st.latched.push((pin, now)),
+        }
+        Ok(())
+    }
+
+    /// Every scripted edge of the pin's input since the latch or the last take, counted
+    /// exactly (an edge at the instant of a take belongs to that take).
+    fn take_edges(&self, pin: PinRef) -> Result<EdgeCount, PortError> {
+        let signal = self.input(pin)?;
+        let now = self.clock.now_ns();
+        let mut st = self.state.borrow_mut();
+        let l = st
+            .latched
+            .iter_mut()
+            .find(|(p, _)| *p == pin)
+            .ok_or(PortError::Unsupported)?;
+        let since = core::mem::replace(&mut l.1, now);
+        Ok(Self::edges_between(signal, since, now))
+    }
+
+    /// Sleeps until the next scripted edge of a latched pin (returns at once when one is
+    /// waiting to be taken); never returns while no pin is latched.
+    async fn wait_edge(&self) {
+        loop {
+            let now = self.clock.now_ns();
+            let next = {
+                let st = self.state.borrow();
+                st.latched
+                    .iter()
+                    .filter_map(|(p, since)| self.input(*p).ok()?.next_change_after(*since))
+                    .min()
+            };
+            match next {
+                Some(at) if at <= now => return,
+                Some(at) => self.clock.sleep_until_ns(at).await,
+                None => core::future::pending::<()>().await,
+            }
+        }
     }
 
     fn safe_state(&self, port: Port) -> SafeState {
