@@ -30,6 +30,9 @@ fn run(mb_role: Role) -> Run {
     let events = Rc::new(RefCell::new(Vec::new()));
     let reads = Rc::new(RefCell::new(Vec::new()));
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 1_000,
         mb_role,
         ..SimConfig::default()
@@ -211,6 +214,9 @@ fn events_survive_back_to_back_polling_of_the_same_board() {
     // the MB's lower address wins against the MB's next request.
     let events = Rc::new(RefCell::new(Vec::new()));
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 1_000,
         ..SimConfig::default()
     };

@@ -16,6 +16,9 @@ const MB_STOP_MS: u64 = 300;
 /// `heartbeat` is set, sends a heartbeat every 100 ms; otherwise the MB stops at 300 ms.
 fn run(heartbeat: bool) -> SimOutcome {
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 1_000,
         ..SimConfig::default()
     };

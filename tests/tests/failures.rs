@@ -20,6 +20,9 @@ fn a_board_that_never_answers_times_out_and_an_absent_one_is_nacked() {
     let results: Results = Rc::new(RefCell::new(Vec::new()));
     let r = results.clone();
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 1_000,
         stop_when_tasks_done: true,
         ..SimConfig::default()
@@ -91,6 +94,9 @@ fn a_reply_that_comes_after_the_caller_gave_up_is_dropped_and_counted() {
     let results: Results = Rc::new(RefCell::new(Vec::new()));
     let r = results.clone();
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 1_000,
         stop_when_tasks_done: true,
         ..SimConfig::default()
@@ -163,6 +169,9 @@ fn a_board_that_resets_mid_run_fails_calls_while_down_then_serves_again() {
     let results: Results = Rc::new(RefCell::new(Vec::new()));
     let r = results.clone();
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 1_000,
         ..SimConfig::default()
     };
@@ -248,6 +257,9 @@ fn a_board_that_resets_mid_run_fails_calls_while_down_then_serves_again() {
 fn a_motor_on_a_board_that_reset_is_driven_again() {
     use x10_robots::{PERIOD, REFRESH_STEPS};
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 5_000,
         ..SimConfig::default()
     };

@@ -23,6 +23,9 @@ const INTERVAL_NS: u64 = 66_666_000;
 /// `reset_ms` if given. Runs 2.1 s.
 fn run(stop_ms: Option<u64>, reset_ms: Option<u64>) -> SimOutcome {
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 2_100,
         ..SimConfig::default()
     };

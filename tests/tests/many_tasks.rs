@@ -23,6 +23,9 @@ type Log = Rc<RefCell<Calls>>;
 fn run(targets: &[(u8, u8)], rounds: usize) -> (SimOutcome, Calls) {
     let log: Log = Rc::new(RefCell::new(Vec::new()));
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 5_000,
         stop_when_tasks_done: true,
         ..SimConfig::default()

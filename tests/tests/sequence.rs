@@ -14,6 +14,9 @@ fn sequence_numbers_wrap_twice_around_a_pending_pulse_in() {
     let pulse = Rc::new(RefCell::new(None));
     let reads = Rc::new(RefCell::new(Vec::new()));
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         duration_ms: 1_000,
         stop_when_tasks_done: true,
         ..SimConfig::default()

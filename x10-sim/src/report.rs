@@ -79,6 +79,9 @@ pub fn measure(speed: Speed, samples: u32) -> Result<Vec<Measurement>, SimError>
     let results: Rc<RefCell<Samples>> = Rc::new(RefCell::new(Vec::new()));
     let r = results.clone();
     let config = SimConfig {
+        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
+        // motherboard sets by itself); the safe defaults have their own tests.
+        mb_safe_defaults: false,
         speed,
         duration_ms: 50 + u64::from(samples) * 8 * 20,
         trace_calls: false,

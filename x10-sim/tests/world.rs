@@ -183,8 +183,9 @@ fn the_thesis_timelines_say_what_the_scenario_docs_say() {
     assert_eq!(lm.at_ms(4_100), MotorState::STOPPED);
     let (tl, _) = run("fig4_6.toml", "fig4_6");
     let alarm = tl.led("alarm").unwrap();
-    // The program reads every 20 ms (x10_robots::PERIOD): the first read above 1 °C.
-    assert_eq!(alarm.first_ns(|on| *on).map(|t| t / MS), Some(3_181));
+    // The program reads every 20 ms (x10_robots::PERIOD): the first read above 1 °C (each
+    // frame with its PEC byte, the safe default).
+    assert_eq!(alarm.first_ns(|on| *on).map(|t| t / MS), Some(3_182));
     assert!(alarm.last_state());
 }
 
@@ -412,9 +413,19 @@ fn the_timeline_of_a_run_reads_in_device_words() {
                 ],
                 "{speed:?} {motor}"
             );
-            // Each change is dated by the first write of its command.
+            // Each change is dated by the first write of its command. The first command to a
+            // daughterboard waits for the motherboard to prepare it (PEC on, failsafe set,
+            // each read back): up to 1 ms more at 100 kHz.
             let times: Vec<u64> = m.changes().iter().map(|(t, _)| t / MS).collect();
-            assert_eq!(times, vec![1_000, 2_000, 3_000, 4_000], "{speed:?} {motor}");
+            assert_eq!(
+                times.get(1..),
+                Some(&[2_000, 3_000, 4_000][..]),
+                "{speed:?} {motor}"
+            );
+            assert!(
+                (1_000..=1_001).contains(&times[0]),
+                "{speed:?} {motor} {times:?}"
+            );
             assert_eq!(m.at_ms(1_500), MotorState::forward(50));
             assert_eq!(m.at_ms(2_500).signed_percent(), -30);
         }
@@ -536,11 +547,11 @@ devices, 5.000 s at 400k:
     1.310 s  drive      forward 50 %
     3.010 s  drive      reverse 30 %
     3.310 s  drive      forward 50 %
-    0.000 s  lamp       brightness 100 %
+    0.001 s  lamp       brightness 100 %
     0.900 s  lamp       brightness 67 %
     2.360 s  lamp       brightness 34 %
     3.820 s  lamp       off
-    0.000 s  heartbeat  on
+    0.001 s  heartbeat  on
     0.250 s  heartbeat  off
     0.500 s  heartbeat  on
     0.750 s  heartbeat  off
@@ -549,13 +560,13 @@ devices, 5.000 s at 400k:
     1.500 s  heartbeat  on
     1.750 s  heartbeat  off
              heartbeat  … 10 more, the last at 4.750 s: off
-bus: 26 transactions, busy 3.0 ms = 0.06 % of the run; 5 NACK, 0 arbitration lost, 0 timeouts, 0 bus faults, 1 resets
+bus: 70 transactions, busy 10.1 ms = 0.20 % of the run; 5 NACK, 0 arbitration lost, 0 timeouts, 0 bus faults, 1 resets
 warnings and errors: 7
-  4.000000 WARN  mb: -> db09 io high A1.A seq 16 [12 09 00 10] bus 25us NACK (address)
+  4.000000 WARN  mb: -> db09 io high A1.A seq 50 +pec [12 09 00 32 19] bus 25us NACK (address)
   4.000000 WARN  db09: reset: firmware restarts at 4.005000
-  4.000152 WARN  mb: -> db09 io high A1.A seq 16 [12 09 00 10] bus 25us NACK (address)
-  4.000458 WARN  mb: -> db09 io high A1.A seq 16 [12 09 00 10] bus 25us NACK (address)
-  4.001004 WARN  mb: -> db09 io high A1.A seq 16 [12 09 00 10] bus 25us NACK (address)
+  4.000144 WARN  mb: -> db09 io high A1.A seq 50 +pec [12 09 00 32 19] bus 25us NACK (address)
+  4.000413 WARN  mb: -> db09 io high A1.A seq 50 +pec [12 09 00 32 19] bus 25us NACK (address)
+  4.000840 WARN  mb: -> db09 io high A1.A seq 50 +pec [12 09 00 32 19] bus 25us NACK (address)
   … 2 more
 "
     );
