@@ -119,6 +119,8 @@ impl DbBoard {
                 .await
             };
             select(serve, bus.wait_reset(node, generation)).await;
+            // Power is gone: PWM outputs stop now, not when the next boot sets them.
+            db.ports().power_off();
             self.diagnostics.set(db.diagnostics());
             notes.push(TraceLine::new(
                 clock.now_ns(),

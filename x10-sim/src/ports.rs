@@ -509,6 +509,42 @@ impl SimPorts {
         }
     }
 
+    /// The board loses power (a reset): every PWM output stops at once. Records, at the
+    /// current instant, the duty of each pin that had one falling to 0 and the pulse width of
+    /// each servo pin falling to 0 (no more pulses). Digital outputs are released (no longer
+    /// driven); the log keeps the level they were last driven to until the firmware drives
+    /// them again, since it records driven levels only ([`ActuatorLog::level_at`]).
+    pub fn power_off(&self) {
+        let mut stopped = Vec::new();
+        {
+            let mut st = self.state.borrow_mut();
+            for (i, a) in st.actuators.iter_mut().enumerate() {
+                let Ok(port) = Port::actuator(u8::try_from(i + 1).unwrap_or(u8::MAX)) else {
+                    continue;
+                };
+                for (pin, duty) in [Pin::A, Pin::B].into_iter().zip(a.duty.iter_mut()) {
+                    if *duty != 0 {
+                        *duty = 0;
+                        stopped.push((port.pin(pin), Change::Duty(0)));
+                    }
+                }
+                for (pin, width) in [Pin::A, Pin::B].into_iter().zip(a.width.iter_mut()) {
+                    if width.is_some_and(|w| w != 0) {
+                        *width = Some(0);
+                        stopped.push((port.pin(pin), Change::PulseWidth(0)));
+                    }
+                }
+                a.out = [None, None];
+            }
+            for s in &mut st.sensor_out {
+                *s = [None, None];
+            }
+        }
+        for (pin, change) in stopped {
+            self.record(pin, change);
+        }
+    }
+
     /// The board name.
     pub fn board(&self) -> &str {
         &self.board
