@@ -219,4 +219,7 @@ fn a_reset_records_the_pwm_duty_falling_to_0() {
     let written = 10_000_000 + Speed::Fast.timing().write_ns(n);
     assert_eq!(duty, vec![(written, 200), (20_000_000, 0)]);
     assert_eq!(log.duty_at("db0a", a1a, 30_000_000), 0);
+    // The firmware's safe state at each power-up (0 s, and 5 ms after the reset).
+    let safe: Vec<_> = log.safe_states().iter().map(|s| s.t_ns).collect();
+    assert_eq!(safe, vec![0, 25_000_000]);
 }

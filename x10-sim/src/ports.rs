@@ -334,10 +334,25 @@ impl fmt::Display for OutputChange {
     }
 }
 
+/// The firmware put an actuator port in its safe state (it asked the port for it:
+/// `firmware-db` does so only in `apply_safe_state`, at boot and when its failsafe trips).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SafeStateApplied {
+    /// When (ns).
+    pub t_ns: Nanos,
+    /// Board name.
+    pub board: String,
+    /// The actuator port.
+    pub port: Port,
+    /// Its safe state.
+    pub safe: SafeState,
+}
+
 /// Every output change of every simulated board, shared. Cloning shares the log.
 #[derive(Clone, Default)]
 pub struct ActuatorLog {
     changes: Rc<RefCell<Vec<OutputChange>>>,
+    safe: Rc<RefCell<Vec<SafeStateApplied>>>,
 }
 
 impl ActuatorLog {
@@ -348,6 +363,12 @@ impl ActuatorLog {
 
     fn push(&self, c: OutputChange) {
         self.changes.borrow_mut().push(c);
+    }
+
+    /// Every time a board's firmware put an actuator port in its safe state, in time order:
+    /// the changes it made then are commanded by design (boot, failsafe), not by a caller.
+    pub fn safe_states(&self) -> Vec<SafeStateApplied> {
+        self.safe.borrow().clone()
     }
 
     /// All changes so far, in time order.
@@ -836,10 +857,18 @@ impl Ports for SimPorts {
     }
 
     fn safe_state(&self, port: Port) -> SafeState {
-        self.safe
+        let safe = self
+            .safe
             .get(usize::from(port.index()))
             .copied()
-            .unwrap_or(SafeState::ALL_LOW)
+            .unwrap_or(SafeState::ALL_LOW);
+        self.log.safe.borrow_mut().push(SafeStateApplied {
+            t_ns: self.clock.now_ns(),
+            board: self.board.clone(),
+            port,
+            safe,
+        });
+        safe
     }
 }
 
