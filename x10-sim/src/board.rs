@@ -72,6 +72,34 @@ pub struct DbBoard {
     pub resettable: bool,
     /// The latest diagnostics counters.
     pub diagnostics: DiagnosticsCell,
+    /// When the board's PEC setting changed (ground truth for checking frames).
+    pub pec: PecLog,
+}
+
+/// Every change of a board's PEC setting, with its time (ns): `false` at each boot, then
+/// whatever `set_pec` frames it accepted. Cloning shares the log.
+#[derive(Clone, Default)]
+pub struct PecLog {
+    changes: Rc<RefCell<Vec<(u64, bool)>>>,
+}
+
+impl PecLog {
+    /// The setting just before `t_ns` (the setting a frame that ends at `t_ns` meets).
+    pub fn before(&self, t_ns: u64) -> bool {
+        self.changes
+            .borrow()
+            .iter()
+            .rev()
+            .find(|(t, _)| *t < t_ns)
+            .is_some_and(|(_, on)| *on)
+    }
+
+    fn note(&self, t_ns: u64, on: bool) {
+        let mut c = self.changes.borrow_mut();
+        if c.last().map(|(_, o)| *o) != Some(on) {
+            c.push((t_ns, on));
+        }
+    }
 }
 
 impl DbBoard {
@@ -86,6 +114,7 @@ impl DbBoard {
             role: Role::DualRole,
             resettable: false,
             diagnostics: DiagnosticsCell::default(),
+            pec: PecLog::default(),
         }
     }
 
@@ -114,11 +143,15 @@ impl DbBoard {
                 poll_fn(|cx| {
                     let r = runtime.as_mut().poll(cx);
                     self.diagnostics.set(db.diagnostics());
+                    self.pec.note(clock.now_ns(), db.pec_enabled());
                     r
                 })
                 .await
             };
+            self.pec.note(clock.now_ns(), db.pec_enabled());
             select(serve, bus.wait_reset(node, generation)).await;
+            // Power is gone: PWM outputs stop now, not when the next boot sets them.
+            db.ports().power_off();
             self.diagnostics.set(db.diagnostics());
             notes.push(TraceLine::new(
                 clock.now_ns(),

@@ -169,3 +169,57 @@ fn reset_restarts_the_firmware_and_sends_boot_again() {
         "0.050000 WARN  db0a: reset: firmware restarts at 0.055000"
     );
 }
+
+/// A reset cuts the board's power: its PWM outputs stop at once. The log records the duty
+/// falling to 0 at the instant of the reset, not only when (or if) the firmware sets it again.
+#[test]
+fn a_reset_records_the_pwm_duty_falling_to_0() {
+    let clock = SimClock::new();
+    let log = ActuatorLog::new();
+    let board = DbBoard::new(
+        Address::external(0x0A).unwrap(),
+        Address::external(0x08).unwrap(),
+        SimPorts::new("db0a", clock.clone(), log.clone(), 1, 1),
+    );
+    let mut ex = Executor::with_clock(&clock);
+    let bus = SimBus::new(clock.clone(), BusConfig::new(Speed::Fast));
+    ex.spawn("bus", bus.engine());
+    let mb = bus.add_node(NodeConfig::new("mb", Some(0x08)));
+    let db = bus.add_node(board.node_config());
+    ex.spawn("db", board.run(bus.clone(), db, Notes::new()));
+    let mut listen_port = bus.port(mb);
+    ex.spawn("mb-listen", async move {
+        let mut buf = [0u8; 40];
+        loop {
+            let _ = listen_port.listen(&mut buf).await;
+        }
+    });
+    let a1a = Port::actuator(1).unwrap().pin(Pin::A);
+    let mut p = bus.port(mb);
+    let c = clock.clone();
+    let bus2 = bus.clone();
+    ex.spawn("mb", async move {
+        c.sleep_ns(10_000_000).await;
+        p.write(0x0A, &frame(0x0A, 2, Op::PwmDuty(a1a, 200)))
+            .await
+            .unwrap();
+        c.sleep_until_ns(20_000_000).await;
+        bus2.reset_node(db, 5_000_000);
+    });
+    ex.run_until_ns(50_000_000).unwrap();
+    let duty: Vec<_> = log
+        .of("db0a", a1a)
+        .iter()
+        .filter_map(|c| match c.change {
+            crate::ports::Change::Duty(d) => Some((c.t_ns, d)),
+            _ => None,
+        })
+        .collect();
+    let n = frame(0x0A, 2, Op::PwmDuty(a1a, 200)).len();
+    let written = 10_000_000 + Speed::Fast.timing().write_ns(n);
+    assert_eq!(duty, vec![(written, 200), (20_000_000, 0)]);
+    assert_eq!(log.duty_at("db0a", a1a, 30_000_000), 0);
+    // The firmware's safe state at each power-up (0 s, and 5 ms after the reset).
+    let safe: Vec<_> = log.safe_states().iter().map(|s| s.t_ns).collect();
+    assert_eq!(safe, vec![0, 25_000_000]);
+}

@@ -108,20 +108,49 @@ impl NodeConfig {
 }
 
 /// Seeded fault injection, per transaction (probabilities in parts per million).
+///
+/// Each transaction rolls its faults at its START, in a fixed order, whatever its scope
+/// ([`FaultConfig::only_address`], [`FaultConfig::window_ns`]): a fault rolled outside the
+/// scope is dropped, so narrowing the scope never changes which faults the transactions
+/// inside it get. The original four faults (stuck SDA, reset, NACK, corruption) draw from the
+/// bus's generator exactly as before these options existed; bursts, address flips, stuck SCL
+/// and the recovery point of a stuck SDA draw from a second generator of the same seed, so a
+/// configuration that leaves them off replays older runs bit for bit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FaultConfig {
     /// A NACK on the address or one data byte.
     pub nack_ppm: u32,
-    /// One bit of one byte flipped on the wire (the receiver sees it, the sender does not).
+    /// A burst of flipped bits on the wire in the data part (written, then read bytes): the
+    /// receiver sees it, the sender does not. See [`FaultConfig::burst_bits`].
     pub corrupt_ppm: u32,
     /// A resettable node restarts (NACKs for `reset_ns`, loses what it had received).
     pub reset_ppm: u32,
-    /// SDA stuck low for `stuck_ns`: the transaction ends in [`BusError::Bus`].
+    /// SDA stuck low (a target interrupted in the middle of a byte it was sending holds it):
+    /// the transaction ends in [`BusError::Bus`], and the bus stays unusable until the target
+    /// lets go by itself after `stuck_ns`, or until a master clocks it free with the standard
+    /// 9-clock recovery ([`SimBus::recover`]).
     pub stuck_ppm: u32,
     /// How long a reset node stays deaf.
     pub reset_ns: Nanos,
-    /// How long a stuck line stays stuck.
+    /// How long a stuck line stays stuck when nobody recovers it.
     pub stuck_ns: Nanos,
+    /// Bits in one corruption burst, counted along the wire from a random first bit (MSB
+    /// first, across byte boundaries, the ACK bits not counted): the first and the last bit of
+    /// the burst are flipped, each bit between them with probability 1/2. 0 and 1 flip one bit.
+    pub burst_bits: u8,
+    /// One of the 7 address bits flipped (the targets see the other address, the master does
+    /// not notice): the transaction goes to the node at that address, or is NACKed when there
+    /// is none. A write-read's repeated START carries the same flipped address.
+    pub address_ppm: u32,
+    /// SCL held low by a target for `stuck_ns` (a hung target): the transaction ends in
+    /// [`BusError::Timeout`] at the stretch timeout, and the bus is unusable until the target
+    /// lets go (clocking cannot recover a stuck SCL).
+    pub stuck_scl_ppm: u32,
+    /// Faults only in transactions to or from the node at this address (its resets only, if
+    /// it is resettable); `None`: every transaction.
+    pub only_address: Option<u8>,
+    /// Faults only in transactions that start in `from..until` (ns); `None`: always.
+    pub window_ns: Option<(Nanos, Nanos)>,
 }
 
 impl FaultConfig {
@@ -133,7 +162,17 @@ impl FaultConfig {
         stuck_ppm: 0,
         reset_ns: 0,
         stuck_ns: 0,
+        burst_bits: 0,
+        address_ppm: 0,
+        stuck_scl_ppm: 0,
+        only_address: None,
+        window_ns: None,
     };
+
+    fn in_window(&self, t: Nanos) -> bool {
+        self.window_ns
+            .is_none_or(|(from, until)| from <= t && t < until)
+    }
 }
 
 /// Bus configuration.
@@ -152,6 +191,10 @@ pub struct BusConfig {
     /// Keep each transaction's wire symbols ([`BusRecord::wire`], for the waveform); long
     /// runs without a waveform can save the memory.
     pub record_wire: bool,
+    /// Keep the record of every transaction; when false only those with a fault noted (an
+    /// injected fault, a lost transfer) are kept, so a long soak keeps its memory bounded by
+    /// its faults. [`BusStats`] counts every transaction either way.
+    pub keep_clean_records: bool,
 }
 
 impl BusConfig {
@@ -164,6 +207,7 @@ impl BusConfig {
             faults: FaultConfig::NONE,
             seed: 0,
             record_wire: true,
+            keep_clean_records: true,
         }
     }
 }
@@ -186,6 +230,11 @@ pub enum WireSym {
     /// SDA held low (stuck line) until the given time.
     Stuck {
         /// When SDA is released.
+        until: Nanos,
+    },
+    /// SCL held low (a hung target) until the given time.
+    SclStuck {
+        /// When SCL is released.
         until: Nanos,
     },
 }
@@ -295,6 +344,53 @@ pub struct BusStats {
     /// Transfers lost by their target because its `listen` future was dropped after the
     /// transfer had started (see the module doc).
     pub lost_transfers: u64,
+    /// Stuck lines injected (SDA or SCL).
+    pub stuck: u64,
+    /// 9-clock recoveries that freed a stuck SDA ([`SimBus::recover`]).
+    pub recoveries: u64,
+    /// Time the bus was unusable because of a stuck line, in all (ns).
+    pub stuck_ns: Nanos,
+}
+
+/// Which line is stuck.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Line {
+    /// The data line, held low by a target in the middle of a byte.
+    Sda,
+    /// The clock line, held low by a hung target.
+    Scl,
+}
+
+/// A stuck line, from its start until it is released.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct StuckLine {
+    line: Line,
+    from: Nanos,
+    until: Nanos,
+    /// Clocks after which the target holding SDA lets go (1..=9).
+    release_clocks: u8,
+    /// The transaction it happened in.
+    txn: u64,
+}
+
+/// The faults of the options, rolled from the second generator.
+struct ExtRolls {
+    scl: bool,
+    flip: Option<u8>,
+    burst: Option<u64>,
+    release: Option<u8>,
+}
+
+/// What a 9-clock recovery ([`SimBus::recover`]) did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Recovery {
+    /// No line was stuck: nothing to do (a real master would still clock and STOP).
+    NotStuck,
+    /// SDA was released after this many clocks; a STOP followed and the bus is free.
+    Released {
+        /// Clock pulses given (1 to 9).
+        clocks: u8,
+    },
 }
 
 #[derive(Debug)]
@@ -387,6 +483,12 @@ struct BusInner {
     stats: BusStats,
     /// Transactions lost by a dropped `listen` before their record was made.
     lost: Vec<u64>,
+    /// The newest transaction that has ended (records of older ones are made or dropped).
+    closed_txn: Option<u64>,
+    /// The second generator (bursts, address flips, stuck SCL, recovery points).
+    rng_ext: Rng,
+    /// The stuck line, if any.
+    stuck: Option<StuckLine>,
 }
 
 impl BusInner {
@@ -436,7 +538,10 @@ impl BusInner {
             rec.faults.push(LOST_NOTE.to_string());
             self.stats.lost_transfers += 1;
         }
-        self.records.push(rec);
+        self.closed_txn = Some(rec.txn);
+        if self.cfg.keep_clean_records || !rec.faults.is_empty() {
+            self.records.push(rec);
+        }
     }
 
     /// The `listen` future of `node` was dropped: a transfer it had started receiving is lost
@@ -462,6 +567,9 @@ impl BusInner {
     fn count_lost(&mut self, txn: u64) {
         if let Some(rec) = self.records.iter_mut().rev().find(|r| r.txn == txn) {
             rec.faults.push(LOST_NOTE.to_string());
+            self.stats.lost_transfers += 1;
+        } else if self.closed_txn.is_some_and(|c| c >= txn) {
+            // Ended, and its clean record was not kept.
             self.stats.lost_transfers += 1;
         } else {
             self.lost.push(txn);
@@ -535,6 +643,9 @@ impl SimBus {
                 yields: Vec::new(),
                 lost: Vec::new(),
                 stats: BusStats::default(),
+                closed_txn: None,
+                rng_ext: Rng::new(cfg.seed ^ 0xb125_7f11_a6e5_0d3c),
+                stuck: None,
             })),
             clock,
         }
@@ -660,6 +771,66 @@ impl SimBus {
         .await
     }
 
+    /// The line stuck now, if any, and until when it stays stuck unless recovered (ns).
+    pub fn stuck(&self) -> Option<(Line, Nanos)> {
+        let now = self.clock.now_ns();
+        self.inner
+            .borrow()
+            .stuck
+            .filter(|s| s.until > now)
+            .map(|s| (s.line, s.until))
+    }
+
+    /// The standard bus recovery (I2C spec 3.1.16, SMBus): a master that finds SDA held low
+    /// clocks SCL until the target holding it lets go (at most 9 clocks), then sends a STOP.
+    /// The target injected with [`FaultConfig::stuck_ppm`] lets go after a number of clocks
+    /// drawn at the fault (1 to 9, from the seed); the bus is free after the STOP and `t_BUF`.
+    /// Takes the wire time of the clocks and the STOP.
+    ///
+    /// The `MultiMaster` trait the runtimes use has no recovery: nothing calls this but
+    /// tests and harnesses, and a runtime's calls wait for the stuck line to let go by itself
+    /// ([`FaultConfig::stuck_ns`]) or time out.
+    ///
+    /// # Errors
+    /// [`BusError::Bus`] at once when SCL is the stuck line: clocking cannot free it.
+    pub async fn recover(&self) -> Result<Recovery, BusError> {
+        let now = self.clock.now_ns();
+        let end = {
+            let mut b = self.inner.borrow_mut();
+            let t = b.timing;
+            let Some(stuck) = b.stuck.filter(|s| s.until > now) else {
+                return Ok(Recovery::NotStuck);
+            };
+            if stuck.line == Line::Scl {
+                return Err(BusError::Bus);
+            }
+            let clocks = stuck.release_clocks.clamp(1, 9);
+            let end = now + Nanos::from(clocks) * t.bit_ns + t.stop_ns();
+            if end < stuck.until {
+                b.stats.stuck_ns -= stuck.until - end;
+                b.stats.recoveries += 1;
+                b.stuck = Some(StuckLine {
+                    until: end,
+                    ..stuck
+                });
+                b.free_at = end + t.buf_ns;
+                if let Some(rec) = b.records.iter_mut().rev().find(|r| r.txn == stuck.txn) {
+                    rec.end_ns = end;
+                    rec.faults
+                        .push(format!("recovered: SDA released after {clocks} clocks"));
+                    if let Some((_, WireSym::Stuck { until })) = rec.wire.first_mut() {
+                        *until = end;
+                    }
+                }
+                b.wake_engine();
+            }
+            (end.min(stuck.until), clocks)
+        };
+        let (at, clocks) = end;
+        self.clock.sleep_until_ns(at).await;
+        Ok(Recovery::Released { clocks })
+    }
+
     /// The engine: plays every transaction on the wire. Spawn it once, before the nodes' tasks.
     pub fn engine(&self) -> impl Future<Output = ()> + 'static {
         let bus = self.clone();
@@ -737,7 +908,12 @@ impl SimBus {
                     Some(e) => e.min(free_at),
                 }
             };
-            self.clock.sleep_until_ns(wake_at).await;
+            // A recovery ([`SimBus::recover`]) can free the bus earlier: it wakes the engine.
+            let inner = &self.inner;
+            let notified = WakeOnce::new(|w: &Waker| {
+                inner.borrow_mut().engine_waker = Some(w.clone());
+            });
+            select(self.clock.sleep_until_ns(wake_at), notified).await;
         }
     }
 
@@ -855,13 +1031,20 @@ impl SimBus {
             wire: vec![(t0, WireSym::Start)],
         };
 
-        // Faults rolled at START, in a fixed order.
-        let (stuck, reset, nack_roll, corrupt_roll) = {
+        // Faults rolled at START, in a fixed order; those of the options from the second
+        // generator. Then the scope: time window and board.
+        let in_window = faults.in_window(t0);
+        let (stuck, reset, nack_roll, corrupt_roll, ext) = {
             let mut b = self.inner.borrow_mut();
             let stuck = b.rng.chance_ppm(faults.stuck_ppm);
             let reset = if b.rng.chance_ppm(faults.reset_ppm) {
                 let eligible: Vec<NodeId> = (0..b.nodes.len())
-                    .filter(|&i| b.nodes.get(i).is_some_and(|n| n.cfg.resettable))
+                    .filter(|&i| {
+                        b.nodes.get(i).is_some_and(|n| {
+                            n.cfg.resettable
+                                && faults.only_address.is_none_or(|a| n.cfg.address == Some(a))
+                        })
+                    })
                     .collect();
                 let k = b.rng.below(eligible.len() as u64) as usize;
                 eligible.get(k).copied()
@@ -873,29 +1056,84 @@ impl SimBus {
                 .rng
                 .chance_ppm(faults.corrupt_ppm)
                 .then(|| b.rng.next_u64());
-            (stuck, reset, nack, corrupt)
+            let scl = b.rng_ext.chance_ppm(faults.stuck_scl_ppm);
+            let flip = b
+                .rng_ext
+                .chance_ppm(faults.address_ppm)
+                .then(|| b.rng_ext.below(7) as u8);
+            let burst = (faults.burst_bits > 1 && corrupt.is_some()).then(|| b.rng_ext.next_u64());
+            let release = stuck.then(|| 1 + b.rng_ext.below(9) as u8);
+            let ext = ExtRolls {
+                scl,
+                flip,
+                burst,
+                release,
+            };
+            (stuck, reset, nack, corrupt, ext)
         };
-        if let Some(node) = reset {
+        let scoped = |c: &Contender| {
+            faults.only_address.is_none_or(|a| {
+                c.addr == a
+                    || self
+                        .node_config(c.node)
+                        .is_some_and(|n| n.address == Some(a))
+            })
+        };
+        let line_scope = in_window && contenders.iter().any(scoped);
+        if let Some(node) = reset.filter(|_| in_window) {
             let name = self.node_name(node);
             self.note_fault(&mut rec, format!("reset {name}"));
             self.inner.borrow_mut().reset(node, t0, faults.reset_ns);
         }
-        if stuck {
+        let stuck_line = if stuck && line_scope {
+            Some(Line::Sda)
+        } else if ext.scl && line_scope {
+            Some(Line::Scl)
+        } else {
+            None
+        };
+        if let Some(line) = stuck_line {
             let until = t0 + faults.stuck_ns.max(t.bit_ns);
+            let (sym, outcome, error, at) = match line {
+                Line::Sda => (
+                    WireSym::Stuck { until },
+                    Outcome::Bus,
+                    BusError::Bus,
+                    t0 + t.start_ns(),
+                ),
+                Line::Scl => (
+                    WireSym::SclStuck { until },
+                    Outcome::Timeout,
+                    BusError::Timeout,
+                    until.min(t0 + self.config().stretch_timeout_ns),
+                ),
+            };
+            let name = if line == Line::Sda { "SDA" } else { "SCL" };
             self.note_fault(
                 &mut rec,
-                format!("SDA stuck low {} us", faults.stuck_ns / 1000),
+                format!("{name} stuck low {} us", faults.stuck_ns / 1000),
             );
-            rec.wire = vec![(t0, WireSym::Stuck { until })];
-            rec.outcome = Outcome::Bus;
+            rec.wire = vec![(t0, sym)];
+            rec.outcome = outcome;
             rec.end_ns = until;
-            let at = t0 + t.start_ns();
             let mut b = self.inner.borrow_mut();
-            b.stats.bus_faults += contenders.len() as u64;
+            match error {
+                BusError::Bus => b.stats.bus_faults += contenders.len() as u64,
+                _ => b.stats.timeouts += contenders.len() as u64,
+            }
             for c in &contenders {
-                b.finish(c.id, Err(BusError::Bus), at);
+                b.finish(c.id, Err(error), at);
             }
             b.free_at = until + t.buf_ns;
+            b.stuck = Some(StuckLine {
+                line,
+                from: t0,
+                until,
+                release_clocks: ext.release.unwrap_or(9),
+                txn,
+            });
+            b.stats.stuck += 1;
+            b.stats.stuck_ns += until - t0;
             b.stats.transactions += 1;
             b.push_record(rec);
             return;
@@ -910,6 +1148,13 @@ impl SimBus {
         rec.addr = winner.addr;
         rec.written = winner.write.clone();
         rec.is_read = winner.read_len.is_some();
+        // Outside the scope, the rolled NACK, corruption and address flip are dropped.
+        let in_scope = in_window && scoped(&winner);
+        let (nack_roll, corrupt_roll, flip) = if in_scope {
+            (nack_roll, corrupt_roll, ext.flip)
+        } else {
+            (None, None, None)
+        };
         let mut losers: Vec<(u64, usize)> = Vec::new();
         for (c, lost) in contenders.iter().zip(&lost_at) {
             if let Some(bit) = *lost {
@@ -952,11 +1197,19 @@ impl SimBus {
             read_len,
         } = winner;
         let plain_read = write.is_empty() && read_len.is_some();
+        // The address the targets see (one bit flipped by an injected fault).
+        let seen_addr = flip.map_or(addr, |bit| addr ^ (1 << bit));
+        if seen_addr != addr {
+            self.note_fault(
+                &mut rec,
+                format!("address {addr:#04x} seen as {seen_addr:#04x}"),
+            );
+        }
         let mut cursor = first_bit_at;
         push_byte(
             &mut rec.wire,
             &mut cursor,
-            (addr << 1) | u8::from(plain_read),
+            (seen_addr << 1) | u8::from(plain_read),
             t,
         );
 
@@ -964,7 +1217,7 @@ impl SimBus {
         self.clock.sleep_until_ns(cursor).await;
         let (target, refused) = {
             let b = self.inner.borrow();
-            let target = b.node_by_addr(addr);
+            let target = b.node_by_addr(seen_addr);
             let refused = match target {
                 None => true,
                 Some(n) => n == win_node || b.is_deaf(n, cursor),
@@ -1038,11 +1291,34 @@ impl SimBus {
         };
         let data_start = cursor;
 
-        // Corruption: one bit of one byte of the data part (written, then read).
+        // Corruption: a burst from one bit of one byte of the data part (written, then read),
+        // as a mask of flipped bits per data byte.
         let data_len = write.len() + read_len.unwrap_or(0);
         let corrupt = corrupt_roll.and_then(|r| {
             (data_len > 0).then(|| ((r % data_len as u64) as usize, ((r >> 32) % 8) as u8))
         });
+        let mut mask = vec![0u8; data_len];
+        let mut burst_note = None;
+        if let Some((k, bit)) = corrupt {
+            let len = burst_mask(&mut mask, k, bit, faults.burst_bits, ext.burst);
+            if faults.burst_bits > 1 {
+                let flipped: u32 = mask.iter().map(|m| m.count_ones()).sum();
+                burst_note = Some(format!(
+                    "burst of {len} bits from data byte {k} bit {bit}: {flipped} flipped"
+                ));
+            }
+        }
+        let mut corrupt_noted = false;
+        let mut note_corrupt = |bus: &SimBus, rec: &mut BusRecord, what: &str, i: usize, m: u8| {
+            if m != 0 && !corrupt_noted {
+                corrupt_noted = true;
+                let text = burst_note.clone().map_or_else(
+                    || format!("corrupt {what} byte {i} bit {}", m.trailing_zeros()),
+                    |b| format!("corrupt {b}"),
+                );
+                bus.note_fault(rec, text);
+            }
+        };
 
         // Write phase: bytes until the end, an overrun, a reset target or an injected NACK.
         let overrun_at = (write.len() > cap && !gone).then_some(cap);
@@ -1059,13 +1335,9 @@ impl SimBus {
                 push_bit(&mut rec.wire, &mut cursor, true, t);
                 break;
             }
-            let seen = match corrupt {
-                Some((k, bit)) if k == i => {
-                    self.note_fault(&mut rec, format!("corrupt written byte {i} bit {bit}"));
-                    byte ^ (1 << bit)
-                }
-                _ => byte,
-            };
+            let m = mask.get(i).copied().unwrap_or(0);
+            note_corrupt(self, &mut rec, "written", i, m);
+            let seen = byte ^ m;
             received.push(seen);
             push_bit(&mut rec.wire, &mut cursor, false, t);
         }
@@ -1128,7 +1400,7 @@ impl SimBus {
         if !plain_read {
             rec.wire.push((cursor, WireSym::RepeatedStart));
             cursor += t.repeated_start_ns();
-            push_byte(&mut rec.wire, &mut cursor, (addr << 1) | 1, t);
+            push_byte(&mut rec.wire, &mut cursor, (seen_addr << 1) | 1, t);
             if self.inner.borrow().is_deaf(target, cursor) {
                 if let Some(n) = self.inner.borrow_mut().nodes.get_mut(target) {
                     if n.receiving == Some(txn) {
@@ -1213,13 +1485,9 @@ impl SimBus {
         let mut read = Vec::with_capacity(read_len);
         for i in 0..read_len {
             let byte = reply.get(i).copied().unwrap_or(0xFF);
-            let seen = match corrupt {
-                Some((k, bit)) if k == write.len() + i => {
-                    self.note_fault(&mut rec, format!("corrupt read byte {i} bit {bit}"));
-                    byte ^ (1 << bit)
-                }
-                _ => byte,
-            };
+            let m = mask.get(write.len() + i).copied().unwrap_or(0);
+            note_corrupt(self, &mut rec, "read", i, m);
+            let seen = byte ^ m;
             push_byte(&mut rec.wire, &mut cursor, seen, t);
             // The master ACKs every byte but the last.
             push_bit(&mut rec.wire, &mut cursor, i + 1 == read_len, t);
@@ -1235,6 +1503,30 @@ impl SimBus {
             n.wake();
         }
     }
+}
+
+/// Flips a burst into `mask` (one byte per data byte): from bit `bit` (0 = LSB) of byte
+/// `byte`, `burst_bits` bits along the wire (MSB first; at least 1, at most 64), the first and
+/// the last flipped, those between by the bits of `inner` (bit 0 first). Clipped at the end
+/// of the data. Returns the burst's length.
+fn burst_mask(mask: &mut [u8], byte: usize, bit: u8, burst_bits: u8, inner: Option<u64>) -> usize {
+    let len = usize::from(burst_bits.clamp(1, 64));
+    let start = byte * 8 + usize::from(7 - bit.min(7));
+    let mut inner = inner.unwrap_or(0);
+    for j in 0..len {
+        let flip = if j == 0 || j + 1 == len {
+            true
+        } else {
+            let f = inner & 1 == 1;
+            inner >>= 1;
+            f
+        };
+        let s = start + j;
+        if let (true, Some(m)) = (flip, mask.get_mut(s / 8)) {
+            *m ^= 0x80 >> (s % 8);
+        }
+    }
+    len
 }
 
 #[derive(Clone, Debug)]

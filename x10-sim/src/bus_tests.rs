@@ -660,3 +660,319 @@ fn a_listen_dropped_mid_transfer_loses_it_counted_and_noted() {
     assert_eq!(recs[0].faults, vec![LOST_NOTE.to_string()]);
     assert!(recs[1].faults.is_empty());
 }
+
+#[test]
+fn a_burst_flips_its_first_and_last_bit_and_the_inner_bits_it_is_told() {
+    let mut m = [0u8; 3];
+    // From byte 0 bit 0 (the 8th bit on the wire), 4 bits: the 1st and 4th, and the 2nd
+    // (inner bit 0 of 0b01).
+    assert_eq!(burst_mask(&mut m, 0, 0, 4, Some(0b01)), 4);
+    assert_eq!(m, [0x01, 0xA0, 0x00]);
+    // One bit: today's single flip.
+    let mut m = [0u8; 2];
+    assert_eq!(burst_mask(&mut m, 1, 3, 0, None), 1);
+    assert_eq!(m, [0x00, 0x08]);
+    // Clipped at the end of the data; 64 bits at most.
+    let mut m = [0u8; 1];
+    assert_eq!(burst_mask(&mut m, 0, 1, 200, Some(u64::MAX)), 64);
+    assert_eq!(m, [0x03]);
+}
+
+/// What an [`echo_target`] saw.
+type TargetLog = RefCell<Vec<(u64, Incoming, Vec<u8>)>>;
+
+/// The writes' times and results, the recovery's result, the counters.
+type StuckRun = (
+    Vec<(u64, Result<(), BusError>)>,
+    Option<Result<Recovery, BusError>>,
+    BusStats,
+);
+
+/// One write of `bytes` to 0x09 through a bus with `faults`; returns what each target at
+/// `addrs` received, the write's result and its record.
+fn one_write(
+    faults: FaultConfig,
+    seed: u64,
+    addrs: &[u8],
+    bytes: &[u8],
+) -> (Vec<Vec<Vec<u8>>>, Result<(), BusError>, BusRecord) {
+    let logs: Vec<TargetLog> = addrs.iter().map(|_| RefCell::new(Vec::new())).collect();
+    let result = RefCell::new(None);
+    let mut cfg = BusConfig::new(Speed::Fast);
+    cfg.faults = faults;
+    cfg.seed = seed;
+    let records;
+    {
+        let mut f = fixture_with(cfg);
+        let mb = f.bus.add_node(NodeConfig::new("mb", None));
+        for (a, log) in addrs.iter().zip(&logs) {
+            let n = f
+                .bus
+                .add_node(NodeConfig::new(format!("t{a:02x}"), Some(*a)));
+            f.ex.spawn("t", echo_target(f.bus.port(n), log, vec![]));
+        }
+        let mut p = f.bus.port(mb);
+        let (r, bytes) = (&result, bytes.to_vec());
+        f.ex.spawn("mb", async move {
+            *r.borrow_mut() = Some(p.write(0x09, &bytes).await);
+        });
+        f.ex.run_until_ns(10_000_000).unwrap();
+        records = f.bus.records();
+    }
+    let seen = logs
+        .into_iter()
+        .map(|l| l.into_inner().into_iter().map(|(_, _, b)| b).collect())
+        .collect();
+    (seen, result.into_inner().unwrap(), records[0].clone())
+}
+
+#[test]
+fn a_burst_of_two_flips_two_neighbouring_bits() {
+    let faults = FaultConfig {
+        corrupt_ppm: 1_000_000,
+        burst_bits: 2,
+        ..FaultConfig::NONE
+    };
+    let (seen, r, rec) = one_write(faults, 3, &[0x09], &[0, 0, 0, 0]);
+    assert_eq!(r, Ok(()));
+    assert_eq!(seen, vec![vec![vec![0x06, 0x00, 0x00, 0x00]]]);
+    assert_eq!(
+        rec.faults,
+        vec!["corrupt burst of 2 bits from data byte 0 bit 2: 2 flipped"]
+    );
+    assert_eq!(rec.written, vec![0, 0, 0, 0]);
+    assert_eq!(rec.received, vec![0x06, 0x00, 0x00, 0x00]);
+}
+
+#[test]
+fn an_address_flip_sends_the_frame_to_another_board_or_nobody() {
+    let faults = FaultConfig {
+        address_ppm: 1_000_000,
+        ..FaultConfig::NONE
+    };
+    // Every neighbour of 0x09 at one bit listens: exactly one gets the frame, 0x09 none.
+    let neighbours: Vec<u8> = (0..7).map(|b| 0x09 ^ (1 << b)).collect();
+    let mut addrs = vec![0x09];
+    addrs.extend(&neighbours);
+    let (seen, r, rec) = one_write(faults, 5, &addrs, &[0x12, 0x09, 0x01, 0x02]);
+    assert_eq!(r, Ok(()));
+    let got: Vec<usize> = seen.iter().map(Vec::len).collect();
+    // Seed 5 flips bit 6: 0x49 gets it.
+    assert_eq!(got, vec![0, 0, 0, 0, 0, 0, 0, 1]);
+    assert_eq!(rec.faults, vec!["address 0x09 seen as 0x49"]);
+    assert_eq!(rec.addr, 0x09);
+    assert_eq!(rec.target, Some(8));
+    // Nobody at the flipped address: NACK.
+    let (seen, r, rec) = one_write(faults, 5, &[0x09], &[1]);
+    assert_eq!((seen, r), (vec![vec![]], Err(BusError::Nack)));
+    assert_eq!(rec.outcome, Outcome::Nack { byte: 0 });
+}
+
+#[test]
+fn faults_can_be_limited_to_one_board_and_a_time_window() {
+    let results = RefCell::new(Vec::new());
+    let mut cfg = BusConfig::new(Speed::Fast);
+    cfg.faults = FaultConfig {
+        nack_ppm: 1_000_000,
+        only_address: Some(0x0A),
+        window_ns: Some((1_000_000, 2_000_000)),
+        ..FaultConfig::NONE
+    };
+    let log = RefCell::new(Vec::new());
+    let mut f = fixture_with(cfg);
+    let mb = f.bus.add_node(NodeConfig::new("mb", None));
+    for a in [0x09, 0x0A] {
+        let n = f
+            .bus
+            .add_node(NodeConfig::new(format!("t{a:02x}"), Some(a)));
+        f.ex.spawn("t", echo_target(f.bus.port(n), &log, vec![]));
+    }
+    let mut p = f.bus.port(mb);
+    let clock = f.ex.clock();
+    let r = &results;
+    f.ex.spawn("mb", async move {
+        for at in [0, 1_000_000, 2_000_000] {
+            clock.sleep_until_ns(at).await;
+            for a in [0x09, 0x0A] {
+                let res = p.write(a, &[1, 2]).await;
+                r.borrow_mut().push((at / 1_000_000, a, res.is_ok()));
+            }
+        }
+    });
+    f.ex.run_until_ns(10_000_000).unwrap();
+    assert_eq!(
+        *results.borrow(),
+        vec![
+            (0, 0x09, true),
+            (0, 0x0A, true),
+            (1, 0x09, true),
+            (1, 0x0A, false),
+            (2, 0x09, true),
+            (2, 0x0A, true),
+        ]
+    );
+    assert_eq!(f.bus.stats().injected, 1);
+}
+
+/// A write at 0 that meets a stuck line (only the transaction starting at 0 is in the
+/// fault window), then, after an optional 9-clock recovery, a second write.
+fn stuck_then_write(faults: FaultConfig, recover: bool) -> StuckRun {
+    let done = RefCell::new(Vec::new());
+    let recovered = RefCell::new(None);
+    let mut cfg = BusConfig::new(Speed::Fast);
+    cfg.stretch_timeout_ns = 5_000_000;
+    cfg.faults = FaultConfig {
+        stuck_ns: 10_000_000,
+        window_ns: Some((0, 1)),
+        ..faults
+    };
+    let log = RefCell::new(Vec::new());
+    let stats = {
+        let mut f = fixture_with(cfg);
+        let mb = f.bus.add_node(NodeConfig::new("mb", None));
+        let db = f.bus.add_node(NodeConfig::new("db", Some(0x09)));
+        f.ex.spawn("db", echo_target(f.bus.port(db), &log, vec![]));
+        let mut p = f.bus.port(mb);
+        let clock = f.ex.clock();
+        let bus = f.bus.clone();
+        let (d, rc) = (&done, &recovered);
+        f.ex.spawn("mb", async move {
+            let r = p.write(0x09, &[1]).await;
+            d.borrow_mut().push((clock.now_ns(), r));
+            if recover {
+                *rc.borrow_mut() = Some(bus.recover().await);
+            }
+            let r = p.write(0x09, &[2]).await;
+            d.borrow_mut().push((clock.now_ns(), r));
+        });
+        f.ex.run_until_ns(100_000_000).unwrap();
+        f.bus.stats()
+    };
+    (done.into_inner(), recovered.into_inner(), stats)
+}
+
+#[test]
+fn a_stuck_sda_is_freed_by_the_9_clock_recovery_or_by_itself() {
+    let t = Speed::Fast.timing();
+    let sda = FaultConfig {
+        stuck_ppm: 1_000_000,
+        ..FaultConfig::NONE
+    };
+    // Nobody recovers: the second write waits for the target to let go at 10 ms.
+    let (done, _, stats) = stuck_then_write(sda, false);
+    assert_eq!(
+        done,
+        vec![
+            (t.start_ns(), Err(BusError::Bus)),
+            (10_000_000 + t.buf_ns + t.write_ns(1), Ok(()))
+        ]
+    );
+    assert_eq!(
+        (stats.stuck, stats.recoveries, stats.stuck_ns),
+        (1, 0, 10_000_000)
+    );
+    // Recovered: seed 0 lets go after 1 clock; STOP, t_BUF, and the write goes out.
+    let (done, recovered, stats) = stuck_then_write(sda, true);
+    assert_eq!(recovered, Some(Ok(Recovery::Released { clocks: 1 })));
+    let freed = t.start_ns() + t.bit_ns + t.stop_ns();
+    assert_eq!(
+        done,
+        vec![
+            (t.start_ns(), Err(BusError::Bus)),
+            (freed + t.buf_ns + t.write_ns(1), Ok(()))
+        ]
+    );
+    assert_eq!((stats.stuck, stats.recoveries), (1, 1));
+    assert_eq!(stats.stuck_ns, freed);
+}
+
+#[test]
+fn a_stuck_scl_times_out_and_cannot_be_clocked_free() {
+    let t = Speed::Fast.timing();
+    let scl = FaultConfig {
+        stuck_scl_ppm: 1_000_000,
+        ..FaultConfig::NONE
+    };
+    let (done, recovered, stats) = stuck_then_write(scl, true);
+    assert_eq!(recovered, Some(Err(BusError::Bus)));
+    assert_eq!(
+        done,
+        vec![
+            (5_000_000, Err(BusError::Timeout)),
+            (10_000_000 + t.buf_ns + t.write_ns(1), Ok(()))
+        ]
+    );
+    assert_eq!((stats.stuck, stats.recoveries, stats.timeouts), (1, 0, 1));
+}
+
+#[test]
+fn nothing_stuck_nothing_to_recover() {
+    let (done, recovered, stats) = stuck_then_write(FaultConfig::NONE, true);
+    assert_eq!(recovered, Some(Ok(Recovery::NotStuck)));
+    assert!(done.iter().all(|(_, r)| r.is_ok()));
+    assert_eq!(stats.stuck, 0);
+}
+
+#[test]
+fn a_soak_keeps_only_the_records_with_faults() {
+    let mut cfg = BusConfig::new(Speed::Fast);
+    cfg.faults.nack_ppm = 200_000;
+    cfg.seed = 9;
+    cfg.keep_clean_records = false;
+    let log = RefCell::new(Vec::new());
+    let mut f = fixture_with(cfg);
+    let mb = f.bus.add_node(NodeConfig::new("mb", None));
+    let db = f.bus.add_node(NodeConfig::new("db", Some(0x09)));
+    f.ex.spawn("db", echo_target(f.bus.port(db), &log, vec![]));
+    let mut p = f.bus.port(mb);
+    f.ex.spawn("mb", async move {
+        for i in 0..50u8 {
+            let _ = p.write(0x09, &[i]).await;
+        }
+    });
+    f.ex.run_until_ns(100_000_000).unwrap();
+    let recs = f.bus.records();
+    let stats = f.bus.stats();
+    assert_eq!(stats.transactions, 50);
+    assert_eq!(recs.len() as u64, stats.injected);
+    assert!(recs.iter().all(|r| !r.faults.is_empty()));
+    assert_eq!((stats.injected, stats.nacks), (13, 13));
+}
+
+#[test]
+fn the_new_faults_are_seeded_and_leave_the_old_ones_alone() {
+    let run = |faults: FaultConfig, seed| {
+        let (seen, r, rec) = one_write(faults, seed, &[0x09, 0x0b, 0x0d], &[7, 7, 7, 7, 7, 7]);
+        (seen, r, rec.faults)
+    };
+    let all = FaultConfig {
+        corrupt_ppm: 500_000,
+        nack_ppm: 300_000,
+        burst_bits: 5,
+        address_ppm: 500_000,
+        ..FaultConfig::NONE
+    };
+    for seed in 0..20 {
+        assert_eq!(run(all, seed), run(all, seed));
+    }
+    // The NACKs and corruptions of the old options fall on the same transactions whether
+    // or not the new ones are on (single-bit corruption vs a burst starting at that bit).
+    let old = FaultConfig {
+        burst_bits: 0,
+        address_ppm: 0,
+        ..all
+    };
+    for seed in 0..20 {
+        let (_, r_old, f_old) = run(old, seed);
+        let (_, r_new, f_new) = run(
+            FaultConfig {
+                address_ppm: 0,
+                ..all
+            },
+            seed,
+        );
+        assert_eq!(r_old, r_new, "seed {seed}");
+        let starts = |f: &[String]| f.iter().map(|s| s.contains("corrupt")).collect::<Vec<_>>();
+        assert_eq!(starts(&f_old), starts(&f_new), "seed {seed}");
+    }
+}

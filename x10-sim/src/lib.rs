@@ -16,6 +16,7 @@
 //!   daughterboards, robot programs (`async fn`s taking an [`sim::X10`]) and test tasks; the
 //!   executor is embassy-time's driver, so programs sleep in virtual time.
 //! * [`trace`] and [`vcd`]: the readable trace and the SDA/SCL waveform.
+//! * [`soak`]: `x10 soak`, many calls on a faulty bus checked against the ground truth.
 //! * [`report`]: the latency table and the end-of-run summary; [`cli_sim`]: the `x10 sim` and
 //!   `x10 report` subcommands; [`app`]: the simulator command of a robot crate (`cargo sim`);
 //!   [`examples`]: the example robots of `x10-robots` by name; [`new`]: `x10 new`, a robot
@@ -33,6 +34,7 @@ pub mod exec;
 pub mod new;
 pub mod ports;
 pub mod report;
+pub mod soak;
 
 pub mod sim;
 pub mod timeline;

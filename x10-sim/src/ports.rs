@@ -346,10 +346,25 @@ impl fmt::Display for OutputChange {
     }
 }
 
+/// The firmware put an actuator port in its safe state (it asked the port for it:
+/// `firmware-db` does so only in `apply_safe_state`, at boot and when its failsafe trips).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SafeStateApplied {
+    /// When (ns).
+    pub t_ns: Nanos,
+    /// Board name.
+    pub board: String,
+    /// The actuator port.
+    pub port: Port,
+    /// Its safe state.
+    pub safe: SafeState,
+}
+
 /// Every output change of every simulated board, shared. Cloning shares the log.
 #[derive(Clone, Default)]
 pub struct ActuatorLog {
     changes: Rc<RefCell<Vec<OutputChange>>>,
+    safe: Rc<RefCell<Vec<SafeStateApplied>>>,
 }
 
 impl ActuatorLog {
@@ -360,6 +375,12 @@ impl ActuatorLog {
 
     fn push(&self, c: OutputChange) {
         self.changes.borrow_mut().push(c);
+    }
+
+    /// Every time a board's firmware put an actuator port in its safe state, in time order:
+    /// the changes it made then are commanded by design (boot, failsafe), not by a caller.
+    pub fn safe_states(&self) -> Vec<SafeStateApplied> {
+        self.safe.borrow().clone()
     }
 
     /// All changes so far, in time order.
@@ -523,6 +544,42 @@ impl SimPorts {
                 latched: Vec::new(),
             }),
             log: self.log.clone(),
+        }
+    }
+
+    /// The board loses power (a reset): every PWM output stops at once. Records, at the
+    /// current instant, the duty of each pin that had one falling to 0 and the pulse width of
+    /// each servo pin falling to 0 (no more pulses). Digital outputs are released (no longer
+    /// driven); the log keeps the level they were last driven to until the firmware drives
+    /// them again, since it records driven levels only ([`ActuatorLog::level_at`]).
+    pub fn power_off(&self) {
+        let mut stopped = Vec::new();
+        {
+            let mut st = self.state.borrow_mut();
+            for (i, a) in st.actuators.iter_mut().enumerate() {
+                let Ok(port) = Port::actuator(u8::try_from(i + 1).unwrap_or(u8::MAX)) else {
+                    continue;
+                };
+                for (pin, duty) in [Pin::A, Pin::B].into_iter().zip(a.duty.iter_mut()) {
+                    if *duty != 0 {
+                        *duty = 0;
+                        stopped.push((port.pin(pin), Change::Duty(0)));
+                    }
+                }
+                for (pin, width) in [Pin::A, Pin::B].into_iter().zip(a.width.iter_mut()) {
+                    if width.is_some_and(|w| w != 0) {
+                        *width = Some(0);
+                        stopped.push((port.pin(pin), Change::PulseWidth(0)));
+                    }
+                }
+                a.out = [None, None];
+            }
+            for s in &mut st.sensor_out {
+                *s = [None, None];
+            }
+        }
+        for (pin, change) in stopped {
+            self.record(pin, change);
         }
     }
 
@@ -880,10 +937,18 @@ impl Ports for SimPorts {
     }
 
     fn safe_state(&self, port: Port) -> SafeState {
-        self.safe
+        let safe = self
+            .safe
             .get(usize::from(port.index()))
             .copied()
-            .unwrap_or(SafeState::ALL_LOW)
+            .unwrap_or(SafeState::ALL_LOW);
+        self.log.safe.borrow_mut().push(SafeStateApplied {
+            t_ns: self.clock.now_ns(),
+            board: self.board.clone(),
+            port,
+            safe,
+        });
+        safe
     }
 }
 

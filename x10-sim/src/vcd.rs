@@ -100,6 +100,10 @@ pub fn render(records: &[BusRecord], timing: Timing, clock_label: &str) -> Strin
                     d.set(t, SDA, false);
                     d.set(until, SDA, true);
                 }
+                WireSym::SclStuck { until } => {
+                    d.set(t, SCL, false);
+                    d.set(until, SCL, true);
+                }
             }
         }
         last_end = last_end.max(rec.end_ns);

@@ -39,6 +39,10 @@ enum Command {
     /// Create a robot crate of your own (program, world, simulator command, host test,
     /// Pico and STM32G431 images) in PATH, outside this repository.
     New(NewArgs),
+    /// Many calls from 12 tasks to 8 boards and SELF on a faulty bus, checked against the
+    /// simulator's ground truth, per PEC mode and corruption level (docs/reliability.md).
+    /// Fails (exit 1) when a mode that must be clean is not.
+    Soak(x10_sim::soak::SoakArgs),
 }
 
 const NEW_HELP: &str = "\
@@ -365,5 +369,6 @@ fn main() -> ExitCode {
         Command::Sim(args) => x10_sim::cli_sim::sim_main(args),
         Command::Report(args) => x10_sim::cli_sim::report_main(args),
         Command::New(args) => new_main(args),
+        Command::Soak(args) => x10_sim::soak::soak_main(&args),
     }
 }
