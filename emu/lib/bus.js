@@ -40,6 +40,13 @@ export class Bus {
     this.names.set(block, name);
   }
 
+  /** Takes `block` off the bus (its chip was power-cycled). */
+  detach(block) {
+    this.blockReset(block);
+    this.nodes = this.nodes.filter((n) => n !== block);
+    block.bus = null;
+  }
+
   now() { return this.clock.now(); }
   at(delayNs, fn) {
     const gen = this.gen;

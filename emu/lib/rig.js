@@ -14,6 +14,7 @@ export class Chip {
   constructor(rig, name, elfPath, options = {}) {
     this.rig = rig;
     this.name = name;
+    this.options = options;
     this.elf = readElf(elfPath);
     // The package does not export SimulationClock: each chip keeps the one RP2040 makes.
     const rp = (this.rp = new RP2040());
@@ -125,6 +126,8 @@ export class Rig {
     this.queue = []; // sorted by time: { t, seq, fn }
     this.seq = 0;
     this.chips = [];
+    /** Called after every quantum (the scripted motherboard polls its registers here). */
+    this.hooks = [];
     this.bus = new Bus({ now: () => this.t, at: (t, fn) => this.at(t, fn) }, { stopGapNs: options.stopGapNs, log: options.busLog });
   }
 
@@ -145,6 +148,21 @@ export class Rig {
     return chip;
   }
 
+  /**
+   * Power-cycles `chip`: its I2C block lets go of the bus at once (no STOP), and a fresh chip
+   * with the same image and options boots in its place at the current time.
+   */
+  powerCycle(chip) {
+    const i = this.chips.indexOf(chip);
+    this.bus.detach(chip.i2c0);
+    const fresh = new Chip(this, chip.name, chip.elf.path, chip.options);
+    fresh.clock.nanosCounter = this.t;
+    fresh.lastRtt = this.t;
+    this.bus.attach(fresh.i2c0, chip.name);
+    this.chips[i] = fresh;
+    return fresh;
+  }
+
   /** Runs until `ns`, or until `stop()` returns true (checked every quantum). */
   run(ns, stop = null) {
     while (this.t < ns) {
@@ -156,6 +174,7 @@ export class Rig {
         e.fn();
       }
       this.t = next;
+      for (const h of this.hooks) h();
       if (stop && stop()) return true;
     }
     return false;
