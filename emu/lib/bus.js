@@ -274,7 +274,10 @@ export class Bus {
         if (n === m || !n.enabled) continue;
         const addressed = n === c.addressedOnce;
         if (addressed) n.slvActive = false;
-        if (addressed || !(n.control & (1 << 7))) n.raise(1 << 9);
+        // Another master's STOP: a target sees it unless STOP_DET_IFADDRESSED; a controller
+        // unless STOP_DET_IF_MASTER_ACTIVE (IC_CON bit 10, reset value 0: it does).
+        const sees = n.isController ? !(n.control & (1 << 10)) : addressed || !(n.control & (1 << 7));
+        if (sees) n.raise(1 << 9);
       }
       this.cur = null;
       this.state = 'idle';
