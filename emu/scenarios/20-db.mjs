@@ -52,7 +52,6 @@ export default [
   },
   {
     name: 'long-reply',
-    knownDefect: "issue 16 #1: embassy-rp 0.10 respond_to_read writes its second 16-byte chunk into a full TX FIFO when polled again (take_reply signals `heard`); fix pending in x10-boards/src/pico.rs",
     about: 'replies over 16 bytes (issue 16 defect 1): diagnostics (31 bytes), a batch of two identify (27 bytes), then a full scan',
     run(ctx) {
       const { vmb } = setup(ctx);
@@ -67,7 +66,9 @@ export default [
       const u16 = (i) => p[i] | (p[i + 1] << 8);
       ctx.check('read_diagnostics: 31 bytes, none lost (no 0xFF from byte 17 on)', ok && d.read.slice(16).every((b) => b !== 0xff),
         d.read ? d.read.map((b) => b.toString(16).padStart(2, '0')).join(' ') : 'no reply');
-      ctx.check('events_sent counts the event (1)', ok && u16(16) === 1, `events_sent=${u16(16)}`);
+      // events_sent counts every event delivered: the boot event and the pin change.
+      const sent = vmb.events.filter((e) => e.bytes[0] === 9).length;
+      ctx.check(`events_sent counts the events the MB received (${sent}: boot, pin change)`, ok && sent === 2 && u16(16) === sent, `events_sent=${u16(16)}`);
       const b = ask(vmb, 9, 0x50, 0, [0x01, 0, 0, 0x01, 0, 0], 31);
       const bp = b.reply?.payload ?? [];
       ctx.check('batch of two identify: both results whole (27-byte reply)', b.reply && b.reply.seq === b.seq && bp.length === 24 && bp[12] === 0 && bp[13] === 10 && bp[14 + 4] === 3,
@@ -80,7 +81,6 @@ export default [
   },
   {
     name: 'short-reply',
-    knownDefect: "issue 11 #1: padding left in the TX FIFO is flushed with TX_ABRT on the next read and respond_to_read returns LeftoverBytes without answering; fix pending in pico.rs",
     about: 'issue 11 item 1: a reply shorter than the read leaves padding in the TX FIFO; the next reads must still be answered',
     run(ctx) {
       const { vmb } = setup(ctx);
@@ -97,7 +97,6 @@ export default [
   },
   {
     name: 'stop-gap',
-    knownDefect: "issue 16 #2: after a write-then-read, SLV_ACTIVITY before the STOP makes `addressed` return and embassy's listen wait for the next transfer; fails from a STOP gap between 19 and 30 us here; fix pending in pico.rs",
     about: 'issue 16 defect 2: a pin event must go out while the MB polls, whatever the gap before its STOP (sweep)',
     run(ctx) {
       for (const gapUs of [5, 18, 19, 30, 60]) {
@@ -184,7 +183,6 @@ export default [
   },
   {
     name: 'split-write',
-    knownDefect: "issue 11 #4: a stale STOP_DET left by respond splits the next write into two frames (bad_length); fix pending in pico.rs",
     about: 'issue 11 item 4: a write arriving right after a write-then-read must not be split by a stale STOP_DET (1 MHz MB)',
     run(ctx) {
       const { rig, vmb, dbs } = setup(ctx, { hz: 1000000 });
@@ -204,7 +202,6 @@ export default [
   },
   {
     name: 'abort-no-stop',
-    knownDefect: "issue 11 #5 (Pico): a controller gone without a STOP leaves SLV_ACTIVITY set on DB 9, which then refuses the controller role until another START; fix pending in pico.rs",
     about: 'issue 11 item 5 (Pico part): the MB\'s block is reset in the middle of a write to DB 9 (no STOP); DB 9 must still deliver its next event',
     run(ctx) {
       const { rig, vmb, dbs } = setup(ctx);
