@@ -36,6 +36,7 @@ pub mod pins;
 pub mod address;
 pub mod pulse;
 pub mod pwm;
+pub mod pico_rules;
 
 #[cfg(feature = "time")]
 mod clock;

@@ -11,6 +11,9 @@
 //!   after `--` the runner's, probe-rs). The aliases `cargo mb-pico`, `cargo db-pico`,
 //!   `cargo mb-g431` and `cargo db-g431` of `.cargo/config.toml` are this task.
 //!
+//! * `cargo xtask emu [--list] [SCENARIO…]` runs mb-pico and db-pico on emulated RP2040s
+//!   (`emu/`, `docs/emulation.md`; the module [`emu`]).
+//!
 //! Both read the images from one table, [`IMAGES`], and first check that the Rust targets they
 //! need are installed: a missing one is one line naming it and the `rustup target add` command,
 //! instead of the compiler's "can't find crate for `core`" (E0463).
@@ -22,6 +25,8 @@ use std::process::{Command, ExitCode};
 use std::time::Instant;
 
 use object::{Object, ObjectSection, SectionFlags};
+
+mod emu;
 
 /// One firmware image: how to build it and its limits.
 struct Image {
@@ -397,6 +402,7 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
         [task] if task == "size" => size(true).map(sized),
         [task, flag] if task == "size" && flag == "--no-build" => size(false).map(sized),
         [task, name, rest @ ..] if task == "image" => run_image(name, rest),
+        [task, rest @ ..] if task == "emu" => emu::emu(rest),
         _ => Err(Error::Usage(format!("unknown arguments {args:?}"))),
     }
 }

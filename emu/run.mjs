@@ -1,0 +1,133 @@
+#!/usr/bin/env node
+// Runs the emulator scenarios (scenarios/*.mjs) on the release Pico images.
+//
+//   node run.mjs --mb MB_ELF --db DB_ELF [--x10 X10_TOOL] [--out DIR] [SCENARIO...]
+//
+// `cargo xtask emu [SCENARIO]` builds the images and calls this. Each scenario prints its
+// checks (PASS/FAIL), its figures, and writes its bus trace (decoded with `x10 decode` when
+// --x10 is given) and the chips' defmt logs to DIR/SCENARIO.txt. Exit status 1 when a check
+// failed.
+import { spawnSync } from 'node:child_process';
+import { mkdirSync, writeFileSync, readdirSync } from 'node:fs';
+import { dirname, join } from 'node:path';
+import { fileURLToPath } from 'node:url';
+import { Rig } from './lib/rig.js';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const args = process.argv.slice(2);
+const opt = (name) => {
+  const i = args.indexOf(name);
+  if (i < 0) return null;
+  const v = args[i + 1];
+  args.splice(i, 2);
+  return v;
+};
+const mbElf = opt('--mb');
+const dbElf = opt('--db');
+const x10 = opt('--x10');
+const out = opt('--out') ?? join(here, 'out');
+const list = args.includes('--list');
+
+const scenarios = [];
+for (const f of readdirSync(join(here, 'scenarios')).filter((f) => f.endsWith('.mjs')).sort()) {
+  const mod = await import(join(here, 'scenarios', f));
+  scenarios.push(...mod.default);
+}
+if (list) {
+  for (const s of scenarios) console.log(`${s.name.padEnd(22)} ${s.about}`);
+  process.exit(0);
+}
+if (!mbElf || !dbElf) {
+  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--x10 X10] [--out DIR] [SCENARIO...] | --list');
+  process.exit(2);
+}
+const wanted = args.filter((a) => !a.startsWith('--'));
+const unknown = wanted.filter((w) => !scenarios.some((s) => s.name === w));
+if (unknown.length) {
+  console.error(`unknown scenario ${unknown.join(', ')}; known: ${scenarios.map((s) => s.name).join(', ')}`);
+  process.exit(2);
+}
+mkdirSync(out, { recursive: true });
+
+/** defmt frames of a chip decoded by defmt-print (one JSON line per frame). */
+export function decodeDefmt(chip) {
+  const frames = chip.defmt;
+  if (!frames.length) return [];
+  const r = spawnSync('defmt-print', ['-e', chip.elf.path, '--json'], { input: Buffer.from(frames.flatMap((f) => f.bytes)) });
+  if (r.error) throw new Error(`defmt-print: ${r.error.message} (cargo install defmt-print)`);
+  const lines = r.stdout.toString().split('\n').filter((l) => l.startsWith('{') && !l.includes('schema_version'));
+  return lines.map((l, i) => {
+    let text = l;
+    try {
+      const j = JSON.parse(l);
+      text = `${j.level ?? ''} ${j.data}`.trim();
+    } catch { /* printed as is */ }
+    return { t: frames[i]?.t ?? NaN, chip: chip.name, text };
+  });
+}
+
+function decodeFrames(transfers) {
+  const hex = (b) => b.map((x) => x.toString(16).padStart(2, '0')).join('');
+  const lines = [];
+  for (const tr of transfers) {
+    for (const p of tr.parts) {
+      if (!p.bytes.length) continue;
+      const kind = p.dir === 'r' ? 'reply' : p.addr === 0x08 ? 'event' : 'request';
+      lines.push(`${kind}:${hex(p.bytes)}`);
+    }
+  }
+  if (!x10 || !lines.length) return null;
+  const r = spawnSync(x10, ['decode'], { input: lines.join('\n') + '\n' });
+  return (r.stdout.toString() + r.stderr.toString()).trim();
+}
+
+let failed = 0;
+const summary = [];
+for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name))) {
+  const checks = [];
+  const figures = [];
+  const rigs = [];
+  const ctx = {
+    mbElf, dbElf,
+    rig(options = {}) { const r = new Rig(options); rigs.push(r); return r; },
+    check(name, ok, detail = '') { checks.push({ name, ok: !!ok, detail }); },
+    figure(name, value) { figures.push({ name, value }); },
+    defmt: decodeDefmt,
+  };
+  const wall0 = Date.now();
+  try {
+    await s.run(ctx);
+  } catch (e) {
+    checks.push({ name: 'ran to the end', ok: false, detail: e.stack });
+  }
+  const wall = (Date.now() - wall0) / 1000;
+  const sim = rigs.reduce((a, r) => a + r.t, 0) / 1e9;
+  const bad = checks.filter((c) => !c.ok).length;
+  // A scenario of a defect not fixed yet is expected to fail (`knownDefect` names it); passing
+  // is then an error too, so the mark is removed with the fix.
+  const expectedFail = !!s.knownDefect;
+  failed += (bad > 0) !== expectedFail ? 1 : 0;
+  console.log(`\n== ${s.name}: ${s.about}`);
+  if (expectedFail) console.log(`  known defect: ${s.knownDefect}`);
+  for (const c of checks) console.log(`  ${c.ok ? 'PASS' : 'FAIL'} ${c.name}${c.detail ? `: ${c.detail}` : ''}`);
+  for (const f of figures) console.log(`  figure: ${f.name} = ${f.value}`);
+  console.log(`  ${sim.toFixed(3)} simulated s in ${wall.toFixed(1)} wall s`);
+  const verdict = expectedFail ? (bad ? 'known defect, fails as expected:' : 'PASSES but is marked as a known defect (remove the mark):') : bad ? 'FAIL' : 'pass';
+  summary.push(`${verdict} ${s.name}`);
+  // Trace file: bus transfers (raw and decoded) and every chip's log.
+  const text = [];
+  for (const [i, r] of rigs.entries()) {
+    text.push(`# rig ${i + 1}: bus transfers`);
+    for (const tr of r.bus.transfers) text.push(r.bus.describe(tr));
+    const dec = decodeFrames(r.bus.transfers);
+    if (dec) text.push(`# decoded by x10 decode`, dec);
+    for (const c of r.chips) {
+      text.push(`# ${c.name}: defmt log (virtual ms, line)`);
+      for (const l of decodeDefmt(c)) text.push(`${(l.t / 1e6).toFixed(3)} ${l.text}`);
+      text.push(`# ${c.name}: pins`, ...c.pinLog.map((p) => `${(p.t / 1e6).toFixed(3)} GP${p.pin} ${p.v}`));
+    }
+  }
+  writeFileSync(join(out, `${s.name}.txt`), text.join('\n') + '\n');
+}
+console.log(`\n${summary.join('\n')}`);
+process.exit(failed ? 1 : 0);

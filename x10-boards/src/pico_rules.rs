@@ -1,0 +1,363 @@
+//! The decisions [`pico`](crate::pico)'s bus adapter makes about the RP2040's I2C block
+//! (DW_apb_i2c), as pure functions on register snapshots: tested on the host, no HAL.
+//!
+//! Register and bit names are the RP2040 datasheet's (§4.3); the HAL lines each rule works
+//! around are embassy-rp 0.10.0's (`i2c_slave.rs`, `i2c.rs`).
+
+use x10_hal::bus::BusError;
+
+/// Depth of the block's TX FIFO (`IC_TXFLR` counts up to it).
+pub const TX_FIFO: u8 = 16;
+
+/// How many of `remaining` reply bytes may be handed to embassy-rp's `respond_to_read` now,
+/// with `txflr` bytes (`IC_TXFLR`) still in the TX FIFO.
+///
+/// `respond_to_read` splits its buffer into 16-byte chunks and writes a chunk to
+/// `IC_DATA_CMD` on every poll without looking at the FIFO level (`i2c_slave.rs` 322-327):
+/// a second chunk polled before the first has gone out falls into a full FIFO and is lost
+/// (issue 16 defect 1). Given at most the free space, it writes only on its first poll.
+#[must_use]
+pub fn tx_chunk(remaining: usize, txflr: u8) -> usize {
+    remaining.min(usize::from(TX_FIFO.saturating_sub(txflr)))
+}
+
+/// What the target side shows, read from `IC_STATUS` and `IC_RAW_INTR_STAT`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Target {
+    /// `IC_STATUS.SLV_ACTIVITY`: the target state machine is not idle.
+    pub slv_activity: bool,
+    /// `IC_STATUS.RFNE`: received bytes wait in the RX FIFO.
+    pub rfne: bool,
+    /// `IC_RAW_INTR_STAT.RD_REQ`: a controller reads from this node (SCL held low).
+    pub rd_req: bool,
+    /// `IC_RAW_INTR_STAT.STOP_DET` (only for transfers to this node: the adapter sets
+    /// `STOP_DET_IFADDRESSED`, embassy-rp `i2c_slave.rs` 150).
+    pub stop_det: bool,
+}
+
+/// True when a transfer to this node's own address has reached the block: a received byte
+/// or a read request. Both arise only after this node's address matched (`IC_SAR`).
+///
+/// `SLV_ACTIVITY` is not used: it stays set from a read's last byte until its STOP (so after
+/// a reply it would make `listen` wait for the next transfer, issue 16 defect 2), it stays
+/// set when a controller vanishes without a STOP, and the datasheet does not say that it
+/// stays clear during other nodes' address phases (issue 11 item 6).
+#[must_use]
+pub fn addressed(t: Target) -> bool {
+    t.rfne || t.rd_req
+}
+
+/// Whether the target may be dropped (the block reset) to become a controller.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Switch {
+    /// Nothing in the block: switch.
+    Now,
+    /// Something for this node is in the block, or a transfer is still active: answer
+    /// `ArbitrationLost` (the runtime listens and retries).
+    Refuse,
+    /// `SLV_ACTIVITY` alone has lasted longer than [`stale_activity_us`]: the controller went
+    /// away without a STOP (issue 11 item 5). Reset the block and switch.
+    Stale,
+}
+
+/// Time of one byte with its ACK (9 SCL periods) at `frequency_hz`, in µs, rounded up.
+#[must_use]
+pub fn byte_us(frequency_hz: u32) -> u64 {
+    9_000_000u64.div_ceil(u64::from(frequency_hz.max(1)))
+}
+
+/// How long `SLV_ACTIVITY` with nothing received and no read request means a transfer that
+/// was abandoned: four byte times. After its address matched, a transfer to this node shows a
+/// received byte or a read request within one byte time (the block ACKs and fills its FIFO by
+/// itself), unless its controller stalls or went away without a STOP.
+#[must_use]
+pub fn stale_activity_us(frequency_hz: u32) -> u64 {
+    4 * byte_us(frequency_hz)
+}
+
+/// Tracks how long the target has shown `SLV_ACTIVITY` with nothing else, to tell an active
+/// transfer from one abandoned without a STOP.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Activity {
+    since_us: Option<u64>,
+    last_us: u64,
+}
+
+impl Activity {
+    /// Decides a switch to controller at `now_us`, given the target's state and
+    /// [`stale_activity_us`].
+    ///
+    /// Only an unbroken run of observations counts: one more than `stale_us` after the
+    /// previous starts the count again (the activity seen then may have been another transfer).
+    pub fn switch(&mut self, now_us: u64, t: Target, stale_us: u64) -> Switch {
+        if now_us.saturating_sub(self.last_us) > stale_us {
+            self.since_us = None;
+        }
+        self.last_us = now_us;
+        if addressed(t) {
+            // Bytes or a read request for us: never thrown away.
+            self.since_us = None;
+            return Switch::Refuse;
+        }
+        if !t.slv_activity {
+            self.since_us = None;
+            return Switch::Now;
+        }
+        let since = *self.since_us.get_or_insert(now_us);
+        if now_us.saturating_sub(since) >= stale_us {
+            self.since_us = None;
+            Switch::Stale
+        } else {
+            Switch::Refuse
+        }
+    }
+}
+
+/// After a reply's last byte (embassy-rp's `respond_to_read` returned): what to do on the
+/// next look at the block while waiting for the read's STOP.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AfterRead {
+    /// Not over yet: look again.
+    Wait,
+    /// The read's STOP came: clear `STOP_DET` (else the next `listen` takes it for the end of
+    /// the next write and splits it, issue 11 item 4), then check the TX FIFO.
+    ClearStop,
+    /// A new transfer began with a repeated START, or a whole write has already ended with
+    /// its own STOP: leave `STOP_DET` for `listen`, then check the TX FIFO.
+    Leave,
+}
+
+/// The rule for [`AfterRead`]. `STOP_DET` is one flag for the read's STOP and a following
+/// write's: with bytes waiting and the target still active the STOP is the read's (the write
+/// is under way); with bytes waiting and the target idle the write has ended too.
+#[must_use]
+pub fn after_read(t: Target) -> AfterRead {
+    match (t.stop_det, addressed(t), t.slv_activity) {
+        (true, false, _) | (true, true, true) => AfterRead::ClearStop,
+        (true, true, false) | (false, true, _) => AfterRead::Leave,
+        (false, false, _) => AfterRead::Wait,
+    }
+}
+
+/// How a reply ended, read once the read is over.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ReplyEnd {
+    /// `IC_TXFLR`: bytes still in the TX FIFO (the controller read fewer than were queued).
+    pub txflr: u8,
+    /// `IC_RAW_INTR_STAT.TX_ABRT`: the block flushed the FIFO or aborted.
+    pub tx_abrt: bool,
+    /// The read's STOP (or the next transfer) was seen before the timeout.
+    pub ended: bool,
+}
+
+/// True when the block must be reset after a reply: anything left in the TX FIFO would be
+/// flushed with `TX_ABRT` on the next read request, and embassy-rp's `respond_to_read` then
+/// returns `LeftoverBytes` without queuing a byte while SCL stays low (`i2c_slave.rs` 311-320,
+/// issue 11 item 1); an abort or a read that never ended leaves the block in an unknown state.
+#[must_use]
+pub fn reset_after_reply(e: ReplyEnd) -> bool {
+    e.txflr > 0 || e.tx_abrt || !e.ended
+}
+
+/// `IC_TX_ABRT_SOURCE.ABRT_7B_ADDR_NOACK`.
+pub const ABRT_7B_ADDR_NOACK: u32 = 1 << 0;
+/// `IC_TX_ABRT_SOURCE.ABRT_10ADDR1_NOACK`.
+pub const ABRT_10ADDR1_NOACK: u32 = 1 << 1;
+/// `IC_TX_ABRT_SOURCE.ABRT_10ADDR2_NOACK`.
+pub const ABRT_10ADDR2_NOACK: u32 = 1 << 2;
+/// `IC_TX_ABRT_SOURCE.ABRT_TXDATA_NOACK`: a data byte of a write was not acknowledged.
+pub const ABRT_TXDATA_NOACK: u32 = 1 << 3;
+/// `IC_TX_ABRT_SOURCE.ARB_LOST`.
+pub const ARB_LOST: u32 = 1 << 12;
+
+/// The bus error for a controller abort with `IC_TX_ABRT_SOURCE` = `source`.
+///
+/// embassy-rp 0.10 decodes only the address NACKs and `ARB_LOST` and hands every other
+/// source over as `AbortReason::Other(source)` (`i2c.rs` 514-523), so a data-byte NACK would
+/// become `Bus`, which the MB never retries. A NACK of a data byte is `Nack` as on the STM32
+/// (issue 11 item 7): the target was there but could not take the byte (its RX FIFO full, or
+/// it reset), and a retry is right.
+#[must_use]
+pub fn abort_error(source: u32) -> BusError {
+    if source & ARB_LOST != 0 {
+        BusError::ArbitrationLost
+    } else if source & (ABRT_7B_ADDR_NOACK | ABRT_10ADDR1_NOACK | ABRT_10ADDR2_NOACK | ABRT_TXDATA_NOACK)
+        != 0
+    {
+        BusError::Nack
+    } else {
+        BusError::Bus
+    }
+}
+
+/// Clock pulses of the bus-clear procedure (UM10204 §3.1.16): a target holding SDA low
+/// releases it within nine clocks.
+pub const RECOVERY_CLOCKS: u8 = 9;
+
+/// One step of the bus-clear procedure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Recovery {
+    /// SDA is high: send a STOP (SDA low then high while SCL is high) and stop.
+    Stop,
+    /// SDA still low: send one more SCL pulse.
+    Clock,
+    /// SDA still low after nine pulses: give up with `BusError::Bus`.
+    GiveUp,
+}
+
+/// The step after `clocks` pulses with SDA read as `sda_high`.
+#[must_use]
+pub fn recovery(sda_high: bool, clocks: u8) -> Recovery {
+    if sda_high {
+        Recovery::Stop
+    } else if clocks < RECOVERY_CLOCKS {
+        Recovery::Clock
+    } else {
+        Recovery::GiveUp
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_never_exceed_free_space() {
+        assert_eq!(tx_chunk(31, 0), 16);
+        assert_eq!(tx_chunk(31, 5), 11);
+        assert_eq!(tx_chunk(3, 0), 3);
+        assert_eq!(tx_chunk(3, 15), 1);
+        assert_eq!(tx_chunk(3, 16), 0);
+        assert_eq!(tx_chunk(0, 0), 0);
+        // A bogus level above the depth gives nothing, not an overflow.
+        assert_eq!(tx_chunk(3, 200), 0);
+        for level in 0..=TX_FIFO {
+            for n in 0..64 {
+                assert!(usize::from(level) + tx_chunk(n, level) <= usize::from(TX_FIFO));
+            }
+        }
+    }
+
+    const IDLE: Target = Target { slv_activity: false, rfne: false, rd_req: false, stop_det: false };
+
+    #[test]
+    fn addressed_only_on_own_match() {
+        assert!(!addressed(IDLE));
+        // Activity alone (a read waiting for its STOP, an abandoned transfer, maybe another
+        // node's address phase) is not a transfer to us.
+        assert!(!addressed(Target { slv_activity: true, ..IDLE }));
+        assert!(!addressed(Target { slv_activity: true, stop_det: true, ..IDLE }));
+        assert!(addressed(Target { rfne: true, ..IDLE }));
+        assert!(addressed(Target { slv_activity: true, rd_req: true, ..IDLE }));
+    }
+
+    #[test]
+    fn switch_refuses_while_addressed_and_resets_stale_activity() {
+        let mut a = Activity::default();
+        assert_eq!(a.switch(0, IDLE, 20_000), Switch::Now);
+        assert_eq!(a.switch(1, IDLE, 20_000), Switch::Now);
+        assert_eq!(a.switch(0, Target { rfne: true, ..IDLE }, 20_000), Switch::Refuse);
+        let act = Target { slv_activity: true, ..IDLE };
+        assert_eq!(a.switch(100, act, 20_000), Switch::Refuse);
+        assert_eq!(a.switch(10_000, act, 20_000), Switch::Refuse);
+        assert_eq!(a.switch(20_099, act, 20_000), Switch::Refuse);
+        assert_eq!(a.switch(20_100, act, 20_000), Switch::Stale);
+        // Starts over after the stale reset.
+        assert_eq!(a.switch(20_200, act, 20_000), Switch::Refuse);
+        // Any other state restarts the count.
+        assert_eq!(a.switch(30_000, IDLE, 20_000), Switch::Now);
+        assert_eq!(a.switch(45_000, act, 20_000), Switch::Refuse);
+        assert_eq!(a.switch(60_000, Target { rd_req: true, slv_activity: true, ..IDLE }, 20_000), Switch::Refuse);
+        assert_eq!(a.switch(70_000, act, 20_000), Switch::Refuse);
+        assert_eq!(a.switch(90_000, act, 20_000), Switch::Stale);
+    }
+
+    #[test]
+    fn sparse_observations_start_over() {
+        // Activity seen once, then again long after (another transfer): not stale.
+        let act = Target { slv_activity: true, ..IDLE };
+        let mut a = Activity::default();
+        assert_eq!(a.switch(1_000, act, 360), Switch::Refuse);
+        assert_eq!(a.switch(50_000, act, 360), Switch::Refuse);
+        assert_eq!(a.switch(50_300, act, 360), Switch::Refuse);
+        assert_eq!(a.switch(50_400, act, 360), Switch::Stale);
+        // Retries 100, 200 µs apart keep the run unbroken.
+        let mut a = Activity::default();
+        let mut t = 90_000;
+        assert_eq!(a.switch(t, act, 360), Switch::Refuse);
+        for step in [100, 200] {
+            t += step;
+            assert_eq!(a.switch(t, act, 360), Switch::Refuse);
+        }
+        t += 300; // 600 after the first look, each gap within 360
+        assert_eq!(a.switch(t, act, 360), Switch::Stale);
+    }
+
+    #[test]
+    fn stale_after_four_byte_times() {
+        assert_eq!(byte_us(100_000), 90);
+        assert_eq!(byte_us(400_000), 23);
+        assert_eq!(byte_us(1_000_000), 9);
+        assert_eq!(stale_activity_us(100_000), 360);
+        assert_eq!(stale_activity_us(0), 36_000_000);
+    }
+
+    #[test]
+    fn after_read_clears_only_the_reads_stop() {
+        assert_eq!(after_read(Target { slv_activity: true, ..IDLE }), AfterRead::Wait);
+        assert_eq!(after_read(IDLE), AfterRead::Wait);
+        assert_eq!(after_read(Target { stop_det: true, ..IDLE }), AfterRead::ClearStop);
+        // The next write under way after the read's STOP: the flag is the read's.
+        assert_eq!(after_read(Target { stop_det: true, rfne: true, slv_activity: true, ..IDLE }), AfterRead::ClearStop);
+        assert_eq!(after_read(Target { stop_det: true, rd_req: true, slv_activity: true, ..IDLE }), AfterRead::ClearStop);
+        // A whole write already ended: its STOP is listen's.
+        assert_eq!(after_read(Target { stop_det: true, rfne: true, ..IDLE }), AfterRead::Leave);
+        // Repeated START into the next transfer.
+        assert_eq!(after_read(Target { rfne: true, slv_activity: true, ..IDLE }), AfterRead::Leave);
+        assert_eq!(after_read(Target { rd_req: true, slv_activity: true, ..IDLE }), AfterRead::Leave);
+    }
+
+    #[test]
+    fn reset_when_anything_is_left() {
+        assert!(!reset_after_reply(ReplyEnd { txflr: 0, tx_abrt: false, ended: true }));
+        assert!(reset_after_reply(ReplyEnd { txflr: 2, tx_abrt: false, ended: true }));
+        assert!(reset_after_reply(ReplyEnd { txflr: 0, tx_abrt: true, ended: true }));
+        assert!(reset_after_reply(ReplyEnd { txflr: 0, tx_abrt: false, ended: false }));
+    }
+
+    #[test]
+    fn abort_sources_map_like_the_stm32() {
+        assert_eq!(abort_error(ABRT_7B_ADDR_NOACK), BusError::Nack);
+        assert_eq!(abort_error(ABRT_TXDATA_NOACK), BusError::Nack);
+        // TX_FLUSH_CNT (bits 23..31) rides along with the data NACK.
+        assert_eq!(abort_error(ABRT_TXDATA_NOACK | (3 << 23)), BusError::Nack);
+        assert_eq!(abort_error(ARB_LOST), BusError::ArbitrationLost);
+        assert_eq!(abort_error(ARB_LOST | ABRT_TXDATA_NOACK), BusError::ArbitrationLost);
+        // ABRT_USER_ABRT, ABRT_SBYTE_ACKDET and the rest are bus faults.
+        assert_eq!(abort_error(1 << 16), BusError::Bus);
+        assert_eq!(abort_error(1 << 7), BusError::Bus);
+        assert_eq!(abort_error(0), BusError::Bus);
+    }
+
+    #[test]
+    fn recovery_gives_nine_clocks_then_up() {
+        assert_eq!(recovery(true, 0), Recovery::Stop);
+        for c in 0..RECOVERY_CLOCKS {
+            assert_eq!(recovery(false, c), Recovery::Clock);
+        }
+        assert_eq!(recovery(false, 9), Recovery::GiveUp);
+        assert_eq!(recovery(true, 9), Recovery::Stop);
+        // The loop the adapter runs: SDA freed after k pulses.
+        for k in 0..=12u8 {
+            let mut clocks = 0;
+            let end = loop {
+                match recovery(clocks >= k, clocks) {
+                    Recovery::Clock => clocks += 1,
+                    other => break other,
+                }
+            };
+            assert_eq!(end, if k <= 9 { Recovery::Stop } else { Recovery::GiveUp });
+            assert!(clocks <= RECOVERY_CLOCKS);
+        }
+    }
+}

@@ -1,0 +1,101 @@
+//! `cargo xtask emu [--list] [SCENARIO...]`: the real Pico images on emulated RP2040s.
+//!
+//! Builds mb-pico and db-pico in release (the same cargo calls as `cargo xtask size`, one per
+//! image; db-pico with its default base address 9: DB 10 is the same image with jumper 0
+//! fitted) and the host `x10` tool, installs the rig's Node packages from `emu/package-lock.json`
+//! with `npm ci` when `emu/node_modules` is missing or older than the lock file, then runs
+//! `node emu/run.mjs` on the two ELFs. The rig, its scenarios and what they check are in
+//! `emu/` and `docs/emulation.md`; the trace of each scenario (bus transfers decoded by
+//! `x10 decode`, defmt logs decoded by `defmt-print`, pins) goes to `target/emu/SCENARIO.txt`.
+
+use std::path::Path;
+use std::process::{Command, ExitCode};
+
+use crate::{build, target_dir, Error, IMAGES};
+
+/// Runs the task with its arguments (scenario names, `--list`).
+///
+/// # Errors
+/// Build failures, and `npm`/`node` that cannot be started.
+pub fn emu(args: &[String]) -> Result<ExitCode, Error> {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .ok_or_else(|| Error::Usage("xtask has no parent directory".into()))?
+        .to_path_buf();
+    let emu = root.join("emu");
+    npm_ci(&emu)?;
+    if args.iter().any(|a| a == "--list") {
+        return node(&emu, &["run.mjs".into(), "--list".into()]);
+    }
+    let mut elfs = Vec::new();
+    for name in ["mb-pico", "db-pico"] {
+        let image = IMAGES
+            .iter()
+            .find(|i| i.bin == name)
+            .ok_or_else(|| Error::Usage(format!("no image {name}")))?;
+        crate::check_targets("cargo xtask emu", &[image.target])?;
+        build(&cargo, image)?;
+        elfs.push(
+            target_dir(&cargo)?
+                .join(image.target)
+                .join("release")
+                .join(name),
+        );
+    }
+    let status = Command::new(&cargo)
+        .args(["build", "-q", "-p", "x10-sim", "--bin", "x10"])
+        .status()
+        .map_err(Error::Run)?;
+    if !status.success() {
+        return Err(Error::Build("x10"));
+    }
+    let x10 = target_dir(&cargo)?.join("debug").join("x10");
+    let out = target_dir(&cargo)?.join("emu");
+    let mut a: Vec<String> = vec![
+        "run.mjs".into(),
+        "--mb".into(),
+        elfs[0].display().to_string(),
+        "--db".into(),
+        elfs[1].display().to_string(),
+        "--x10".into(),
+        x10.display().to_string(),
+        "--out".into(),
+        out.display().to_string(),
+    ];
+    a.extend(args.iter().cloned());
+    node(&emu, &a)
+}
+
+/// `npm ci` in `emu/` unless its packages are installed and newer than the lock file.
+fn npm_ci(emu: &Path) -> Result<(), Error> {
+    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    let lock = modified(&emu.join("package-lock.json"));
+    let installed = modified(&emu.join("node_modules").join(".package-lock.json"));
+    if matches!((lock, installed), (Some(l), Some(i)) if i >= l) {
+        return Ok(());
+    }
+    let status = Command::new("npm")
+        .args(["ci", "--no-audit", "--no-fund"])
+        .current_dir(emu)
+        .status()
+        .map_err(Error::Run)?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(Error::Build("emu (npm ci)"))
+    }
+}
+
+fn node(emu: &Path, args: &[String]) -> Result<ExitCode, Error> {
+    let status = Command::new("node")
+        .args(args)
+        .current_dir(emu)
+        .status()
+        .map_err(Error::Run)?;
+    Ok(if status.success() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}
