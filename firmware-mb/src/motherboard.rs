@@ -505,11 +505,9 @@ impl MbCore {
         };
         let internal = db.is_internal();
         // Never full: every queued job holds one of the MAX_PENDING slots, and a job leaves
-        // its queue when its slot is released.
-        if self
-            .with(|t| t.enqueue(Job { meta, frame }, internal))
-            .is_err()
-        {
+        // the queue when its slot is released. The internal board's worker and the
+        // dispatcher each take the oldest job that is theirs.
+        if self.with(|t| t.enqueue(Job { meta, frame })).is_err() {
             self.with(|t| bump(&mut t.diag.busy));
             guard.release(Ended::GaveUp);
             return Err(LinkError::Busy);

@@ -176,8 +176,6 @@ pub(crate) struct Table {
     /// Requests for the dispatcher, oldest first (a ring: taking the oldest moves nothing).
     /// Each holds a slot, so the queue never overflows; releasing the slot takes the job out.
     queue: Deque<Job, MAX_PENDING>,
-    /// Requests for the internal daughterboard, the same way.
-    internal_queue: Deque<Job, MAX_PENDING>,
     /// The failsafes the motherboard keeps alive.
     pub(crate) keepalive: Keepalives,
     /// A failsafe setting changed (the keepalive task must look again).
@@ -242,7 +240,6 @@ impl Table {
             }; MAX_EVENT_WAITERS],
             unclaimed: Vec::new(),
             queue: Deque::new(),
-            internal_queue: Deque::new(),
             keepalive: Keepalives::new(),
             keepalive_changed: false,
             events_in: crate::events_in::EventBook::new(),
@@ -311,27 +308,45 @@ impl Table {
         seq
     }
 
-    /// Queues a job for the dispatcher, or for the internal daughterboard when `internal`
-    /// (behind every job queued there before).
+    /// Queues a job (behind every job queued before) for the dispatcher, or for the internal
+    /// daughterboard's worker when it is for address 0.
     ///
     /// # Errors
     /// The job back if the queue is full (it cannot be while each job holds a slot).
-    pub(crate) fn enqueue(&mut self, job: Job, internal: bool) -> Result<(), Job> {
-        if internal {
-            self.internal_queue.push_back(job)
-        } else {
-            self.queue.push_back(job)
+    pub(crate) fn enqueue(&mut self, job: Job) -> Result<(), Job> {
+        self.queue.push_back(job)
+    }
+
+    /// Takes the oldest queued job that `wanted` accepts, keeping the others in their order.
+    /// One queue serves the dispatcher and the internal daughterboard's worker (a second
+    /// queue of 16 jobs would cost about 1.1 KiB of RAM): the oldest job is usually the one
+    /// wanted; otherwise the queue is turned once around.
+    fn take_first(&mut self, wanted: impl Fn(&Job) -> bool) -> Option<Job> {
+        if self.queue.front().is_some_and(&wanted) {
+            return self.queue.pop_front();
         }
+        if !self.queue.iter().any(&wanted) {
+            return None;
+        }
+        let mut found = None;
+        for _ in 0..self.queue.len() {
+            let Some(job) = self.queue.pop_front() else {
+                break;
+            };
+            if found.is_none() && wanted(&job) {
+                found = Some(job);
+            } else {
+                // Never full: one was just taken out.
+                let _ = self.queue.push_back(job);
+            }
+        }
+        found
     }
 
     /// The oldest job queued for the dispatcher, or for the internal daughterboard when
     /// `internal`.
     pub(crate) fn pop_job(&mut self, internal: bool) -> Option<Job> {
-        let job = if internal {
-            self.internal_queue.pop_front()
-        } else {
-            self.queue.pop_front()
-        }?;
+        let job = self.take_first(|j| j.meta.db.is_internal() == internal)?;
         if let Some(s) = self.slot_mut(job.meta.ticket) {
             if s.state == SlotState::Queued {
                 s.state = SlotState::Sending;
@@ -557,9 +572,6 @@ impl Table {
     pub(crate) fn release(&mut self, t: Ticket, ended: Ended) {
         if !self.queue.is_empty() {
             self.queue.retain(|j| j.meta.ticket != t);
-        }
-        if !self.internal_queue.is_empty() {
-            self.internal_queue.retain(|j| j.meta.ticket != t);
         }
         let Some(s) = self.slot_mut(t) else {
             return;
@@ -842,6 +854,32 @@ mod tests {
     }
 
     #[test]
+    fn the_dispatcher_and_the_internal_worker_each_take_their_oldest_job() {
+        let mut t = Table::new();
+        let queue = |t: &mut Table, board: u8| {
+            let (ticket, seq) = alloc(t, board).unwrap();
+            let meta = pulse_meta(ticket, board, seq, pin(0x80), 0);
+            t.enqueue(Job {
+                meta,
+                frame: Vec::new(),
+            })
+            .unwrap();
+            ticket
+        };
+        let a = queue(&mut t, 9);
+        let b = queue(&mut t, 0);
+        let c = queue(&mut t, 10);
+        let d = queue(&mut t, 0);
+        let ticket = |j: Option<Job>| j.map(|j| j.meta.ticket);
+        assert_eq!(ticket(t.pop_job(true)), Some(b));
+        assert_eq!(ticket(t.pop_job(false)), Some(a));
+        assert_eq!(ticket(t.pop_job(true)), Some(d));
+        assert_eq!(ticket(t.pop_job(true)), None);
+        assert_eq!(ticket(t.pop_job(false)), Some(c));
+        assert_eq!(ticket(t.pop_job(false)), None);
+    }
+
+    #[test]
     fn a_deferred_reply_must_name_the_requests_pin() {
         let mut t = Table::new();
         let (ticket, seq) = alloc(&mut t, 9).unwrap();
@@ -906,13 +944,10 @@ mod tests {
         let mut t = Table::new();
         let (ticket, seq) = alloc(&mut t, 9).unwrap();
         let meta = pulse_meta(ticket, 9, seq, pin(0x80), 1_000);
-        t.enqueue(
-            Job {
-                meta,
-                frame: Vec::new(),
-            },
-            false,
-        )
+        t.enqueue(Job {
+            meta,
+            frame: Vec::new(),
+        })
         .unwrap();
         assert!(t.pop_job(false).is_some());
         // The caller gave up while the request was on the bus; the board answered `pending`.
@@ -945,13 +980,10 @@ mod tests {
         let (ticket, seq) = alloc9(&mut t, 9);
         assert_eq!(seq, 0);
         let meta = pulse_meta(ticket, 9, seq, pin(0x80), 1_000_000);
-        t.enqueue(
-            Job {
-                meta,
-                frame: Vec::new(),
-            },
-            false,
-        )
+        t.enqueue(Job {
+            meta,
+            frame: Vec::new(),
+        })
         .unwrap();
         // The dispatcher takes it; its caller gives up while it is on the bus.
         assert!(t.pop_job(false).is_some());

@@ -126,7 +126,11 @@ mod tests {
         let db = board();
         let mut buf = [0u8; 40];
         let n = exchange(&db, &[0x07, 0x09, 0x00, 0x01, 0x01], &mut buf);
-        assert_eq!(&buf[..n], &[0x01, 0x00, 0x00]);
+        // The reply to set_pec comes in the new mode: with its PEC byte (docs/protocol.md).
+        assert_eq!(
+            &buf[..n],
+            &[0x01, 0x00, 0x00, pec::compute(0x13, &[0x01, 0x00, 0x00])]
+        );
         let frame = [0x00, 0x09, 0x00, 0x02];
         let mut req = [0u8; 5];
         req[..4].copy_from_slice(&frame);

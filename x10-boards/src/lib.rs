@@ -34,9 +34,9 @@
 #[macro_use]
 pub mod pins;
 pub mod address;
+pub mod pico_rules;
 pub mod pulse;
 pub mod pwm;
-pub mod pico_rules;
 
 #[cfg(feature = "time")]
 mod clock;

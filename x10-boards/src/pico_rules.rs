@@ -181,7 +181,8 @@ pub const ARB_LOST: u32 = 1 << 12;
 pub fn abort_error(source: u32) -> BusError {
     if source & ARB_LOST != 0 {
         BusError::ArbitrationLost
-    } else if source & (ABRT_7B_ADDR_NOACK | ABRT_10ADDR1_NOACK | ABRT_10ADDR2_NOACK | ABRT_TXDATA_NOACK)
+    } else if source
+        & (ABRT_7B_ADDR_NOACK | ABRT_10ADDR1_NOACK | ABRT_10ADDR2_NOACK | ABRT_TXDATA_NOACK)
         != 0
     {
         BusError::Nack
@@ -238,17 +239,33 @@ mod tests {
         }
     }
 
-    const IDLE: Target = Target { slv_activity: false, rfne: false, rd_req: false, stop_det: false };
+    const IDLE: Target = Target {
+        slv_activity: false,
+        rfne: false,
+        rd_req: false,
+        stop_det: false,
+    };
 
     #[test]
     fn addressed_only_on_own_match() {
         assert!(!addressed(IDLE));
         // Activity alone (a read waiting for its STOP, an abandoned transfer, maybe another
         // node's address phase) is not a transfer to us.
-        assert!(!addressed(Target { slv_activity: true, ..IDLE }));
-        assert!(!addressed(Target { slv_activity: true, stop_det: true, ..IDLE }));
+        assert!(!addressed(Target {
+            slv_activity: true,
+            ..IDLE
+        }));
+        assert!(!addressed(Target {
+            slv_activity: true,
+            stop_det: true,
+            ..IDLE
+        }));
         assert!(addressed(Target { rfne: true, ..IDLE }));
-        assert!(addressed(Target { slv_activity: true, rd_req: true, ..IDLE }));
+        assert!(addressed(Target {
+            slv_activity: true,
+            rd_req: true,
+            ..IDLE
+        }));
     }
 
     #[test]
@@ -256,8 +273,14 @@ mod tests {
         let mut a = Activity::default();
         assert_eq!(a.switch(0, IDLE, 20_000), Switch::Now);
         assert_eq!(a.switch(1, IDLE, 20_000), Switch::Now);
-        assert_eq!(a.switch(0, Target { rfne: true, ..IDLE }, 20_000), Switch::Refuse);
-        let act = Target { slv_activity: true, ..IDLE };
+        assert_eq!(
+            a.switch(0, Target { rfne: true, ..IDLE }, 20_000),
+            Switch::Refuse
+        );
+        let act = Target {
+            slv_activity: true,
+            ..IDLE
+        };
         assert_eq!(a.switch(100, act, 20_000), Switch::Refuse);
         assert_eq!(a.switch(10_000, act, 20_000), Switch::Refuse);
         assert_eq!(a.switch(20_099, act, 20_000), Switch::Refuse);
@@ -267,7 +290,18 @@ mod tests {
         // Any other state restarts the count.
         assert_eq!(a.switch(30_000, IDLE, 20_000), Switch::Now);
         assert_eq!(a.switch(45_000, act, 20_000), Switch::Refuse);
-        assert_eq!(a.switch(60_000, Target { rd_req: true, slv_activity: true, ..IDLE }, 20_000), Switch::Refuse);
+        assert_eq!(
+            a.switch(
+                60_000,
+                Target {
+                    rd_req: true,
+                    slv_activity: true,
+                    ..IDLE
+                },
+                20_000
+            ),
+            Switch::Refuse
+        );
         assert_eq!(a.switch(70_000, act, 20_000), Switch::Refuse);
         assert_eq!(a.switch(90_000, act, 20_000), Switch::Stale);
     }
@@ -275,7 +309,10 @@ mod tests {
     #[test]
     fn sparse_observations_start_over() {
         // Activity seen once, then again long after (another transfer): not stale.
-        let act = Target { slv_activity: true, ..IDLE };
+        let act = Target {
+            slv_activity: true,
+            ..IDLE
+        };
         let mut a = Activity::default();
         assert_eq!(a.switch(1_000, act, 360), Switch::Refuse);
         assert_eq!(a.switch(50_000, act, 360), Switch::Refuse);
@@ -304,25 +341,90 @@ mod tests {
 
     #[test]
     fn after_read_clears_only_the_reads_stop() {
-        assert_eq!(after_read(Target { slv_activity: true, ..IDLE }), AfterRead::Wait);
+        assert_eq!(
+            after_read(Target {
+                slv_activity: true,
+                ..IDLE
+            }),
+            AfterRead::Wait
+        );
         assert_eq!(after_read(IDLE), AfterRead::Wait);
-        assert_eq!(after_read(Target { stop_det: true, ..IDLE }), AfterRead::ClearStop);
+        assert_eq!(
+            after_read(Target {
+                stop_det: true,
+                ..IDLE
+            }),
+            AfterRead::ClearStop
+        );
         // The next write under way after the read's STOP: the flag is the read's.
-        assert_eq!(after_read(Target { stop_det: true, rfne: true, slv_activity: true, ..IDLE }), AfterRead::ClearStop);
-        assert_eq!(after_read(Target { stop_det: true, rd_req: true, slv_activity: true, ..IDLE }), AfterRead::ClearStop);
+        assert_eq!(
+            after_read(Target {
+                stop_det: true,
+                rfne: true,
+                slv_activity: true,
+                ..IDLE
+            }),
+            AfterRead::ClearStop
+        );
+        assert_eq!(
+            after_read(Target {
+                stop_det: true,
+                rd_req: true,
+                slv_activity: true,
+                ..IDLE
+            }),
+            AfterRead::ClearStop
+        );
         // A whole write already ended: its STOP is listen's.
-        assert_eq!(after_read(Target { stop_det: true, rfne: true, ..IDLE }), AfterRead::Leave);
+        assert_eq!(
+            after_read(Target {
+                stop_det: true,
+                rfne: true,
+                ..IDLE
+            }),
+            AfterRead::Leave
+        );
         // Repeated START into the next transfer.
-        assert_eq!(after_read(Target { rfne: true, slv_activity: true, ..IDLE }), AfterRead::Leave);
-        assert_eq!(after_read(Target { rd_req: true, slv_activity: true, ..IDLE }), AfterRead::Leave);
+        assert_eq!(
+            after_read(Target {
+                rfne: true,
+                slv_activity: true,
+                ..IDLE
+            }),
+            AfterRead::Leave
+        );
+        assert_eq!(
+            after_read(Target {
+                rd_req: true,
+                slv_activity: true,
+                ..IDLE
+            }),
+            AfterRead::Leave
+        );
     }
 
     #[test]
     fn reset_when_anything_is_left() {
-        assert!(!reset_after_reply(ReplyEnd { txflr: 0, tx_abrt: false, ended: true }));
-        assert!(reset_after_reply(ReplyEnd { txflr: 2, tx_abrt: false, ended: true }));
-        assert!(reset_after_reply(ReplyEnd { txflr: 0, tx_abrt: true, ended: true }));
-        assert!(reset_after_reply(ReplyEnd { txflr: 0, tx_abrt: false, ended: false }));
+        assert!(!reset_after_reply(ReplyEnd {
+            txflr: 0,
+            tx_abrt: false,
+            ended: true
+        }));
+        assert!(reset_after_reply(ReplyEnd {
+            txflr: 2,
+            tx_abrt: false,
+            ended: true
+        }));
+        assert!(reset_after_reply(ReplyEnd {
+            txflr: 0,
+            tx_abrt: true,
+            ended: true
+        }));
+        assert!(reset_after_reply(ReplyEnd {
+            txflr: 0,
+            tx_abrt: false,
+            ended: false
+        }));
     }
 
     #[test]
@@ -332,7 +434,10 @@ mod tests {
         // TX_FLUSH_CNT (bits 23..31) rides along with the data NACK.
         assert_eq!(abort_error(ABRT_TXDATA_NOACK | (3 << 23)), BusError::Nack);
         assert_eq!(abort_error(ARB_LOST), BusError::ArbitrationLost);
-        assert_eq!(abort_error(ARB_LOST | ABRT_TXDATA_NOACK), BusError::ArbitrationLost);
+        assert_eq!(
+            abort_error(ARB_LOST | ABRT_TXDATA_NOACK),
+            BusError::ArbitrationLost
+        );
         // ABRT_USER_ABRT, ABRT_SBYTE_ACKDET and the rest are bus faults.
         assert_eq!(abort_error(1 << 16), BusError::Bus);
         assert_eq!(abort_error(1 << 7), BusError::Bus);
@@ -356,7 +461,14 @@ mod tests {
                     other => break other,
                 }
             };
-            assert_eq!(end, if k <= 9 { Recovery::Stop } else { Recovery::GiveUp });
+            assert_eq!(
+                end,
+                if k <= 9 {
+                    Recovery::Stop
+                } else {
+                    Recovery::GiveUp
+                }
+            );
             assert!(clocks <= RECOVERY_CLOCKS);
         }
     }
