@@ -365,6 +365,16 @@ impl Stm32Bus {
         if self.wait_stop().await {
             return Ok(());
         }
+        self.reset_and_clear_bus()
+    }
+
+    /// PE reset, then the nine-clock recovery when SDA is held low (synchronous: at most 20
+    /// half SCL periods, 100 µs at 100 kHz; kept out of line, it is rare).
+    ///
+    /// # Errors
+    /// [`BusError::Bus`] when SDA stays low.
+    #[inline(never)]
+    fn reset_and_clear_bus(&self) -> Result<(), BusError> {
         self.reset_block();
         let [scl, sda] = self.lines;
         let (Some(gs), Some(gd)) = (gpio(scl.0), gpio(sda.0)) else {
@@ -419,6 +429,7 @@ impl Stm32Bus {
 
     /// After a target-side call of the driver failed: its timeout may have left SCL stretched
     /// in the middle of a transfer, so the block is reset.
+    #[inline(never)]
     fn target_error(&self, e: i2c::Error) -> BusError {
         let o = outcome(Err(e));
         if i2c_v2::target_needs_reset(o) {
