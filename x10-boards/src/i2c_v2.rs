@@ -89,8 +89,8 @@ pub enum After {
     /// A STOP is on its way (set by the driver, by AUTOEND, or by the block after a NACK):
     /// wait for STOPF and clear it, then report the result.
     WaitStop,
-    /// Nothing: the driver reset the block (PE toggled after ARLO or BERR, `v2.rs` 1009-1013,
-    /// 1070-1074), which clears every flag.
+    /// Nothing: the driver reset the block (PE toggled after ARLO or BERR, `v2.rs` 945-949,
+    /// 1067-1071), which clears every flag.
     Done,
     /// The driver gave up in the middle (its timeout dropped the transfer, leaving the block
     /// as controller, maybe holding SCL): send STOP, wait for it, and recover the bus when it
