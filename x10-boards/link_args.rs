@@ -5,30 +5,57 @@
 // rustc lists an included file among the build script's sources, so changing this file
 // rebuilds and reruns both scripts.
 
+/// The memory map of the Raspberry Pi Pico (RP2040): the first 256 bytes of the 2 MiB flash
+/// hold the second-stage bootloader (boot2 for the Pico's W25Q080-compatible flash, placed by
+/// embassy-rp's link-rp.x), the image follows; 256 KiB of striped SRAM (SRAM0-3).
+const PICO_MEMORY: &str = "MEMORY {
+    BOOT2 : ORIGIN = 0x10000000, LENGTH = 0x100
+    FLASH : ORIGIN = 0x10000100, LENGTH = 2048K - 0x100
+    RAM   : ORIGIN = 0x20000000, LENGTH = 256K
+}
+";
+
+/// The memory map of the STM32G431CB: 128 KiB flash; SRAM1 (16 KiB), SRAM2 (6 KiB) and CCM
+/// SRAM (10 KiB, aliased there) are contiguous from 0x20000000.
+const G431_MEMORY: &str = "MEMORY {
+    FLASH : ORIGIN = 0x08000000, LENGTH = 128K
+    RAM   : ORIGIN = 0x20000000, LENGTH = 32K
+}
+";
+
 /// Prints the link arguments of the package's bins, only when building for a board (target OS
 /// `none`; host builds get nothing):
 ///
-/// * `link.x` (cortex-m-rt), which includes the workspace root's `memory.x` (the linker runs
-///   there and looks in its working directory first); for the STM32G431 the symbol
-///   `__x10_stm32g431` selects that chip's values in it;
+/// * `link.x` (cortex-m-rt), which includes `memory.x`. Each image finds exactly one: the Pico
+///   and the G431 the one this function writes to the build script's `OUT_DIR` (and puts on
+///   the search path), the C011 the one embassy-stm32's `memory-x` feature writes from the
+///   chip's metadata. No `memory.x` may lie in the workspace root: the linker runs there and
+///   would take it before any on the search path;
 /// * `link-rp.x` (embassy-rp: the boot2 section) for the Pico;
 /// * `defmt.x` (defmt).
 fn link_args() {
     if std::env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;
     }
-    if let Some(dir) = std::env::var_os("CARGO_MANIFEST_DIR") {
-        let memory_x = std::path::Path::new(&dir).join("../memory.x");
-        println!("cargo:rerun-if-changed={}", memory_x.display());
+    let memory = if std::env::var_os("CARGO_FEATURE_RP2040").is_some() {
+        Some(PICO_MEMORY)
+    } else if std::env::var_os("CARGO_FEATURE_STM32G431").is_some() {
+        Some(G431_MEMORY)
+    } else {
+        None
+    };
+    if let (Some(memory), Some(out)) = (memory, std::env::var_os("OUT_DIR")) {
+        let out = std::path::PathBuf::from(out);
+        if let Err(e) = std::fs::write(out.join("memory.x"), memory) {
+            println!("cargo:warning=cannot write memory.x: {e}");
+        }
+        println!("cargo:rustc-link-search={}", out.display());
     }
     println!("cargo:rustc-link-arg-bins=--nmagic");
     // link.x includes memory.x, which defines the regions link-rp.x places sections in.
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
     if std::env::var_os("CARGO_FEATURE_RP2040").is_some() {
         println!("cargo:rustc-link-arg-bins=-Tlink-rp.x");
-    }
-    if std::env::var_os("CARGO_FEATURE_STM32G431").is_some() {
-        println!("cargo:rustc-link-arg-bins=--defsym=__x10_stm32g431=1");
     }
     println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
 }

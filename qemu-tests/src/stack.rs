@@ -48,3 +48,10 @@ pub fn used() -> (usize, usize) {
     }
     (start - p, start - end)
 }
+
+/// Bytes of stack in use now (from the top of RAM to the caller's frame): subtracted from
+/// [`used`], it leaves what the code run since [`paint`] needed below the caller.
+pub fn depth() -> usize {
+    let (_, start) = bounds();
+    start - cortex_m::register::msp::read() as usize
+}

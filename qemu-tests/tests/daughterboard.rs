@@ -162,7 +162,16 @@ mod tests {
             0x20, 0x02, 1, 77, // duty 77 on A2.A
         ];
         let mut buf = [0u8; 40];
+        x10_qemu_tests::stack::paint();
+        let base = x10_qemu_tests::stack::depth();
         let n = exchange(&db, &req, &mut buf);
+        let (used, _) = x10_qemu_tests::stack::used();
+        // The DB core's own stack for a whole request (parse, five operations, reply):
+        // docs/boards.md quotes it for the C011's 6 KiB.
+        defmt::info!(
+            "DB core stack high-water mark, batch of five: {=usize} B",
+            used - base
+        );
         assert_eq!(
             &buf[..n],
             &[0x0E, 0x00, 13, 0x00, 1, 1, 0x00, 0, 0x00, 2, 0x56, 0x04, 0x05, 0, 0x00, 0]
@@ -190,10 +199,18 @@ mod tests {
                 assert_eq!(ev.kind, EventKind::Boot);
             }
         };
+        x10_qemu_tests::stack::paint();
+        let base = x10_qemu_tests::stack::depth();
         let ev = match block_on(select(script, db.run_background(&QemuClock))) {
             Either::First(ev) => ev,
             Either::Second(never) => never,
         };
+        let (used, _) = x10_qemu_tests::stack::used();
+        // Request, background task and event together, their future on this stack too.
+        defmt::info!(
+            "DB core stack high-water mark, pulse-in with its background task: {=usize} B",
+            used - base
+        );
         let waited = clock.now().since(t0);
         defmt::info!("deferred reply after {=u64} µs", waited);
         defmt::assert!((2_000..50_000).contains(&waited));

@@ -18,7 +18,6 @@ use defmt_rtt as _;
 use embassy_executor::Spawner;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{Daughterboard, DbConfig, TargetConfig};
-use panic_probe as _;
 use static_cell::StaticCell;
 use x10_boards::{address, BusConfig, EmbassyClock};
 use x10_microcode::Address;
@@ -43,6 +42,25 @@ const BASE: u8 = match address::build_base(option_env!("X10_DB_ADDR"), JUMPERS a
         "X10_DB_ADDR plus every jumper setting (0..2^jumpers) must stay in 0x08..=0x77 and miss X10_MB_ADDR"
     ),
 };
+
+/// A panic logs where it happened and stops the core with a HardFault (`udf`), which `probe-rs
+/// run` turns into a backtrace. The panic's message is not formatted: that would link
+/// `core::fmt` (about 2.4 KiB of flash; issue 12), and the location and the backtrace say
+/// where to look.
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    match info.location() {
+        Some(l) => defmt::error!("panic at {=str}:{=u32}", l.file(), l.line()),
+        None => defmt::error!("panic"),
+    }
+    cortex_m::asm::udf()
+}
+
+/// `defmt::panic!` and `unwrap!` (their message is logged by defmt before this is called).
+#[defmt::panic_handler]
+fn defmt_panic() -> ! {
+    cortex_m::asm::udf()
+}
 
 type Db = Daughterboard<NoopRawMutex, Ports>;
 

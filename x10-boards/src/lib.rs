@@ -34,6 +34,7 @@
 #[macro_use]
 pub mod pins;
 pub mod address;
+pub mod i2c_v2;
 pub mod pico_rules;
 pub mod pulse;
 pub mod pwm;
@@ -43,8 +44,14 @@ mod clock;
 #[cfg(feature = "time")]
 pub use clock::EmbassyClock;
 
-#[cfg(all(feature = "rp2040", feature = "stm32g431"))]
-compile_error!("features `rp2040` and `stm32g431` are exclusive: build one image per cargo call");
+#[cfg(any(
+    all(feature = "rp2040", feature = "stm32g431"),
+    all(feature = "rp2040", feature = "stm32c011"),
+    all(feature = "stm32g431", feature = "stm32c011"),
+))]
+compile_error!(
+    "features `rp2040`, `stm32g431` and `stm32c011` are exclusive: build one image per cargo call"
+);
 
 #[cfg(feature = "motherboard")]
 #[macro_use]
@@ -53,8 +60,15 @@ pub mod start;
 #[cfg(feature = "rp2040")]
 pub mod pico;
 
+#[cfg(any(feature = "stm32g431", feature = "stm32c011"))]
+#[macro_use]
+pub mod stm32;
+
 #[cfg(feature = "stm32g431")]
 pub mod g431;
+
+#[cfg(feature = "stm32c011")]
+pub mod c011;
 
 /// How a board's bus adapter is set up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -150,6 +150,35 @@ macro_rules! g431_table {
     };
 }
 
+/// The STM32C011F6 table (TSSOP-20, Cortex-M0+).
+///
+/// 20 pins: VDD, VSS, NRST (PF2) and SWD (PA13 SWDIO, PA14 SWCLK/BOOT0) stay free; 15 GPIO pads
+/// remain (PA0-PA8, PA11, PA12, PB6, PB7, PC14, PC15; PA9/PA10 share pads with PA11/PA12 and
+/// are not remapped). The bus takes PB6/PB7 (I2C1, AF6). TIM1 is the only timer with two
+/// channels on free pins besides TIM3 (the time driver): one actuator port (CH1 on PA0, CH2 on
+/// PA1, AF5). The other nine pins make three sensor ports, the analog inputs on ADC1 (IN2, IN5,
+/// IN8). Four ports is the most 13 pins give (an actuator port takes 4, a sensor port 3), so
+/// no pin is left for jumpers: the address is set at build time.
+macro_rules! c011_table {
+    ($then:ident) => {
+        $then! {
+            board: "STM32C011F6 (TSSOP-20)",
+            i2c: I2C1 { sda: PB7, scl: PB6 },
+            // (digital A, digital B, analog on ADC1)
+            sensors: [
+                (PC14, PC15, PA2),
+                (PA3, PA4, PA5),
+                (PA11, PA12, PA8),
+            ],
+            // (timer, PWM A = CH1, PWM B = CH2, digital A, digital B)
+            actuators: [
+                (TIM1, PA0, PA1, PA6, PA7),
+            ],
+            jumpers: [],
+        }
+    };
+}
+
 /// Expands a table into a [`BoardMap`] of names.
 macro_rules! describe {
     (
@@ -189,6 +218,9 @@ pub const PICO: BoardMap = pico_table!(describe);
 /// The STM32G431CB's pin map.
 pub const G431: BoardMap = g431_table!(describe);
 
+/// The STM32C011F6's pin map.
+pub const C011: BoardMap = c011_table!(describe);
+
 #[cfg(test)]
 mod tests {
     extern crate std;
@@ -203,7 +235,7 @@ mod tests {
 
     #[test]
     fn no_pin_is_used_twice() {
-        for map in [PICO, G431] {
+        for map in [PICO, G431, C011] {
             let pins: Vec<_> = map.pins().collect();
             let unique: HashSet<_> = pins.iter().collect();
             assert_eq!(pins.len(), unique.len(), "{}", map.board);
@@ -219,6 +251,10 @@ mod tests {
         // 26 header GPIOs on the Pico, 30 free pins on the WeAct board: all used.
         assert_eq!(PICO.pins().count(), 26);
         assert_eq!(G431.pins().count(), 30);
+        // 15 GPIO pads of the TSSOP-20 outside SWD and NRST: all used.
+        assert_eq!((C011.sensor_ports(), C011.actuator_ports()), (3, 1));
+        assert_eq!(C011.jumpers.len(), 0);
+        assert_eq!(C011.pins().count(), 15);
     }
 
     #[test]
@@ -249,6 +285,32 @@ mod tests {
                 n <= 22 || (26..=28).contains(&n),
                 "{p} is not on the Pico header"
             );
+        }
+    }
+
+    /// The C011F6's pads (stm32-metapac 21's pin list of the chip) and what the table asks of
+    /// them (its peripheral pin lists, with the alternate function): SWD and NRST stay free.
+    #[test]
+    fn c011_pins_exist_and_can_do_their_job() {
+        let pads = [
+            "PA0", "PA1", "PA2", "PA3", "PA4", "PA5", "PA6", "PA7", "PA8", "PA11", "PA12", "PB6",
+            "PB7", "PC14", "PC15",
+        ];
+        for p in C011.pins() {
+            assert!(pads.contains(&p), "{p} is not a free pad of the C011F6");
+        }
+        for p in ["PA13", "PA14", "PF2"] {
+            assert!(!C011.pins().any(|q| q == p), "{p} must stay free");
+        }
+        assert_eq!((C011.i2c.scl, C011.i2c.sda), ("PB6", "PB7"));
+        let adc = [
+            "PA0", "PA1", "PA2", "PA3", "PA4", "PA5", "PA6", "PA7", "PA8", "PA11", "PA12",
+        ];
+        for s in C011.sensors {
+            assert!(adc.contains(&s.analog), "{} has no ADC input", s.analog);
+        }
+        for a in C011.actuators {
+            assert_eq!((a.pwm_unit, a.pwm_a, a.pwm_b), ("TIM1", "PA0", "PA1"));
         }
     }
 

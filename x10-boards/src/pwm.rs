@@ -65,6 +65,37 @@ pub fn stm32_frequency_ok(timer_hz: u32, hz: u16) -> bool {
     hz != 0 && timer_hz / u32::from(hz) >= MIN_COUNTS
 }
 
+/// The largest compare value embassy-stm32's `SimplePwm` accepts on any timer. Its
+/// `set_frequency` sets ARR with 16 bits even on 32-bit timers (`timer/simple_pwm.rs` 369-370),
+/// `max_duty_cycle` is ARR + 1 (446-448), and `set_duty_cycle` converts the compare value to
+/// the timer's word with `unwrap!` (116-118): when ARR is 0xFFFF (at 1 Hz, 2 Hz or 1 297 Hz on
+/// a 170 MHz timer clock) a compare value of ARR + 1 would panic on a 16-bit timer.
+pub const STM32_MAX_COMPARE: u32 = 0xFFFF;
+
+/// The compare value written to an STM32 timer channel: `c` clamped to the timer's maximum
+/// duty (`max_duty`, ARR + 1) and to [`STM32_MAX_COMPARE`]. Where ARR is 0xFFFF, "always high"
+/// becomes high for 65 535 of 65 536 counts.
+pub fn stm32_compare(c: u32, max_duty: u32) -> u32 {
+    c.min(max_duty).min(STM32_MAX_COMPARE)
+}
+
+/// The prescaler and ARR embassy-stm32 0.6 programs for `hz` on a timer clocked at
+/// `timer_hz` (`SimplePwm::set_frequency`, `timer/simple_pwm.rs` 361-371, and
+/// `calculate_psc_arr` with 16 ARR bits, rounding to the slower frequency,
+/// `timer/low_level.rs` 309-364), for the tests that check every frequency. `None` where the
+/// driver would panic (a prescaler over 16 bits).
+pub fn stm32_psc_arr(timer_hz: u32, hz: u16) -> Option<(u32, u32)> {
+    if hz == 0 {
+        return None;
+    }
+    let clocks = u64::from(timer_hz) / u64::from(hz);
+    let max_arr: u64 = 0xFFFF;
+    let psc = u16::try_from(clocks.saturating_sub(1) / (max_arr + 1)).ok()?;
+    let psc1 = u64::from(psc) + 1;
+    let arr = clocks.div_ceil(psc1).saturating_sub(1).clamp(1, max_arr);
+    Some((u32::from(psc), arr as u32))
+}
+
 /// A PWM unit's time base: how many counts a period has, and how fast the counter ticks
 /// (`tick_num / tick_den` counts per second).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -188,5 +219,72 @@ mod tests {
         assert_eq!(tb.compare(Output::PulseUs(20_000)), Some(64_000));
         assert_eq!(tb.compare(Output::PulseUs(20_001)), None);
         assert_eq!(tb.compare(Output::Duty(255)), Some(64_000));
+    }
+
+    #[test]
+    fn stm32_full_duty_at_the_frequencies_where_arr_is_ffff() {
+        // The three frequencies on a 170 MHz timer clock: ARR = 0xFFFF, so the HAL's
+        // maximum duty is 65 536, one more than a 16-bit compare register holds.
+        for hz in [1, 2, 1_297] {
+            let (_, arr) = stm32_psc_arr(170_000_000, hz).unwrap();
+            assert_eq!(arr, 0xFFFF, "{hz} Hz");
+            let tb = Timebase::from_frequency(u32::from(hz), arr + 1);
+            let c = tb.compare(Output::Duty(255)).unwrap();
+            assert_eq!(c, 65_536);
+            assert_eq!(stm32_compare(c, arr + 1), 0xFFFF);
+        }
+    }
+
+    /// Every frequency the protocol can ask for (u16) that the adapter accepts, on the timer
+    /// clocks of the G431 (170 MHz) and the C011 (48 MHz), with every duty: the compare value
+    /// written is never above the HAL's maximum nor 0xFFFF, and full duty stays full but for
+    /// at most one count.
+    #[test]
+    fn stm32_every_frequency_and_duty_gives_a_compare_the_hal_accepts() {
+        for timer_hz in [170_000_000, 48_000_000] {
+            for hz in 1..=u16::MAX {
+                if !stm32_frequency_ok(timer_hz, hz) {
+                    continue;
+                }
+                let (psc, arr) = stm32_psc_arr(timer_hz, hz).unwrap();
+                let max_duty = arr + 1;
+                // What SimplePwm::get_frequency reports (timer/low_level.rs 577-588).
+                let reported = timer_hz / arr / (psc + 1);
+                let tb = Timebase::from_frequency(reported, max_duty);
+                for d in 0..=255u8 {
+                    let c = stm32_compare(tb.compare(Output::Duty(d)).unwrap(), max_duty);
+                    assert!(
+                        c <= max_duty && c <= STM32_MAX_COMPARE,
+                        "{timer_hz} {hz} {d}"
+                    );
+                    if d == 255 {
+                        assert!(c + 1 >= max_duty, "{timer_hz} {hz}");
+                    }
+                    if d == 0 {
+                        assert_eq!(c, 0);
+                    }
+                }
+            }
+        }
+    }
+
+    proptest::proptest! {
+        /// Pulse widths, at any accepted frequency: a pulse that fits gives a compare value the
+        /// HAL accepts.
+        #[test]
+        fn stm32_pulse_widths_give_compares_the_hal_accepts(
+            hz in 1..=u16::MAX,
+            us in 0..=u16::MAX,
+            fast in proptest::bool::ANY,
+        ) {
+            let timer_hz = if fast { 170_000_000 } else { 48_000_000 };
+            proptest::prop_assume!(stm32_frequency_ok(timer_hz, hz));
+            let (psc, arr) = stm32_psc_arr(timer_hz, hz).unwrap();
+            let tb = Timebase::from_frequency(timer_hz / arr / (psc + 1), arr + 1);
+            if let Some(c) = tb.compare(Output::PulseUs(us)) {
+                let c = stm32_compare(c, arr + 1);
+                proptest::prop_assert!(c <= arr + 1 && c <= STM32_MAX_COMPARE);
+            }
+        }
     }
 }

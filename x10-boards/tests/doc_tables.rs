@@ -5,7 +5,7 @@
 
 use std::fmt::Write as _;
 
-use x10_boards::pins::{BoardMap, G431, PICO};
+use x10_boards::pins::{BoardMap, C011, G431, PICO};
 
 /// Physical header pin of a Pico GPIO (Raspberry Pi Pico datasheet, pinout).
 fn pico_header_pin(gpio: u8) -> Option<u8> {
@@ -62,6 +62,34 @@ fn g431_pin(name: &str) -> String {
 /// `TIM1` → `TIM1 CH1/CH2`.
 fn g431_unit(name: &str) -> String {
     format!("{name} CH1/CH2")
+}
+
+/// Package pin of a C011F6 pad in TSSOP-20 (ST datasheet DS13866, pinout).
+fn c011_package_pin(name: &str) -> Option<u8> {
+    const PINS: [(&str, u8); 15] = [
+        ("PB7", 1),
+        ("PC14", 2),
+        ("PC15", 3),
+        ("PA0", 7),
+        ("PA1", 8),
+        ("PA2", 9),
+        ("PA3", 10),
+        ("PA4", 11),
+        ("PA5", 12),
+        ("PA6", 13),
+        ("PA7", 14),
+        ("PA8", 15),
+        ("PA11", 16),
+        ("PA12", 17),
+        ("PB6", 20),
+    ];
+    PINS.iter().find(|(n, _)| *n == name).map(|(_, p)| *p)
+}
+
+/// `PA0` → `PA0 (pin 7)`.
+fn c011_pin(name: &str) -> String {
+    let p = c011_package_pin(name).unwrap_or_else(|| panic!("{name} is no C011F6 pad"));
+    format!("{name} (pin {p})")
 }
 
 fn render(map: &BoardMap, pin: fn(&str) -> String, unit: fn(&str) -> String) -> String {
@@ -153,6 +181,11 @@ fn pico_table_matches_the_code() {
 #[test]
 fn g431_table_matches_the_code() {
     check(&doc(), "g431", &render(&G431, g431_pin, g431_unit));
+}
+
+#[test]
+fn c011_table_matches_the_code() {
+    check(&doc(), "c011", &render(&C011, c011_pin, g431_unit));
 }
 
 #[test]

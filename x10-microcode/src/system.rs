@@ -19,6 +19,8 @@ impl BoardKind {
     pub const PICO: BoardKind = BoardKind(3);
     /// STM32G431 core board or Nucleo.
     pub const G431: BoardKind = BoardKind(4);
+    /// STM32C011F6 daughterboard (TSSOP-20).
+    pub const C011: BoardKind = BoardKind(5);
 
     /// Name for people.
     pub const fn name(self) -> &'static str {
@@ -27,6 +29,7 @@ impl BoardKind {
             2 => "internal",
             3 => "pico",
             4 => "g431",
+            5 => "c011",
             _ => "unknown",
         }
     }

@@ -1501,7 +1501,8 @@ fn identity_payload() {
         (2, "internal"),
         (3, "pico"),
         (4, "g431"),
-        (5, "unknown"),
+        (5, "c011"),
+        (6, "unknown"),
     ] {
         assert_eq!(BoardKind(code).name(), name);
     }

@@ -1,0 +1,706 @@
+//! STM32 chips with the I2C v2 block (embassy-stm32 0.6): the bus adapter, the ports and the
+//! start-up shared by every STM32 board ([`crate::g431`], [`crate::c011`]). A chip module
+//! gives only what differs: its clocks, its interrupt bindings, its ADC set-up and its pin
+//! table, which it expands with `stm32_build!`.
+//!
+//! * [`Stm32Bus`]: one I2C v2 handle in `MultiMaster` mode is controller and target at once,
+//!   so the adapter forwards calls, and around each it does what embassy-stm32 leaves undone
+//!   (decisions in [`crate::i2c_v2`], tested on the host): it clears the flags earlier
+//!   transfers left set before each call, refuses to start a controller call while the bus is
+//!   BUSY or this node is addressed ([`BusError::ArbitrationLost`], the runtime retries: the
+//!   driver would spin synchronously on BUSY), waits (polling with yields) for the STOP that
+//!   ends its own transfers, and after a timeout sends STOP, resets the block (PE off and on)
+//!   and clocks a stuck SDA free (UM10204 §3.1.16) before giving up with [`BusError::Bus`].
+//!   Target side: `addressed` is the driver's `listen` (ADDR seen, left set, SCL stretched,
+//!   cancel-safe), kept for the adapter's `listen`, which receives the transfer.
+//! * [`Stm32Ports`]: digital pins are `Flex` pins (input with pull-down, or push-pull output),
+//!   PWM pins are channels 1 and 2 of one timer per actuator port, analog inputs are on ADC1
+//!   (12 bits), pulse-in samples its pin (see [`crate::pulse`] and `docs/boards.md` for its
+//!   resolution).
+
+use core::task::Poll;
+
+use embassy_stm32::adc::{self, AnyAdcChannel};
+use embassy_stm32::gpio::{Flex, Pull, Speed};
+use embassy_stm32::i2c::{self, I2c, SlaveCommandKind};
+use embassy_stm32::mode::Async;
+use embassy_stm32::{pac, peripherals, Peri};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::mutex::Mutex;
+use embassy_time::{Duration, Instant};
+use x10_hal::bus::{BusError, Incoming, MultiMaster};
+use x10_hal::ports::{PortError, Ports};
+use x10_microcode::{Edge, Level, Pin, PinRef, Port, PortKind, MAX_FRAME_LEN};
+
+use crate::i2c_v2::{self, After, Lines, Outcome};
+use crate::pulse::PulseIn;
+use crate::pwm::{stm32_compare, stm32_frequency_ok, Output, Timebase, DEFAULT_HZ};
+use crate::RX_LEN;
+
+/// An async mutex (pins and timers are shared by the runtime's tasks).
+pub type Lock<T> = Mutex<CriticalSectionRawMutex, T>;
+
+/// What the chip module does with one actuator port's timer (its `PwmUnit` enum, one variant
+/// per timer of the table).
+pub trait PwmTimer {
+    /// The timer's input clock in Hz.
+    fn timer_hz(&self) -> u32;
+    /// Sets the PWM frequency (both channels).
+    fn set_frequency(&mut self, hz: u32);
+    /// The frequency the timer reports and its maximum duty (ARR + 1).
+    fn frequency_and_max(&self) -> (u32, u32);
+    /// Writes a compare value (already clamped) to channel 1 (`Pin::A`) or 2 (`Pin::B`).
+    fn set_compare(&mut self, pin: Pin, c: u32);
+}
+
+/// Everything a chip's table names, taken from the HAL.
+pub struct Board<U, const S: usize, const A: usize> {
+    /// The bus (controller and target at once).
+    pub bus: Stm32Bus,
+    /// The ports (actuators in their safe state: digital low, PWM off).
+    pub ports: Stm32Ports<U, S, A>,
+    /// The value of the address-select jumpers read at start-up (fitted = 1, bit 0 first; 0
+    /// when the table has none).
+    pub jumpers: u8,
+}
+
+/// Expands a pin table into a chip module's `Board::new` and `PwmUnit`. The chip module
+/// provides `Irqs`, `new_adc` and `JUMPERS`, and names its two DMA channels.
+macro_rules! stm32_build {
+    (
+        dma: ($tx:ident, $rx:ident),
+        board: $board:literal,
+        i2c: $i2c:ident { sda: $sda:ident, scl: $scl:ident },
+        sensors: [ $( ($sa:ident, $sb:ident, $san:ident) ),* $(,)? ],
+        actuators: [ $( ($tim:ident, $pa:ident, $pb:ident, $da:ident, $db:ident) ),* $(,)? ],
+        jumpers: [ $( $j:ident ),* $(,)? ] $(,)?
+    ) => {
+        /// The chip's board: bus, ports and jumpers.
+        pub type Board = $crate::stm32::Board<PwmUnit, SENSORS, ACTUATORS>;
+
+        impl $crate::stm32::Board<PwmUnit, SENSORS, ACTUATORS> {
+            /// Takes the table's peripherals: builds the ports in their safe state and the
+            /// bus adapter. `p` comes from this module's `init()`.
+            ///
+            /// `bus` gets the jumper value and returns the bus setup (the node's own address
+            /// may depend on the jumpers).
+            pub fn new(
+                p: embassy_stm32::Peripherals,
+                bus: impl FnOnce(u8) -> $crate::BusConfig,
+            ) -> Board {
+                use embassy_stm32::gpio::{Input, OutputType, Pin as _};
+                use embassy_stm32::i2c::{self, I2c, SlaveAddrConfig};
+                use embassy_stm32::timer::low_level::CountingMode;
+                use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
+                use $crate::stm32::{input, output_low, ActuatorPort, Lock, SensorPort};
+                // Inputs only while they are read; dropped, the pins are disconnected again.
+                let jumpers = {
+                    let inputs: [Input<'static>; JUMPERS] = [ $( Input::new(p.$j, embassy_stm32::gpio::Pull::Up) ),* ];
+                    if JUMPERS > 0 {
+                        // Let the pull-ups (about 40 kΩ against the pins' capacitance) settle.
+                        embassy_time::block_for(embassy_time::Duration::from_micros(10));
+                    }
+                    $crate::address::jumper_value(inputs.iter().map(|i| i.is_high()))
+                };
+                let bus = bus(jumpers);
+                let mut cfg = i2c::Config::default();
+                cfg.frequency = embassy_stm32::time::Hertz(bus.frequency_hz);
+                cfg.timeout = embassy_time::Duration::from_micros(u64::from(bus.timeout_us));
+                let lines = [
+                    (p.$scl.port(), p.$scl.pin()),
+                    (p.$sda.port(), p.$sda.pin()),
+                ];
+                let i2c = I2c::new(p.$i2c, p.$scl, p.$sda, p.$tx, p.$rx, Irqs, cfg)
+                    .into_slave_multimaster(SlaveAddrConfig::basic(bus.own_address));
+                let sensors = [ $( SensorPort {
+                    pins: [Lock::new(input(p.$sa.into())), Lock::new(input(p.$sb.into()))],
+                    analog: Lock::new(embassy_stm32::adc::AdcChannel::degrade_adc(p.$san)),
+                } ),* ];
+                let actuators = [ $( ActuatorPort {
+                    pins: [Lock::new(output_low(p.$da.into())), Lock::new(output_low(p.$db.into()))],
+                    pwm: Lock::new((PwmUnit::$tim(SimplePwm::new(
+                        p.$tim,
+                        Some(PwmPin::new(p.$pa, OutputType::PushPull)),
+                        Some(PwmPin::new(p.$pb, OutputType::PushPull)),
+                        None,
+                        None,
+                        embassy_stm32::time::Hertz(u32::from($crate::pwm::DEFAULT_HZ)),
+                        CountingMode::EdgeAlignedUp,
+                    )).started(), [$crate::pwm::Output::OFF; 2])),
+                } ),* ];
+                $crate::stm32::Board {
+                    bus: $crate::stm32::Stm32Bus::new(i2c, embassy_stm32::pac::$i2c, lines, bus.frequency_hz),
+                    ports: $crate::stm32::Stm32Ports::new(new_adc(p.ADC1), ADC_BITS, sensors, actuators),
+                    jumpers,
+                }
+            }
+        }
+
+        /// The timer of one actuator port (the table gives each port its own timer).
+        #[allow(non_camel_case_types, clippy::upper_case_acronyms)]
+        pub enum PwmUnit {
+            $(
+                #[doc = stringify!($tim)]
+                $tim(embassy_stm32::timer::simple_pwm::SimplePwm<'static, embassy_stm32::peripherals::$tim>),
+            )*
+        }
+
+        impl PwmUnit {
+            /// Both channels on at 0 % duty.
+            fn started(mut self) -> PwmUnit {
+                match &mut self {
+                    $( PwmUnit::$tim(p) => {
+                        p.ch1().set_duty_cycle(0);
+                        p.ch2().set_duty_cycle(0);
+                        p.ch1().enable();
+                        p.ch2().enable();
+                    } )*
+                }
+                self
+            }
+        }
+
+        impl $crate::stm32::PwmTimer for PwmUnit {
+            fn timer_hz(&self) -> u32 {
+                match self {
+                    $( PwmUnit::$tim(_) => embassy_stm32::rcc::frequency::<embassy_stm32::peripherals::$tim>().0, )*
+                }
+            }
+
+            fn set_frequency(&mut self, hz: u32) {
+                match self {
+                    $( PwmUnit::$tim(p) => p.set_frequency(embassy_stm32::time::Hertz(hz)), )*
+                }
+            }
+
+            fn frequency_and_max(&self) -> (u32, u32) {
+                match self {
+                    $( PwmUnit::$tim(p) => (p.get_frequency().0, p.max_duty_cycle()), )*
+                }
+            }
+
+            fn set_compare(&mut self, pin: x10_microcode::Pin, c: u32) {
+                match self {
+                    $( PwmUnit::$tim(p) => match pin {
+                        x10_microcode::Pin::A => p.ch1().set_duty_cycle(c),
+                        x10_microcode::Pin::B => p.ch2().set_duty_cycle(c),
+                    }, )*
+                }
+            }
+        }
+    };
+}
+
+/// A digital pin as an input with pull-down.
+pub fn input(pin: Peri<'static, embassy_stm32::gpio::AnyPin>) -> Flex<'static> {
+    let mut f = Flex::new(pin);
+    f.set_as_input(Pull::Down);
+    f
+}
+
+/// A digital pin as a push-pull output, low.
+pub fn output_low(pin: Peri<'static, embassy_stm32::gpio::AnyPin>) -> Flex<'static> {
+    let mut f = Flex::new(pin);
+    f.set_low();
+    f.set_as_output(Speed::Low);
+    f
+}
+
+// ---------------------------------------------------------------------------------------
+// Bus
+// ---------------------------------------------------------------------------------------
+
+/// [`MultiMaster`] on an STM32 I2C v2 block (see the module doc).
+pub struct Stm32Bus {
+    i2c: I2c<'static, Async, i2c::MultiMaster>,
+    regs: pac::i2c::I2c,
+    /// SCL and SDA as (GPIO port, pin number), for the bus recovery.
+    lines: [(u8, u8); 2],
+    frequency_hz: u32,
+    /// The address match [`MultiMaster::addressed`] saw (ADDR still set, SCL stretched),
+    /// for the following `listen`.
+    matched: Option<SlaveCommandKind>,
+}
+
+/// Longest reply that gets padded: a controller reading past the reply gets 0xFF, as the
+/// trait promises, for up to this many bytes in all.
+const TX_LEN: usize = MAX_FRAME_LEN + 16;
+
+fn outcome(r: Result<(), i2c::Error>) -> Outcome {
+    match r {
+        Ok(()) => Outcome::Ok,
+        Err(i2c::Error::Nack) => Outcome::Nack,
+        Err(i2c::Error::Arbitration) => Outcome::Arbitration,
+        Err(i2c::Error::Bus) => Outcome::Bus,
+        Err(i2c::Error::Timeout) => Outcome::Timeout,
+        Err(i2c::Error::Overrun | i2c::Error::Crc | i2c::Error::ZeroLengthTransfer) => {
+            Outcome::Other
+        }
+    }
+}
+
+fn gpio(port: u8) -> Option<pac::gpio::Gpio> {
+    match port {
+        0 => Some(pac::GPIOA),
+        1 => Some(pac::GPIOB),
+        2 => Some(pac::GPIOC),
+        _ => None,
+    }
+}
+
+/// The bus lines as open-drain GPIO outputs, for [`i2c_v2::recover_bus`]: the pins keep their
+/// open-drain output type from the I2C set-up; their mode goes from alternate function to
+/// output for the recovery and back after it.
+struct GpioLines {
+    scl: (pac::gpio::Gpio, usize),
+    sda: (pac::gpio::Gpio, usize),
+    half_period: Duration,
+}
+
+impl GpioLines {
+    fn set(line: (pac::gpio::Gpio, usize), release: bool) {
+        let (g, n) = line;
+        g.bsrr().write(|w| {
+            if release {
+                w.set_bs(n, true)
+            } else {
+                w.set_br(n, true)
+            }
+        });
+    }
+
+    fn mode(line: (pac::gpio::Gpio, usize), m: pac::gpio::vals::Moder) {
+        line.0.moder().modify(|w| w.set_moder(line.1, m));
+    }
+}
+
+impl Lines for GpioLines {
+    fn scl(&mut self, release: bool) {
+        Self::set(self.scl, release);
+    }
+    fn sda(&mut self, release: bool) {
+        Self::set(self.sda, release);
+    }
+    fn sda_high(&mut self) -> bool {
+        self.sda.0.idr().read().idr(self.sda.1) == pac::gpio::vals::Idr::HIGH
+    }
+    fn half_period(&mut self) {
+        embassy_time::block_for(self.half_period);
+    }
+}
+
+impl Stm32Bus {
+    /// The adapter on a `MultiMaster` handle of block `regs`, whose SCL and SDA are
+    /// `lines` (GPIO port, pin number), running at `frequency_hz`.
+    pub fn new(
+        i2c: I2c<'static, Async, i2c::MultiMaster>,
+        regs: pac::i2c::I2c,
+        lines: [(u8, u8); 2],
+        frequency_hz: u32,
+    ) -> Stm32Bus {
+        Stm32Bus {
+            i2c,
+            regs,
+            lines,
+            frequency_hz,
+            matched: None,
+        }
+    }
+
+    fn isr(&self) -> u32 {
+        self.regs.isr().read().0
+    }
+
+    fn clear(&self, icr: u32) {
+        if icr != 0 {
+            self.regs.icr().write_value(pac::i2c::regs::Icr(icr));
+        }
+    }
+
+    /// Before a controller call: clears what earlier transfers left, or refuses to start.
+    fn start_controller(&self) -> Result<(), BusError> {
+        self.clear(i2c_v2::before_controller(self.isr())?);
+        Ok(())
+    }
+
+    /// Before answering an address match: clears what earlier transfers left.
+    fn start_target(&self) {
+        self.clear(i2c_v2::before_target(self.isr()));
+    }
+
+    /// PE off and on: the block's state machines and flags back to reset, SCL and SDA
+    /// released; the configuration (timing, own address) stays (RM0440 §37.4.6).
+    fn reset_block(&self) {
+        self.regs.cr1().modify(|w| w.set_pe(false));
+        // PE reads back low after three APB clock cycles.
+        while self.regs.cr1().read().pe() {}
+        self.regs.cr1().modify(|w| w.set_pe(true));
+    }
+
+    /// Waits (polling, yielding between polls) up to [`i2c_v2::stop_wait_us`] for the STOP
+    /// that ends this node's transfer, and clears STOPF. False when the bus stays busy.
+    async fn wait_stop(&self) -> bool {
+        let deadline = Instant::now()
+            + Duration::from_micros(u64::from(i2c_v2::stop_wait_us(self.frequency_hz)));
+        loop {
+            let isr = self.isr();
+            if isr & (i2c_v2::isr::STOPF | i2c_v2::isr::BUSY) != i2c_v2::isr::BUSY {
+                self.clear(isr & i2c_v2::isr::STOPF);
+                return true;
+            }
+            if Instant::now() >= deadline {
+                return false;
+            }
+            embassy_futures::yield_now().await;
+        }
+    }
+
+    /// The bus did not come free after this node's transfer: STOP, then PE reset, then the
+    /// nine-clock recovery of a stuck SDA.
+    ///
+    /// # Errors
+    /// [`BusError::Bus`] when SDA stays low after the recovery.
+    async fn recover(&self) -> Result<(), BusError> {
+        self.regs.cr2().modify(|w| w.set_stop(true));
+        if self.wait_stop().await {
+            return Ok(());
+        }
+        self.reset_and_clear_bus()
+    }
+
+    /// PE reset, then the nine-clock recovery when SDA is held low (synchronous: at most 20
+    /// half SCL periods, 100 µs at 100 kHz; kept out of line, it is rare).
+    ///
+    /// # Errors
+    /// [`BusError::Bus`] when SDA stays low.
+    #[inline(never)]
+    fn reset_and_clear_bus(&self) -> Result<(), BusError> {
+        self.reset_block();
+        let [scl, sda] = self.lines;
+        let (Some(gs), Some(gd)) = (gpio(scl.0), gpio(sda.0)) else {
+            return Err(BusError::Bus);
+        };
+        let mut lines = GpioLines {
+            scl: (gs, usize::from(scl.1)),
+            sda: (gd, usize::from(sda.1)),
+            half_period: Duration::from_micros(u64::from(
+                (500_000 / self.frequency_hz.max(1)).max(1),
+            )),
+        };
+        if lines.sda_high() {
+            return Ok(());
+        }
+        defmt::warn!("I2C: SDA held low, clocking it free");
+        lines.scl(true);
+        lines.sda(true);
+        GpioLines::mode(lines.scl, pac::gpio::vals::Moder::OUTPUT);
+        GpioLines::mode(lines.sda, pac::gpio::vals::Moder::OUTPUT);
+        let free = i2c_v2::recover_bus(&mut lines);
+        GpioLines::mode(lines.scl, pac::gpio::vals::Moder::ALTERNATE);
+        GpioLines::mode(lines.sda, pac::gpio::vals::Moder::ALTERNATE);
+        self.reset_block();
+        if free {
+            Ok(())
+        } else {
+            Err(BusError::Bus)
+        }
+    }
+
+    /// After a controller call: waits for its STOP or recovers the bus, and maps the result.
+    async fn finish_controller(&mut self, r: Result<(), i2c::Error>) -> Result<(), BusError> {
+        let o = outcome(r);
+        // The driver spins on BUSY before its START (`v2.rs` 207-210); a master that began
+        // between `start_controller` and that spin and addresses this node holds BUSY (ADDR
+        // stretches SCL) until the driver's timeout: that is this node being addressed, not a
+        // dead bus. The runtime serves the transaction and retries.
+        if o == Outcome::Timeout && self.isr() & i2c_v2::isr::ADDR != 0 {
+            return Err(BusError::ArbitrationLost);
+        }
+        let free = match i2c_v2::after_controller(o) {
+            After::Done => true,
+            After::WaitStop => self.wait_stop().await,
+            After::Abort => false,
+        };
+        if !free {
+            self.recover().await?;
+        }
+        i2c_v2::controller_error(o)
+    }
+
+    /// After a target-side call of the driver failed: its timeout may have left SCL stretched
+    /// in the middle of a transfer, so the block is reset.
+    #[inline(never)]
+    fn target_error(&self, e: i2c::Error) -> BusError {
+        let o = outcome(Err(e));
+        if i2c_v2::target_needs_reset(o) {
+            self.reset_block();
+        }
+        i2c_v2::controller_error(o).err().unwrap_or(BusError::Bus)
+    }
+}
+
+impl MultiMaster for Stm32Bus {
+    /// # Errors
+    /// As the trait; [`BusError::ArbitrationLost`] at once when the bus is taken (see the
+    /// module doc), or when the driver's BUSY wait timed out while this node was being
+    /// addressed; [`BusError::Bus`] when SDA stays stuck after a recovery.
+    async fn write(&mut self, addr: u8, bytes: &[u8]) -> Result<(), BusError> {
+        self.start_controller()?;
+        let r = self.i2c.write(addr, bytes).await;
+        self.finish_controller(r).await
+    }
+
+    /// # Errors
+    /// As [`Stm32Bus::write`].
+    async fn write_read(
+        &mut self,
+        addr: u8,
+        bytes: &[u8],
+        read: &mut [u8],
+    ) -> Result<(), BusError> {
+        self.start_controller()?;
+        let r = self.i2c.write_read(addr, bytes, read).await;
+        self.finish_controller(r).await
+    }
+
+    /// embassy-stm32's `listen`: waits for ADDR and leaves it set (SCL stays stretched), so
+    /// dropping it loses nothing. The match is kept for [`Stm32Bus::listen`].
+    async fn addressed(&mut self) -> Result<(), BusError> {
+        if self.matched.is_none() {
+            let cmd = self.i2c.listen().await.map_err(|e| self.target_error(e))?;
+            self.matched = Some(cmd.kind);
+        }
+        Ok(())
+    }
+
+    async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
+        let kind = match self.matched.take() {
+            Some(kind) => kind,
+            None => {
+                self.i2c
+                    .listen()
+                    .await
+                    .map_err(|e| self.target_error(e))?
+                    .kind
+            }
+        };
+        if kind == SlaveCommandKind::Read {
+            return Ok(Incoming::Read);
+        }
+        self.start_target();
+        // The driver acknowledges and drops bytes past its buffer: one byte more than the
+        // longest frame shows an over-long write.
+        let mut rx = [0u8; RX_LEN];
+        let n = match self.i2c.respond_to_write(&mut rx).await {
+            Ok(n) => n,
+            Err(e) => return Err(self.target_error(e)),
+        };
+        let (Some(dst), Some(src)) = (buf.get_mut(..n), rx.get(..n)) else {
+            return Err(BusError::Overrun);
+        };
+        if n >= RX_LEN {
+            return Err(BusError::Overrun);
+        }
+        dst.copy_from_slice(src);
+        // The write ended with STOP, or with a repeated START: then ADDR is already set again
+        // with the read direction, and `listen` reports it without waiting.
+        match embassy_futures::poll_once(self.i2c.listen()) {
+            Poll::Ready(Ok(c)) if c.kind == SlaveCommandKind::Read => Ok(Incoming::WriteRead(n)),
+            _ => Ok(Incoming::Write(n)),
+        }
+    }
+
+    async fn respond(&mut self, bytes: &[u8]) -> Result<(), BusError> {
+        let mut tx = [0xFFu8; TX_LEN];
+        let reply: &[u8] = match tx.get_mut(..bytes.len()) {
+            Some(head) => {
+                head.copy_from_slice(bytes);
+                &tx
+            }
+            None => bytes,
+        };
+        self.start_target();
+        match self.i2c.respond_to_read(reply).await {
+            Ok(_) => Ok(()),
+            Err(e) => Err(self.target_error(e)),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Ports
+// ---------------------------------------------------------------------------------------
+
+/// One sensor port's pins.
+pub struct SensorPort {
+    /// Digital pins A and B.
+    pub pins: [Lock<Flex<'static>>; 2],
+    /// The analog input.
+    pub analog: Lock<AnyAdcChannel<'static, peripherals::ADC1>>,
+}
+
+/// One actuator port's pins and timer.
+pub struct ActuatorPort<U> {
+    /// Digital pins A and B.
+    pub pins: [Lock<Flex<'static>>; 2],
+    /// The timer, and what each PWM pin was last told.
+    pub pwm: Lock<(U, [Output; 2])>,
+}
+
+/// [`Ports`] on an STM32's pins: `S` sensor ports, `A` actuator ports whose timers are `U`.
+///
+/// Each pin is behind its own async mutex: a pulse-in holds its pin for the whole
+/// measurement, and any other operation on that pin meanwhile answers [`PortError::Busy`].
+pub struct Stm32Ports<U, const S: usize, const A: usize> {
+    adc: Lock<adc::Adc<'static, peripherals::ADC1>>,
+    adc_bits: u8,
+    sensors: [SensorPort; S],
+    actuators: [ActuatorPort<U>; A],
+}
+
+fn compare<U: PwmTimer>(unit: &U, out: Output) -> Option<u32> {
+    let (hz, max) = unit.frequency_and_max();
+    let c = Timebase::from_frequency(hz, max).compare(out)?;
+    Some(stm32_compare(c, max))
+}
+
+impl<U: PwmTimer, const S: usize, const A: usize> Stm32Ports<U, S, A> {
+    /// The ports of a board.
+    pub fn new(
+        adc: adc::Adc<'static, peripherals::ADC1>,
+        adc_bits: u8,
+        sensors: [SensorPort; S],
+        actuators: [ActuatorPort<U>; A],
+    ) -> Self {
+        Stm32Ports {
+            adc: Lock::new(adc),
+            adc_bits,
+            sensors,
+            actuators,
+        }
+    }
+
+    fn digital(&self, pin: PinRef) -> Result<&Lock<Flex<'static>>, PortError> {
+        let i = usize::from(pin.port.index());
+        let pins = match pin.port.kind() {
+            PortKind::Sensor => &self.sensors.get(i).ok_or(PortError::NoSuchPin)?.pins,
+            PortKind::Actuator => &self.actuators.get(i).ok_or(PortError::NoSuchPin)?.pins,
+        };
+        pins.get(pin.pin.index()).ok_or(PortError::NoSuchPin)
+    }
+
+    fn pwm(&self, port: Port) -> Result<&Lock<(U, [Output; 2])>, PortError> {
+        match port.kind() {
+            PortKind::Actuator => self
+                .actuators
+                .get(usize::from(port.index()))
+                .map(|a| &a.pwm)
+                .ok_or(PortError::NoSuchPin),
+            PortKind::Sensor => Err(PortError::Unsupported),
+        }
+    }
+
+    /// Sets one output of a port, or changes nothing when it does not fit the period.
+    async fn set_output(&self, pin: PinRef, out: Output) -> Result<(), PortError> {
+        let mut guard = self.pwm(pin.port)?.lock().await;
+        let (unit, outs) = &mut *guard;
+        let c = compare(unit, out).ok_or(PortError::Unsupported)?;
+        unit.set_compare(pin.pin, c);
+        if let Some(o) = outs.get_mut(pin.pin.index()) {
+            *o = out;
+        }
+        Ok(())
+    }
+}
+
+impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> {
+    fn sensor_ports(&self) -> u8 {
+        S as u8
+    }
+
+    fn actuator_ports(&self) -> u8 {
+        A as u8
+    }
+
+    fn adc_bits(&self) -> u8 {
+        self.adc_bits
+    }
+
+    async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
+        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
+        f.set_as_input(Pull::Down);
+        Ok(Level::from_bool(f.is_high()))
+    }
+
+    async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
+        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
+        f.set_level(if level.is_high() {
+            embassy_stm32::gpio::Level::High
+        } else {
+            embassy_stm32::gpio::Level::Low
+        });
+        f.set_as_output(Speed::Low);
+        Ok(())
+    }
+
+    async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
+        self.set_output(pin, Output::Duty(duty)).await
+    }
+
+    async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
+        let mut guard = self.pwm(port)?.lock().await;
+        let (unit, outs) = &mut *guard;
+        if !stm32_frequency_ok(unit.timer_hz(), hz) {
+            return Err(PortError::Unsupported);
+        }
+        let (old_hz, _) = unit.frequency_and_max();
+        unit.set_frequency(u32::from(hz));
+        // Keep each pin's duty cycle or pulse width; undo when a pulse no longer fits.
+        let [Some(a), Some(b)] = [compare(unit, outs[0]), compare(unit, outs[1])] else {
+            unit.set_frequency(if old_hz == 0 {
+                u32::from(DEFAULT_HZ)
+            } else {
+                old_hz
+            });
+            return Err(PortError::Unsupported);
+        };
+        unit.set_compare(Pin::A, a);
+        unit.set_compare(Pin::B, b);
+        Ok(())
+    }
+
+    async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
+        self.set_output(pin, Output::PulseUs(us)).await
+    }
+
+    async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
+        let sensor = match port.kind() {
+            PortKind::Sensor => self
+                .sensors
+                .get(usize::from(port.index()))
+                .ok_or(PortError::NoSuchPin)?,
+            PortKind::Actuator => return Err(PortError::Unsupported),
+        };
+        let mut ch = sensor.analog.lock().await;
+        let mut adc = self.adc.lock().await;
+        // A blocking conversion: 47.5 + 12.5 ADC cycles, under 2 µs at the G431's 42.5 MHz
+        // ADC clock (170 MHz / 4), under 2 µs at the C011's (at most 35 MHz).
+        Ok(adc.blocking_read(&mut *ch, adc::SampleTime::CYCLES47_5))
+    }
+
+    /// Samples the pin in a loop, yielding to the other tasks between samples, and lets
+    /// [`PulseIn`] decide. The resolution is the time between two samples: the longest the
+    /// other code runs without yielding (see `docs/boards.md`).
+    async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError> {
+        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
+        f.set_as_input(Pull::Down);
+        let mut m = PulseIn::new(edge, Instant::now().as_micros(), timeout_ms);
+        loop {
+            let high = f.is_high();
+            if let Some(r) = m.sample(high, Instant::now().as_micros()) {
+                return r;
+            }
+            embassy_futures::yield_now().await;
+        }
+    }
+}
