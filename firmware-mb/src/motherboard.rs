@@ -489,10 +489,13 @@ impl MbCore {
             db,
             seq,
             // A set_pec or set_failsafe is read back too: it takes effect on the
-            // motherboard's side only once the board's reply confirms it.
+            // motherboard's side only once the board's reply confirms it. So is an
+            // event_enable: a refused one (a corrupted frame, a wrong port) would otherwise
+            // end `Ok` and leave a program waiting for events that never come.
             read: (op.expects_reply()
                 || pec_change(&op).is_some()
-                || failsafe_change(&op).is_some())
+                || failsafe_change(&op).is_some()
+                || matches!(op, Op::EventEnable(..)))
             .then(|| op.reply_capacity()),
             // The board answers a pulse-in no later than acceptance + its pulse timeout
             // (firmware-db counts it from acceptance), and acceptance is before the `pending`

@@ -221,3 +221,36 @@ fn pec_off_is_refused_with_the_safe_defaults() {
     assert!(matches!(r, Err(LinkError::Invalid(_))));
     assert!(to(&w, 9).is_empty());
 }
+
+/// An `event_enable` is read back: one the board refuses ends in its status, not `Ok` (a
+/// program would otherwise wait for events that never come: the soak counted such losses as
+/// silent).
+#[test]
+fn a_refused_event_enable_ends_in_the_boards_status() {
+    use x10_microcode::{EventConfig, Pin};
+    let w = World::safe();
+    // DB 9 has 3 sensor ports: only the board knows that port 5 is not there.
+    let missing = Port::sensor(5).unwrap().pin(Pin::A);
+    let edges = EventConfig {
+        rising: true,
+        ..EventConfig::OFF
+    };
+    let (refused, accepted) = w.sim(async {
+        w.at(1_000).await;
+        let refused = w.mb.call(db(9), Op::EventEnable(missing, edges)).await;
+        let accepted =
+            w.mb.call(db(9), Op::EventEnable(s1().pin(Pin::A), edges))
+                .await;
+        (refused, accepted)
+    });
+    // Refused, and the caller learns it.
+    assert_eq!(refused, Err(LinkError::Status(Status::PortOutOfRange)));
+    assert_eq!(accepted.map(|p| p.len()), Ok(0));
+    // Both went out as a write and a read of the 3-byte status reply plus its PEC byte.
+    let enables: Vec<usize> = to(&w, 9)
+        .into_iter()
+        .filter(|(_, bytes, _)| bytes.first() == Some(&0x07) && bytes.get(3) != Some(&0x01))
+        .map(|(_, _, read)| read)
+        .collect();
+    assert!(enables.iter().all(|&n| n == 4), "{enables:?}");
+}
