@@ -186,7 +186,6 @@ export default [
   },
   {
     name: 'split-write',
-    knownDefect: "issue 11 #4: a stale STOP_DET left by respond splits the next write into two frames (bad_length); fix in 57047a7 backed out: it broke `boot`",
     about: 'issue 11 item 4: a write arriving right after a write-then-read must not be split by a stale STOP_DET (1 MHz MB)',
     run(ctx) {
       const { rig, vmb, dbs } = setup(ctx, { hz: 1000000 });
