@@ -52,6 +52,8 @@ impl Ramp {
 pub struct DcMotor<L> {
     bridge: HBridge<L>,
     speed: Option<Speed>,
+    /// The last command was a brake that succeeded: both inputs HIGH at full enable.
+    braking: bool,
 }
 
 impl<L: Link> DcMotor<L> {
@@ -68,6 +70,7 @@ impl<L: Link> DcMotor<L> {
         DcMotor {
             bridge,
             speed: None,
+            braking: false,
         }
     }
 
@@ -99,6 +102,12 @@ impl<L: Link> DcMotor<L> {
     /// [`crate::Error::Link`]; the speed is then unknown (`None`).
     pub async fn set_speed(&mut self, speed: Speed) -> Result<()> {
         self.speed = None;
+        // Leaving a brake (both inputs HIGH, enable 255): the first write of a drive command
+        // (the pin going LOW) would drive the new direction at full duty for one frame, so
+        // the bridge coasts first.
+        if core::mem::take(&mut self.braking) && speed.direction().is_some() {
+            self.bridge.coast().await?;
+        }
         let duty = speed.magnitude().to_duty();
         match speed.direction() {
             Some(Direction::Forward) => self.bridge.forward(duty).await?,
@@ -133,7 +142,10 @@ impl<L: Link> DcMotor<L> {
     /// [`crate::Error::Link`].
     pub async fn brake(&mut self) -> Result<()> {
         self.speed = None;
-        self.bridge.brake().await
+        self.braking = false;
+        self.bridge.brake().await?;
+        self.braking = true;
+        Ok(())
     }
 
     /// Ramps from the current speed (0 when unknown) to `target`, one [`DcMotor::set_speed`]

@@ -25,10 +25,18 @@ use crate::{Link, Result};
 /// "Stopped" is coast: both inputs LOW and no enable, the state the daughterboard's failsafe
 /// (`SafeState::ALL_LOW`) and a board reset also leave, so every way of stopping agrees.
 ///
-/// Each command is three writes: the direction pin that goes LOW first, then the one that goes
-/// HIGH, then the PWM duty. So a direction change passes through coast (both LOW), never through
-/// brake, and the new duty is applied only once the direction is right. If a write fails, the
-/// later ones are not sent and the error is returned.
+/// Each command is three writes, ordered so that no frame in between drives the motor in a
+/// direction or at a duty nobody asked for:
+/// * forward / reverse: the direction pin that goes LOW first, then the PWM duty, then the pin
+///   that goes HIGH. A direction change passes through coast (both LOW), never through brake,
+///   and the new direction is driven only once its duty is set: a reversal never drives the
+///   new direction at the old duty (it did when the duty came last). From a brake (both
+///   HIGH, enable 255) the first write would drive the new direction at full enable: coast
+///   first ([`crate::DcMotor`] does).
+/// * coast / stop: the enable 0 first, then both pins LOW.
+/// * brake: both pins HIGH, then the enable 255.
+///
+/// If a write fails, the later ones are not sent and the error is returned.
 #[derive(Clone, Debug)]
 pub struct HBridge<L> {
     port: Actuator<L>,
@@ -55,8 +63,8 @@ impl<L: Link> HBridge<L> {
 
     async fn apply(&self, first: (Pin, Level), second: (Pin, Level), duty: Duty) -> Result<()> {
         self.port.write_digital(first.0, first.1).await?;
-        self.port.write_digital(second.0, second.1).await?;
-        self.port.pwm(Pin::A, duty).await
+        self.port.pwm(Pin::A, duty).await?;
+        self.port.write_digital(second.0, second.1).await
     }
 
     /// Forward at `duty`: B LOW, A HIGH, PWM A `duty`.
@@ -93,8 +101,12 @@ impl<L: Link> HBridge<L> {
     /// # Errors
     /// [`crate::Error::Link`] of the first write that failed.
     pub async fn brake(&self) -> Result<()> {
-        self.apply((Pin::A, Level::High), (Pin::B, Level::High), Duty::FULL)
-            .await
+        // Both pins before the enable: from forward or reverse the first write already brakes,
+        // from coast it drives nothing (enable 0); raising the enable before both pins were
+        // HIGH would drive one direction at full power for a frame.
+        self.port.write_digital(Pin::A, Level::High).await?;
+        self.port.write_digital(Pin::B, Level::High).await?;
+        self.port.pwm(Pin::A, Duty::FULL).await
     }
 
     /// Coast, the stopped state: A LOW, B LOW, PWM A 0.
@@ -102,8 +114,11 @@ impl<L: Link> HBridge<L> {
     /// # Errors
     /// [`crate::Error::Link`] of the first write that failed.
     pub async fn coast(&self) -> Result<()> {
-        self.apply((Pin::A, Level::Low), (Pin::B, Level::Low), Duty::OFF)
-            .await
+        // The enable first: from any state (a brake included, where lowering one pin would
+        // drive the other direction at full power) nothing is driven after the first write.
+        self.port.pwm(Pin::A, Duty::OFF).await?;
+        self.port.write_digital(Pin::A, Level::Low).await?;
+        self.port.write_digital(Pin::B, Level::Low).await
     }
 
     /// Stops: the same as [`HBridge::coast`].

@@ -28,22 +28,22 @@ fn hbridge_states() {
         h.coast().await.unwrap();
     });
     link.assert_sent(&[
-        // forward: B LOW, A HIGH, PWM A 200
+        // forward: B LOW, PWM A 200, A HIGH
         &[0x11, 0x09, 0x01, 0x00],
-        &[0x12, 0x09, 0x00, 0x01],
-        &[0x20, 0x09, 0x00, 0x02, 200],
-        // reverse: A LOW, B HIGH, PWM A 100
+        &[0x20, 0x09, 0x00, 0x01, 200],
+        &[0x12, 0x09, 0x00, 0x02],
+        // reverse: A LOW, PWM A 100, B HIGH
         &[0x11, 0x09, 0x00, 0x03],
-        &[0x12, 0x09, 0x01, 0x04],
-        &[0x20, 0x09, 0x00, 0x05, 100],
+        &[0x20, 0x09, 0x00, 0x04, 100],
+        &[0x12, 0x09, 0x01, 0x05],
         // brake: A HIGH, B HIGH, PWM A 255
         &[0x12, 0x09, 0x00, 0x06],
         &[0x12, 0x09, 0x01, 0x07],
         &[0x20, 0x09, 0x00, 0x08, 255],
-        // coast (stopped): A LOW, B LOW, PWM A 0
-        &[0x11, 0x09, 0x00, 0x09],
-        &[0x11, 0x09, 0x01, 0x0a],
-        &[0x20, 0x09, 0x00, 0x0b, 0],
+        // coast (stopped): PWM A 0, A LOW, B LOW
+        &[0x20, 0x09, 0x00, 0x09, 0],
+        &[0x11, 0x09, 0x00, 0x0a],
+        &[0x11, 0x09, 0x01, 0x0b],
     ]);
     link.finish();
 }
@@ -63,15 +63,15 @@ fn hbridge_stop_is_coast_and_drive_picks_direction() {
             .unwrap();
     });
     link.assert_sent(&[
-        &[0x11, 0x00, 0x02, 0x00],
-        &[0x11, 0x00, 0x03, 0x01],
-        &[0x20, 0x00, 0x02, 0x02, 0],
+        &[0x20, 0x00, 0x02, 0x00, 0],
+        &[0x11, 0x00, 0x02, 0x01],
+        &[0x11, 0x00, 0x03, 0x02],
         &[0x11, 0x00, 0x03, 0x03],
-        &[0x12, 0x00, 0x02, 0x04],
-        &[0x20, 0x00, 0x02, 0x05, 255],
+        &[0x20, 0x00, 0x02, 0x04, 255],
+        &[0x12, 0x00, 0x02, 0x05],
         &[0x11, 0x00, 0x02, 0x06],
-        &[0x12, 0x00, 0x03, 0x07],
-        &[0x20, 0x00, 0x02, 0x08, 1],
+        &[0x20, 0x00, 0x02, 0x07, 1],
+        &[0x12, 0x00, 0x03, 0x08],
     ]);
     link.finish();
 }
@@ -85,7 +85,44 @@ fn hbridge_stops_sending_at_the_first_failure() {
         block_on(h.forward(Duty(10))),
         Err(Error::Link(LinkError::Nack))
     );
-    link.assert_sent(&[&[0x11, 0x09, 0x01, 0x00], &[0x12, 0x09, 0x00, 0x01]]);
+    // B LOW, then the duty (NACKed): A is never raised.
+    link.assert_sent(&[&[0x11, 0x09, 0x01, 0x00], &[0x20, 0x09, 0x00, 0x01, 10]]);
+    link.finish();
+}
+
+/// Issue 10: a reversal must never drive the new direction at the old duty. Forward at 200,
+/// then reverse at 100: A goes LOW (coast), the duty becomes 100, and only then B goes HIGH.
+/// (The duty used to come last: B HIGH drove reverse at 200 until the third frame.)
+#[test]
+fn hbridge_reversal_never_drives_the_new_direction_at_the_old_duty() {
+    let link = RecordingLink::<8>::new();
+    let h = HBridge::new(&link, db(9), 1).unwrap();
+    link.acks(6);
+    block_on(async {
+        h.forward(Duty(200)).await.unwrap();
+        h.reverse(Duty(100)).await.unwrap();
+    });
+    let frames = link.take_sent();
+    // The bridge's state after each frame: (A, B, duty).
+    let (mut a, mut b, mut duty) = (false, false, 0u8);
+    let mut states = Vec::new();
+    for f in &frames {
+        match (f[0], f[2]) {
+            (0x11, 0x00) => a = false,
+            (0x12, 0x00) => a = true,
+            (0x11, 0x01) => b = false,
+            (0x12, 0x01) => b = true,
+            (0x20, _) => duty = f[4],
+            other => panic!("unexpected frame {other:?}"),
+        }
+        states.push((a, b, duty));
+    }
+    // Reverse (A LOW, B HIGH) is only ever driven at 100.
+    assert!(
+        states.iter().all(|&(a, b, d)| !(!a && b) || d == 100),
+        "{states:?}"
+    );
+    assert_eq!(states.last(), Some(&(false, true, 100)));
     link.finish();
 }
 
@@ -107,15 +144,15 @@ fn motor_speed_forward_reverse_stop() {
     });
     link.assert_sent(&[
         &[0x11, 0x09, 0x01, 0x00],
-        &[0x12, 0x09, 0x00, 0x01],
-        &[0x20, 0x09, 0x00, 0x02, 255],
+        &[0x20, 0x09, 0x00, 0x01, 255],
         // really reverse: the direction pins swap (the thesis's run() could not)
+        &[0x12, 0x09, 0x00, 0x02],
         &[0x11, 0x09, 0x00, 0x03],
-        &[0x12, 0x09, 0x01, 0x04],
-        &[0x20, 0x09, 0x00, 0x05, 127],
-        &[0x11, 0x09, 0x00, 0x06],
-        &[0x11, 0x09, 0x01, 0x07],
-        &[0x20, 0x09, 0x00, 0x08, 0],
+        &[0x20, 0x09, 0x00, 0x04, 127],
+        &[0x12, 0x09, 0x01, 0x05],
+        &[0x20, 0x09, 0x00, 0x06, 0],
+        &[0x11, 0x09, 0x00, 0x07],
+        &[0x11, 0x09, 0x01, 0x08],
     ]);
     link.finish();
 }
@@ -161,11 +198,11 @@ fn motor_failure_leaves_speed_unknown_and_brake_is_not_a_speed() {
     });
     link.assert_sent(&[
         &[0x11, 0x00, 0x01, 0x00],
-        &[0x12, 0x00, 0x00, 0x01],
-        &[0x20, 0x00, 0x00, 0x02, 255],
+        &[0x20, 0x00, 0x00, 0x01, 255],
+        &[0x12, 0x00, 0x00, 0x02],
         &[0x11, 0x00, 0x00, 0x03],
-        &[0x12, 0x00, 0x01, 0x04],
-        &[0x20, 0x00, 0x00, 0x05, 255],
+        &[0x20, 0x00, 0x00, 0x04, 255],
+        &[0x12, 0x00, 0x01, 0x05],
         &[0x12, 0x00, 0x00, 0x06],
         &[0x12, 0x00, 0x01, 0x07],
         &[0x20, 0x00, 0x00, 0x08, 255],
@@ -199,14 +236,14 @@ fn motor_ramp_steps_through_zero() {
     block_on(m.ramp_to(Speed::FULL_FORWARD, ramp, &mut delay)).unwrap();
     link.assert_sent(&[
         &[0x11, 0x09, 0x01, 0x00],
-        &[0x12, 0x09, 0x00, 0x01],
-        &[0x20, 0x09, 0x00, 0x02, 102],
+        &[0x20, 0x09, 0x00, 0x01, 102],
+        &[0x12, 0x09, 0x00, 0x02],
         &[0x11, 0x09, 0x01, 0x03],
-        &[0x12, 0x09, 0x00, 0x04],
-        &[0x20, 0x09, 0x00, 0x05, 204],
+        &[0x20, 0x09, 0x00, 0x04, 204],
+        &[0x12, 0x09, 0x00, 0x05],
         &[0x11, 0x09, 0x01, 0x06],
-        &[0x12, 0x09, 0x00, 0x07],
-        &[0x20, 0x09, 0x00, 0x08, 255],
+        &[0x20, 0x09, 0x00, 0x07, 255],
+        &[0x12, 0x09, 0x00, 0x08],
     ]);
     // 20 ms between steps, none after the last.
     assert_eq!(delay.log, vec![(3, 20_000_000), (6, 20_000_000)]);
@@ -217,14 +254,18 @@ fn motor_ramp_steps_through_zero() {
     let frames = link.take_sent();
     let duties: Vec<(u8, u8)> = frames
         .chunks(3)
-        .map(|c| (c[1][0], c[2][4])) // (second pin written: 0x12 HIGH / 0x11 LOW, duty)
+        // (last pin written: 0x12 HIGH / 0x11 LOW, duty); a stop writes its duty first
+        .map(|c| match c[0][0] {
+            0x20 => (c[2][0], c[0][4]),
+            _ => (c[2][0], c[1][4]),
+        })
         .collect();
     assert_eq!(
         duties,
         vec![(0x12, 153), (0x12, 51), (0x11, 0), (0x12, 102), (0x12, 127)]
     );
     // The reverse steps raise pin B (port byte 0x01).
-    assert_eq!(frames[10][2], 0x01);
+    assert_eq!(frames[11][2], 0x01);
     assert_eq!(delay.log.len(), 4);
     // Already there: nothing sent, no delay.
     block_on(m.ramp_to(Speed::new(-50).unwrap(), ramp, &mut delay)).unwrap();
@@ -265,8 +306,8 @@ fn motor_invalidate_forgets_the_speed_so_it_is_sent_again() {
     block_on(m.set_speed(Speed::new(-50).unwrap())).unwrap();
     link.assert_sent(&[
         &[0x11, 0x09, 0x00, 0x00],
-        &[0x12, 0x09, 0x01, 0x01],
-        &[0x20, 0x09, 0x00, 0x02, 127],
+        &[0x20, 0x09, 0x00, 0x01, 127],
+        &[0x12, 0x09, 0x01, 0x02],
     ]);
     // Known: a ramp to the same speed sends nothing.
     block_on(m.ramp_to(Speed::new(-50).unwrap(), ramp, &mut delay)).unwrap();
@@ -280,8 +321,8 @@ fn motor_invalidate_forgets_the_speed_so_it_is_sent_again() {
     block_on(m.ramp_to(Speed::new(-50).unwrap(), ramp, &mut delay)).unwrap();
     link.assert_sent(&[
         &[0x11, 0x09, 0x00, 0x03],
-        &[0x12, 0x09, 0x01, 0x04],
-        &[0x20, 0x09, 0x00, 0x05, 127],
+        &[0x20, 0x09, 0x00, 0x04, 127],
+        &[0x12, 0x09, 0x01, 0x05],
     ]);
     assert_eq!(m.speed(), Some(Speed::new(-50).unwrap()));
     assert!(delay.log.is_empty());
@@ -729,10 +770,44 @@ fn drivers_share_one_link_and_its_sequence() {
     });
     link.assert_sent(&[
         &[0x30, 0x11, 0x80, 0x00],
-        &[0x11, 0x0a, 0x04, 0x01],
-        &[0x11, 0x0a, 0x05, 0x02],
-        &[0x20, 0x0a, 0x04, 0x03, 0x00],
+        &[0x20, 0x0a, 0x04, 0x01, 0],
+        &[0x11, 0x0a, 0x04, 0x02],
+        &[0x11, 0x0a, 0x05, 0x03],
     ]);
     assert_eq!(link.calls(), 4);
+    link.finish();
+}
+
+/// Leaving a brake (both inputs HIGH, enable 255) for a drive: the motor coasts first, so the
+/// new direction is never driven at the brake's full enable.
+#[test]
+fn motor_leaving_a_brake_coasts_first() {
+    let link = RecordingLink::<16>::new();
+    let mut m = DcMotor::new(&link, db(9), 1).unwrap();
+    link.acks(9);
+    block_on(async {
+        m.brake().await.unwrap();
+        m.set_percent(40).await.unwrap();
+    });
+    let frames = link.take_sent();
+    assert_eq!(frames.len(), 9, "brake, coast, forward");
+    let (mut a, mut b, mut duty) = (false, false, 0u8);
+    for f in &frames {
+        match (f[0], f[2]) {
+            (0x11, 0x00) => a = false,
+            (0x12, 0x00) => a = true,
+            (0x11, 0x01) => b = false,
+            (0x12, 0x01) => b = true,
+            (0x20, _) => duty = f[4],
+            other => panic!("unexpected frame {other:?}"),
+        }
+        // Driving one way (exactly one input HIGH) only ever at 40 % (duty 102), or not at
+        // all (enable 0).
+        assert!(
+            a == b || duty == 0 || duty == 102,
+            "{f:02x?}: A {a} B {b} duty {duty}"
+        );
+    }
+    assert_eq!((a, b, duty), (true, false, 102));
     link.finish();
 }

@@ -32,9 +32,9 @@ fn running(link: &Link, steps: u16) -> Motor<'_> {
 /// The three frames of the stopped state (coast) on DB 9 A1, from sequence `seq`.
 fn coast(seq: u8) -> [Vec<u8>; 3] {
     [
-        vec![0x11, 0x09, 0x00, seq],
-        vec![0x11, 0x09, 0x01, seq + 1],
-        vec![0x20, 0x09, 0x00, seq + 2, 0x00],
+        vec![0x20, 0x09, 0x00, seq, 0x00],
+        vec![0x11, 0x09, 0x00, seq + 1],
+        vec![0x11, 0x09, 0x01, seq + 2],
     ]
 }
 
@@ -42,8 +42,8 @@ fn coast(seq: u8) -> [Vec<u8>; 3] {
 fn forward(seq: u8) -> [Vec<u8>; 3] {
     [
         vec![0x11, 0x09, 0x01, seq],
-        vec![0x12, 0x09, 0x00, seq + 1],
-        vec![0x20, 0x09, 0x00, seq + 2, 0xff],
+        vec![0x20, 0x09, 0x00, seq + 1, 0xff],
+        vec![0x12, 0x09, 0x00, seq + 2],
     ]
 }
 
@@ -137,7 +137,7 @@ fn a_failed_set_leaves_the_state_unknown() {
         block_on(m.set(Speed::STOP)),
         Err(Error::Link(LinkError::Nack))
     );
-    link.assert_sent(&[&[0x11, 0x09, 0x00, 0x00]]);
+    link.assert_sent(&[&[0x20, 0x09, 0x00, 0x00, 0]]);
     assert_eq!(m.state(), None);
     sends(&mut m, &link, Speed::STOP, coast(0x01), false);
     link.finish();
@@ -178,7 +178,7 @@ fn keep_or_forget_forgets_on_an_error_and_keeps_otherwise() {
         block_on(m.keep_or_forget(Ok(Speed::STOP))),
         Err(Error::Link(LinkError::Nack))
     );
-    link.assert_sent(&[&[0x11, 0x09, 0x00, 0x06]]);
+    link.assert_sent(&[&[0x20, 0x09, 0x00, 0x06, 0]]);
     assert_eq!(m.state(), None);
     link.finish();
 }
