@@ -178,7 +178,7 @@ pub(crate) struct Table {
     queue: Deque<Job, MAX_PENDING>,
     /// The failsafes the motherboard keeps alive.
     pub(crate) keepalive: Keepalives,
-    /// A failsafe setting changed (the keepalive task must look again).
+    /// A failsafe setting changed (the dispatcher must look at the keepalives again).
     keepalive_changed: bool,
     /// Per board: the event counter expected next, and the drops reported so far.
     pub(crate) events_in: crate::events_in::EventBook,
