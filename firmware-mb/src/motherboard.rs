@@ -863,8 +863,10 @@ impl MbCore {
     /// # Errors
     /// [`LinkError::Busy`] when [`crate::MAX_EVENT_WAITERS`] tasks already wait.
     pub async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
+        // The task's waker identifies it: its next wait for the same pin takes the same slot.
+        let task = core::future::poll_fn(|cx| core::task::Poll::Ready(cx.waker().clone())).await;
         let registered = self.with(|t| {
-            let r = t.wait_for(db, pin);
+            let r = t.wait_for(db, pin, &task);
             if let Ok(Err(ticket)) = r {
                 if let Some(s) = self.waiters.get(ticket.index) {
                     s.reset();
@@ -886,7 +888,7 @@ impl MbCore {
         };
         let ev = signal.wait().await;
         guard.armed = false;
-        self.with(|t| t.unwait(ticket));
+        self.with(|t| t.took(ticket));
         Ok(ev)
     }
 }

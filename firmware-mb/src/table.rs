@@ -14,6 +14,8 @@
 //! are pending or in the ring lets `alloc` take the board's next sequence number without
 //! looking through the slots and the ring when no pair in its bucket is held.
 
+use core::task::Waker;
+
 use heapless::{Deque, Vec};
 use x10_devices::{LinkError, PinEvent};
 use x10_microcode::{Address, PinRef, MAX_FRAME_LEN};
@@ -139,13 +141,22 @@ enum Waiter {
     Free,
     Waiting(Address, PinRef),
     /// An event was put in the waiter's signal; the waiter has not taken it yet.
-    Delivered,
+    Delivered(Address, PinRef),
+    /// The slot's task took an event for this pin and has not called `wait_event` again yet:
+    /// events for the pin meanwhile are held for it (one; a second is counted as dropped),
+    /// so a task waiting on a pin in a loop misses none, whoever else waits on it.
+    Lingering(Address, PinRef),
 }
 
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 struct WaiterSlot {
     generation: u32,
     state: Waiter,
+    /// The task the slot belongs to (its waker): the task's next `wait_event` for the same
+    /// pin takes this slot again.
+    owner: Option<Waker>,
+    /// An event that came while the slot was lingering.
+    held: Option<PinEvent>,
 }
 
 /// A registered event waiter.
@@ -234,9 +245,13 @@ impl Table {
                 unexpected_reads: 0,
                 listener_errors: 0,
             },
-            waiters: [WaiterSlot {
-                generation: 0,
-                state: Waiter::Free,
+            waiters: [const {
+                WaiterSlot {
+                    generation: 0,
+                    state: Waiter::Free,
+                    owner: None,
+                    held: None,
+                }
             }; MAX_EVENT_WAITERS],
             unclaimed: Vec::new(),
             queue: Deque::new(),
@@ -659,15 +674,28 @@ impl Table {
         }
     }
 
-    /// Takes a queued unclaimed event for `(board, pin)` or registers a waiter.
+    /// Registers the calling task (`task`, its waker) as waiting for the next event of
+    /// `(board, pin)`, or returns an event at once: one held for this task since its last
+    /// `wait_event` for the pin, or one nobody waited for (the unclaimed queue).
     ///
     /// # Errors
-    /// [`LinkError::Busy`] when every waiter slot is in use.
+    /// [`LinkError::Busy`] when every waiter slot is taken by a task that waits.
     pub(crate) fn wait_for(
         &mut self,
         board: Address,
         pin: PinRef,
+        task: &Waker,
     ) -> Result<Result<PinEvent, WaiterTicket>, LinkError> {
+        let own = self.waiters.iter().position(|w| {
+            matches!(w.state, Waiter::Lingering(b, p) if b == board && p == pin)
+                && w.owner.as_ref().is_some_and(|o| o.will_wake(task))
+        });
+        if let Some(ev) = own
+            .and_then(|i| self.waiters.get_mut(i))
+            .and_then(|w| w.held.take())
+        {
+            return Ok(Ok(ev));
+        }
         if let Some(i) = self
             .unclaimed
             .iter()
@@ -675,20 +703,41 @@ impl Table {
         {
             return Ok(Ok(self.unclaimed.remove(i)));
         }
-        let Some(index) = self
-            .waiters
-            .iter()
-            .position(|w| matches!(w.state, Waiter::Free))
-        else {
+        // Its own slot, else a free one, else one lingering for a task that stopped waiting
+        // (an empty one first; a held event it drops is counted).
+        let index = own
+            .or_else(|| {
+                self.waiters
+                    .iter()
+                    .position(|w| matches!(w.state, Waiter::Free))
+            })
+            .or_else(|| {
+                self.waiters
+                    .iter()
+                    .position(|w| matches!(w.state, Waiter::Lingering(..)) && w.held.is_none())
+            })
+            .or_else(|| {
+                self.waiters
+                    .iter()
+                    .position(|w| matches!(w.state, Waiter::Lingering(..)))
+            });
+        let Some(index) = index else {
             return Err(LinkError::Busy);
         };
         self.generation = self.generation.wrapping_add(1);
         let generation = self.generation;
+        let mut dropped = false;
         if let Some(w) = self.waiters.get_mut(index) {
+            dropped = w.held.is_some();
             *w = WaiterSlot {
                 generation,
                 state: Waiter::Waiting(board, pin),
+                owner: Some(task.clone()),
+                held: None,
             };
+        }
+        if dropped {
+            bump(&mut self.diag.events_dropped);
         }
         Ok(Err(WaiterTicket { index, generation }))
     }
@@ -697,14 +746,28 @@ impl Table {
     /// the event is kept for a later `wait_event` (pushing out the oldest when full).
     pub(crate) fn deliver(&mut self, ev: &PinEvent, mut to: impl FnMut(usize)) {
         let mut any = false;
+        let mut dropped = 0u32;
         for (i, w) in self.waiters.iter_mut().enumerate() {
-            if let Waiter::Waiting(b, p) = w.state {
-                if b == ev.source && p == ev.pin {
-                    w.state = Waiter::Delivered;
+            match w.state {
+                Waiter::Waiting(b, p) if b == ev.source && p == ev.pin => {
+                    w.state = Waiter::Delivered(b, p);
                     to(i);
                     any = true;
                 }
+                Waiter::Lingering(b, p) if b == ev.source && p == ev.pin => {
+                    if w.held.is_some() {
+                        // Its task has not come back for the last one: counted, not silent.
+                        dropped += 1;
+                    } else {
+                        w.held = Some(ev.clone());
+                    }
+                    any = true;
+                }
+                _ => {}
             }
+        }
+        for _ in 0..dropped {
+            bump(&mut self.diag.events_dropped);
         }
         if !any {
             self.keep_unclaimed(ev.clone(), false);
@@ -727,11 +790,25 @@ impl Table {
     pub(crate) fn unwait(&mut self, t: WaiterTicket) -> bool {
         match self.waiters.get_mut(t.index) {
             Some(w) if w.generation == t.generation => {
-                let delivered = matches!(w.state, Waiter::Delivered);
+                let delivered = matches!(w.state, Waiter::Delivered(..));
                 w.state = Waiter::Free;
+                w.owner = None;
+                w.held = None;
                 delivered
             }
             _ => false,
+        }
+    }
+
+    /// The waiter took its event: the slot lingers for its task, holding the pin's next
+    /// event until the task waits again.
+    pub(crate) fn took(&mut self, t: WaiterTicket) {
+        if let Some(w) = self.waiters.get_mut(t.index) {
+            if w.generation == t.generation {
+                if let Waiter::Delivered(b, p) = w.state {
+                    w.state = Waiter::Lingering(b, p);
+                }
+            }
         }
     }
 }

@@ -73,3 +73,56 @@ fn a_window_crossing_wakes_the_task_that_awaits_it() {
         assert!(outcome.trace.render().contains("watch: ended"));
     }
 }
+
+/// Two tasks wait for the same pin's events; one of them works for 15 ms after each event
+/// before it waits again, and the pin changes again meanwhile. Both get every event: the
+/// slow task's next event is held for it while it works (issue 10, "two waiters on one pin":
+/// it was missed, silently).
+#[test]
+fn two_tasks_waiting_on_one_pin_each_get_every_event() {
+    use x10_microcode::{EventConfig, Op, Pin, Port};
+    let world = World::new().board(Board::new(9, 2, 2)).device(
+        Device::button("button", 9, 1, Pin::A)
+            .pressed_at_ms(100, 10)
+            .pressed_at_ms(300, 10),
+    );
+    let seen: [Rc<RefCell<Vec<u8>>>; 2] = Default::default();
+    let pin = Port::sensor(1).unwrap().pin(Pin::A);
+    let db = Address::new(9).unwrap();
+    let waiter = |slow: bool, log: Rc<RefCell<Vec<u8>>>| {
+        move |x10: X10| async move {
+            if !slow {
+                let both = EventConfig {
+                    rising: true,
+                    falling: true,
+                    ..EventConfig::OFF
+                };
+                x10.call(db, Op::EventEnable(pin, both)).await?;
+            }
+            loop {
+                let ev = x10.wait_event(db, pin).await?;
+                log.borrow_mut()
+                    .push(ev.value.first().copied().unwrap_or(0xff));
+                if slow {
+                    Timer::after(Duration::from_millis(15)).await;
+                }
+            }
+            #[allow(unreachable_code)]
+            Ok::<(), x10_devices::LinkError>(())
+        }
+    };
+    let config = SimConfig {
+        duration_ms: 500,
+        ..SimConfig::default()
+    };
+    world
+        .sim(config)
+        .unwrap()
+        .with_robot("quick", waiter(false, seen[0].clone()))
+        .with_robot("slow", waiter(true, seen[1].clone()))
+        .run()
+        .unwrap();
+    // Pressed (1), released (0), twice, for each task.
+    assert_eq!(*seen[0].borrow(), [1, 0, 1, 0]);
+    assert_eq!(*seen[1].borrow(), [1, 0, 1, 0]);
+}
