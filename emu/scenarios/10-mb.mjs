@@ -15,7 +15,6 @@ export default [
   {
     name: 'boot',
     about: 'mb-pico and db-pico 9 boot, DB 9 announces itself, the MB starts polling it',
-    knownDefect: "since events carry a counter and the boot event its identity (issue 10), db-pico's 14-byte boot event to mb-pico ends without a STOP here (the same cut as in db-reset): the MB never logs the boot and, here, never reaches DB 9; not diagnosed (rig or adapter); see target/emu/boot.txt",
     run(ctx) {
       const { rig, mb, db } = pair(ctx);
       let firstMbFrame = null;
@@ -45,7 +44,6 @@ export default [
   {
     name: 'fig4_4',
     about: 'thesis Figure 4.4 end to end: robots/worlds/fig4_4.toml inputs, actuator changes as the simulator gives them',
-    knownDefect: "follows from boot's: DB 9's motor never runs because the MB never gets through to DB 9 (SELF's motor matches the simulator); see target/emu/fig4_4.txt",
     run(ctx) {
       const { rig, mb, db } = pair(ctx);
       // The world of robots/worlds/fig4_4.toml, as pin and ADC inputs.
