@@ -88,17 +88,7 @@ pub fn sim_main(args: SimArgs) -> ExitCode {
         "x10 sim {} against {source}: {}",
         example.name, example.description
     );
-    app::run(
-        &args.run,
-        &world,
-        |sim| examples::with_tasks(example.name, sim).unwrap_or_else(unreachable_sim),
-        &title,
-    )
-}
-
-/// `with_tasks` knows every example `find` returns; a sim without tasks otherwise.
-fn unreachable_sim() -> crate::sim::Sim {
-    crate::sim::Sim::new(crate::sim::SimConfig::default())
+    app::run(&args.run, &world, example.add_tasks, &title)
 }
 
 /// `x10 report [--samples N]`: the latency table.

@@ -4,18 +4,20 @@
 //! own crate with its own world file and `sim` command (`x10 new`,
 //! `docs/your-first-robot.md`).
 
+use x10_robots::{bumper, fig4_2, fig4_4, fig4_6};
+
 use crate::sim::{Sim, SimConfig};
 use crate::world::{World, WorldError};
 
 /// One example robot.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug)]
 pub struct Example {
     /// Its name on the command line.
     pub name: &'static str,
     /// One line about it.
     pub description: &'static str,
-    /// Its robot tasks, by name, in the order they are spawned.
-    pub tasks: &'static [&'static str],
+    /// Adds its robot tasks (named as the trace shows them) to a simulation.
+    pub add_tasks: fn(Sim) -> Sim,
     /// Its world file (`robots/worlds/NAME.toml`).
     pub world: &'static str,
 }
@@ -25,25 +27,32 @@ pub const EXAMPLES: [Example; 4] = [
     Example {
         name: "fig4_2",
         description: "thesis Fig. 4.2: button (SELF S2.B) or force (SELF S1) > 100 runs the motor (SELF A1) at 100 %",
-        tasks: &["single_board"],
+        add_tasks: |sim| sim.with_robot("single_board", fig4_2::single_board),
         world: include_str!("../../robots/worlds/fig4_2.toml"),
     },
     Example {
         name: "fig4_4",
         description: "thesis Fig. 4.4: Fig. 4.2 unchanged plus a second task: light (DB 9 S1) > 700 runs a motor (DB 9 A1) at 50 %",
-        tasks: &["single_board", "light_motor"],
+        add_tasks: |sim| {
+            sim.with_robot("single_board", fig4_2::single_board)
+                .with_robot("light_motor", fig4_4::light_motor)
+        },
         world: include_str!("../../robots/worlds/fig4_4.toml"),
     },
     Example {
         name: "fig4_6",
         description: "thesis Fig. 4.6: freezer (DB 17 S1) > 1 °C or oven (DB 108 S6) < 200 °F raises the alarm (DB 10 A3.A)",
-        tasks: &["temperature_alarm"],
+        add_tasks: |sim| sim.with_robot("temperature_alarm", fig4_6::temperature_alarm),
         world: include_str!("../../robots/worlds/fig4_6.toml"),
     },
     Example {
         name: "bumper",
         description: "three tasks: a heartbeat LED (DB 9), a lamp following the light (SELF), a timed back-off when the bumper is hit (SELF)",
-        tasks: &["heartbeat", "lamp", "bumper"],
+        add_tasks: |sim| {
+            sim.with_robot("heartbeat", bumper::heartbeat)
+                .with_robot("lamp", bumper::lamp)
+                .with_robot("bumper", bumper::bumper)
+        },
         world: include_str!("../../robots/worlds/bumper.toml"),
     },
 ];
@@ -74,19 +83,7 @@ impl Example {
 
 /// Adds example `name`'s robot tasks to `sim`; `None` for an unknown name.
 pub fn with_tasks(name: &str, sim: Sim) -> Option<Sim> {
-    use x10_robots::{bumper, fig4_2, fig4_4, fig4_6};
-    Some(match name {
-        "fig4_2" => sim.with_robot("single_board", fig4_2::single_board),
-        "fig4_4" => sim
-            .with_robot("single_board", fig4_2::single_board)
-            .with_robot("light_motor", fig4_4::light_motor),
-        "fig4_6" => sim.with_robot("temperature_alarm", fig4_6::temperature_alarm),
-        "bumper" => sim
-            .with_robot("heartbeat", bumper::heartbeat)
-            .with_robot("lamp", bumper::lamp)
-            .with_robot("bumper", bumper::bumper),
-        _ => return None,
-    })
+    find(name).map(|e| (e.add_tasks)(sim))
 }
 
 /// Example `name` against its world, ready to run; `None` for an unknown name (or a world
