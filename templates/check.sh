@@ -25,12 +25,12 @@ echo "-- cargo test"
 cargo test
 
 echo "-- cargo build: the Pico image (thumbv6m-none-eabi) and the STM32G431 image (thumbv7em-none-eabihf)"
-cargo build --release --target thumbv6m-none-eabi --features pico --bin mb-pico
-cargo build --release --target thumbv7em-none-eabihf --features g431 --bin mb-g431
+cargo build --release --target thumbv6m-none-eabi --features rp2040 --bin mb-pico
+cargo build --release --target thumbv7em-none-eabihf --features stm32g431 --bin mb-g431
 ls -l "$CARGO_TARGET_DIR"/thumbv6m-none-eabi/release/mb-pico "$CARGO_TARGET_DIR"/thumbv7em-none-eabihf/release/mb-g431
 
 echo "-- cargo clippy (host and both boards)"
 cargo clippy --all-targets -- -D warnings
-cargo clippy --release --target thumbv6m-none-eabi --features pico --bin mb-pico -- -D warnings
-cargo clippy --release --target thumbv7em-none-eabihf --features g431 --bin mb-g431 -- -D warnings
+cargo clippy --release --target thumbv6m-none-eabi --features rp2040 --bin mb-pico -- -D warnings
+cargo clippy --release --target thumbv7em-none-eabihf --features stm32g431 --bin mb-g431 -- -D warnings
 echo "template OK"

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 /// The template's files: path inside the new crate, contents with `{{name}}` and `{{x10}}`
 /// placeholders.
-pub const TEMPLATE: [(&str, &str); 12] = [
+pub const TEMPLATE: [(&str, &str); 11] = [
     (
         "Cargo.toml",
         include_str!("../../templates/robot/Cargo.toml"),
@@ -25,7 +25,6 @@ pub const TEMPLATE: [(&str, &str); 12] = [
         include_str!("../../templates/robot/rust-toolchain.toml"),
     ),
     ("build.rs", include_str!("../../templates/robot/build.rs")),
-    ("memory.x", include_str!("../../templates/robot/memory.x")),
     (
         "world.toml",
         include_str!("../../templates/robot/world.toml"),
