@@ -123,13 +123,3 @@ impl Link for MbCore {
         MbCore::wait_event(self, db, pin).await
     }
 }
-
-impl<P: firmware_db::Ports> Link for crate::Motherboard<P> {
-    async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
-        MbCore::call(self, db, op).await
-    }
-
-    async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
-        MbCore::wait_event(self, db, pin).await
-    }
-}
