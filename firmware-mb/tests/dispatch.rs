@@ -9,7 +9,7 @@ use common::{db, mb_address, Db, Fault, LoopBus, Node, PortOp, Seen, BUS_TIMEOUT
 use embassy_futures::join::{join, join_array};
 use embassy_futures::select::{select, Either};
 use firmware_mb::{MbConfig, MAX_PENDING};
-use x10_devices::{Link, LinkError};
+use x10_devices::LinkError;
 use x10_hal::bus::BusError;
 use x10_hal::time::{Clock, Instant};
 use x10_microcode::{pec, Address, Edge, EventConfig, EventKind, Level, Op, Pin, Port, Status};
