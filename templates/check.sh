@@ -14,6 +14,8 @@ dir="$work/my-robot"
 cargo run -q --manifest-path "$root/Cargo.toml" -p x10-sim --bin x10 -- new "$dir"
 cd "$dir"
 export CARGO_TARGET_DIR="$root/target/template"
+# As the repository's own dev profile (Cargo.toml): line tables only, to keep target/ small.
+export CARGO_PROFILE_DEV_DEBUG=line-tables-only
 
 echo "-- cargo sim (in $dir)"
 cargo sim | tee "$work/sim.out"
