@@ -66,19 +66,55 @@ export function decodeDefmt(chip) {
   });
 }
 
+/** SMBus PEC: CRC-8 (polynomial 0x07) over the address byte and the bytes. */
+function pec(bytes) {
+  let c = 0;
+  for (const b of bytes) {
+    c ^= b;
+    for (let i = 0; i < 8; i++) c = c & 0x80 ? ((c << 1) ^ 0x07) & 0xff : (c << 1) & 0xff;
+  }
+  return c;
+}
+
+/**
+ * The transfers' frames in words, by `x10 decode`. A frame whose last byte is the PEC of the
+ * rest (covering the DB's address for requests and replies, the MB's for events, as
+ * docs/protocol.md says) is decoded with `--pec`: frames are grouped by the PEC address they
+ * need, one `x10 decode` run per group (a reply is decoded with its request's operation when
+ * both are in the same group), and the lines put back in bus order.
+ */
 function decodeFrames(transfers) {
   const hex = (b) => b.map((x) => x.toString(16).padStart(2, '0')).join('');
-  const lines = [];
+  const frames = [];
   for (const tr of transfers) {
     for (const p of tr.parts) {
       if (!p.bytes.length) continue;
       const kind = p.dir === 'r' ? 'reply' : p.addr === 0x08 ? 'event' : 'request';
-      lines.push(`${kind}:${hex(p.bytes)}`);
+      // The address byte as on the wire: the DB's (write) for requests, (read) for replies;
+      // the MB's (write) for events.
+      const addrByte = (p.addr << 1) | (p.dir === 'r' ? 1 : 0);
+      const withPec = p.bytes.length > 1 && pec([addrByte, ...p.bytes.slice(0, -1)]) === p.bytes[p.bytes.length - 1];
+      frames.push({ line: `${kind}:${hex(p.bytes)}`, group: withPec ? String(p.addr) : '' });
     }
   }
-  if (!x10 || !lines.length) return null;
-  const r = spawnSync(x10, ['decode'], { input: lines.join('\n') + '\n' });
-  return (r.stdout.toString() + r.stderr.toString()).trim();
+  if (!x10 || !frames.length) return null;
+  const text = new Array(frames.length);
+  for (const group of new Set(frames.map((f) => f.group))) {
+    const idx = frames.map((f, i) => (f.group === group ? i : -1)).filter((i) => i >= 0);
+    const args = ['decode', ...(group ? ['--pec', group] : [])];
+    const r = spawnSync(x10, args, { input: idx.map((i) => frames[i].line).join('\n') + '\n' });
+    // One stdout line per decoded frame, in order; each failure named by its number on stderr.
+    const bad = new Map();
+    for (const l of r.stderr.toString().split('\n')) {
+      const m = /^x10 decode: frame (\d+) /.exec(l);
+      if (m) bad.set(Number(m[1]) - 1, l);
+    }
+    const ok = r.stdout.toString().split('\n').filter((l) => l.length);
+    if (ok.length + bad.size !== idx.length) return null;
+    let k = 0;
+    idx.forEach((frameIndex, j) => { text[frameIndex] = bad.get(j) ?? ok[k++]; });
+  }
+  return text.join('\n');
 }
 
 let failed = 0;

@@ -90,6 +90,11 @@ export class Bus {
     this.pending.delete(b);
     const c = this.cur;
     if (!c) return;
+    if (process.env.EMU_DEBUG && (c.master === b || c.target === b)) {
+      const core = b.rp2040?.core;
+      const hex = (v) => `0x${(v >>> 0).toString(16)}`;
+      console.log(`  [debug] ${(this.now() / 1e6).toFixed(3)} ms ${this.name(b)} reset/disabled as ${c.master === b ? 'controller' : 'target'}: pc ${hex(core?.PC)} lr ${hex(core?.registers?.[14])} abrt ${hex(b.abortSource)} raw ${hex(b.intRaw)} tx ${b.txFIFO.itemCount} stall ${b.stall} inFlight ${c.inFlight} part ${c.part?.dir}${c.part?.bytes?.length} abort ${c.abort}`);
+    }
     if (c.master === b) {
       // Gone without a STOP: the transfer is abandoned; a START may come at any time.
       this.record('abandoned');

@@ -52,7 +52,6 @@ export default [
   },
   {
     name: 'long-reply',
-    knownDefect: "issue 16 #1: embassy-rp 0.10 respond_to_read writes its second 16-byte chunk into a full TX FIFO when polled again (take_reply signals `heard`); fix in 57047a7 (pico_rules::tx_chunk) backed out: it broke `boot`",
     about: 'replies over 16 bytes (issue 16 defect 1): diagnostics (31 bytes), a batch of two identify (27 bytes), then a full scan',
     run(ctx) {
       const { vmb } = setup(ctx);
@@ -82,7 +81,6 @@ export default [
   },
   {
     name: 'short-reply',
-    knownDefect: "issue 11 #1: padding left in the TX FIFO is flushed with TX_ABRT on the next read and respond_to_read returns LeftoverBytes without answering; fix in 57047a7 backed out: it broke `boot`",
     about: 'issue 11 item 1: a reply shorter than the read leaves padding in the TX FIFO; the next reads must still be answered',
     run(ctx) {
       const { vmb } = setup(ctx);
@@ -99,7 +97,6 @@ export default [
   },
   {
     name: 'stop-gap',
-    knownDefect: "issue 16 #2: after a write-then-read, SLV_ACTIVITY before the STOP makes `addressed` return and embassy's listen wait for the next transfer; fails from a STOP gap between 19 and 30 us here; fix in 57047a7 backed out: it broke `boot`",
     about: 'issue 16 defect 2: a pin event must go out while the MB polls, whatever the gap before its STOP (sweep)',
     run(ctx) {
       for (const gapUs of [5, 18, 19, 30, 60]) {
@@ -140,7 +137,6 @@ export default [
   },
   {
     name: 'two-dbs',
-    knownDefect: "not diagnosed yet: DB 10 delivers no pin events while the MB polls both (see target/emu/two-dbs.txt)",
     about: 'db-pico 9 and 10 (jumper 0) push events while the MB polls both',
     run(ctx) {
       const { rig, vmb, dbs } = setup(ctx, { dbs: [9, 10] });
@@ -166,7 +162,6 @@ export default [
   },
   {
     name: 'db-reset',
-    knownDefect: "not diagnosed yet: the power-cycled DB's boot event is cut without a STOP (see target/emu/db-reset.txt)",
     about: 'db-pico 9 power-cycled in the middle of a transfer: the MB sees an error, not a hang; the DB boots and answers',
     run(ctx) {
       const { rig, vmb, dbs } = setup(ctx);
@@ -205,7 +200,6 @@ export default [
   },
   {
     name: 'abort-no-stop',
-    knownDefect: "issue 11 #5 (Pico): a controller gone without a STOP leaves SLV_ACTIVITY set on DB 9, which then refuses the controller role until another START; fix in 57047a7 backed out: it broke `boot`",
     about: 'issue 11 item 5 (Pico part): the MB\'s block is reset in the middle of a write to DB 9 (no STOP); DB 9 must still deliver its next event',
     run(ctx) {
       const { rig, vmb, dbs } = setup(ctx);

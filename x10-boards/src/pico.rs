@@ -23,11 +23,14 @@ use embassy_rp::gpio::{Flex, Input, Pull};
 use embassy_rp::{adc, bind_interrupts, i2c, i2c_slave, pac, peripherals, pwm, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::mutex::Mutex;
-use embassy_time::{with_deadline, with_timeout, Duration, Instant, Timer};
+use embassy_time::{block_for, with_deadline, with_timeout, Duration, Instant, Timer};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{PortError, Ports};
 use x10_microcode::{Edge, Level, PinRef, Port, PortKind};
 
+use crate::pico_rules::{
+    self, Activity, AfterRead, Controller, ControllerEnd, Recovery, ReplyEnd, Switch, Target,
+};
 use crate::pins::PICO;
 use crate::pwm::{rp2040_slice, Output, SliceTiming, Timebase, DEFAULT_HZ};
 use crate::{address, BusConfig, RX_LEN};
@@ -122,6 +125,7 @@ macro_rules! pico_build {
                         target: None,
                         controller_clean: true,
                         target_clean: true,
+                        activity: Activity::default(),
                     },
                     ports: PicoPorts {
                         adc: Lock::new(adc),
@@ -170,7 +174,13 @@ pub struct PicoBus {
     controller_clean: bool,
     /// The same for an answer to a read.
     target_clean: bool,
+    /// How long the target has been active with nothing for this node (a controller gone
+    /// without a STOP).
+    activity: Activity,
 }
+
+/// The fill byte sent when the controller reads more than the reply holds.
+const FILL: u8 = 0xFF;
 
 impl PicoBus {
     /// The block and its pins, for the one driver about to be built.
@@ -201,21 +211,29 @@ impl PicoBus {
         Duration::from_micros(u64::from(self.config.timeout_us))
     }
 
-    /// True when the target side is busy or holds something: being addressed right now,
-    /// received bytes not yet read, or a read request waiting for an answer. Switching to
-    /// controller would reset the block and lose them.
-    fn target_busy() -> bool {
+    /// The target side's state (see [`pico_rules::Target`]).
+    fn target_state() -> Target {
         let r = i2c_regs();
         let status = r.ic_status().read();
         let raw = r.ic_raw_intr_stat().read();
-        status.slv_activity() || status.rfne() || raw.rd_req()
+        Target {
+            slv_activity: status.slv_activity(),
+            rfne: status.rfne(),
+            rd_req: raw.rd_req(),
+            stop_det: raw.stop_det(),
+        }
     }
 
     /// The controller driver, built if needed, marked as in use until [`PicoBus::finish`].
     fn controller(&mut self) -> Result<&mut i2c::I2c<'static, I2cBlock, i2c::Async>, BusError> {
         if self.target.is_some() {
-            if Self::target_busy() {
-                return Err(BusError::ArbitrationLost);
+            let now = Instant::now().as_micros();
+            let stale = pico_rules::stale_activity_us(self.config.frequency_hz);
+            // Being addressed, holding bytes or a read request: switching would reset the
+            // block and lose them. Activity alone for four byte times: abandoned (no STOP).
+            match self.activity.switch(now, Self::target_state(), stale) {
+                Switch::Refuse => return Err(BusError::ArbitrationLost),
+                Switch::Now | Switch::Stale => {}
             }
             self.target = None;
         }
@@ -226,6 +244,9 @@ impl PicoBus {
         let mut cfg = i2c::Config::default();
         cfg.frequency = self.config.frequency_hz;
         self.controller_clean = false;
+        // A STOP_DET left by an earlier transfer (anyone's) would end the next one at once
+        // (see `pico_rules::controller_end`).
+        i2c_regs().ic_clr_stop_det().read();
         Ok(self
             .controller
             .get_or_insert_with(|| i2c::I2c::new_async(i2c, scl, sda, Irqs, cfg)))
@@ -246,31 +267,219 @@ impl PicoBus {
             .get_or_insert_with(|| i2c_slave::I2cSlave::new(i2c, scl, sda, Irqs, cfg))
     }
 
-    /// Finishes a controller transaction: on a timeout the driver is dropped, so the next
-    /// one starts from a reset block.
-    fn finish(
+    /// Finishes a controller transaction (issue 11 item 5, Pico part).
+    ///
+    /// * After an abort the block sends a STOP by itself, but embassy-rp returns as soon as it
+    ///   reads the abort inside `wait_stop_det` (`i2c.rs` 306-307), before that STOP: wait for
+    ///   the controller to go idle, so that a role switch (a block reset) does not cut it and
+    ///   leave the other nodes' targets active.
+    /// * After a timeout the transfer is aborted (`IC_ENABLE.ABORT`: flush, then STOP) and the
+    ///   driver dropped, so the next one starts from a reset block.
+    /// * When the controller does not go idle within a few byte times, a line is held: the
+    ///   block is dropped and the bus cleared by [`PicoBus::recover`] (nine SCL pulses, a
+    ///   STOP); `Bus` when SDA stays low.
+    async fn finish(
         &mut self,
         r: Result<Result<(), i2c::Error>, embassy_time::TimeoutError>,
     ) -> Result<(), BusError> {
         self.controller_clean = true;
-        match r {
-            Ok(Ok(())) => Ok(()),
-            Ok(Err(e)) => Err(controller_error(e)),
+        let err = match r {
+            Ok(Ok(())) => match self.wait_own_end().await {
+                Ok(()) => return Ok(()),
+                Err(e) => e,
+            },
+            Ok(Err(i2c::Error::Abort(reason))) => abort_error(reason),
+            Ok(Err(_)) => return Err(BusError::Bus),
             Err(_) => {
-                self.controller = None;
-                Err(BusError::Timeout)
+                i2c_regs().ic_enable().modify(|w| w.set_abort(true));
+                BusError::Timeout
             }
+        };
+        // The block is dropped (reset) only once its STOP is out.
+        let idle = self.wait_controller_idle().await;
+        if err == BusError::Timeout {
+            self.controller = None;
+        }
+        if !idle {
+            self.recover()?;
+        }
+        Err(err)
+    }
+
+    /// After embassy-rp reported a transfer done: waits until it really is (see
+    /// [`pico_rules::controller_end`]: a STOP of another controller, or one left from the
+    /// target side, ends embassy-rp's wait early), then clears `STOP_DET`. The abort it ended
+    /// with, or [`BusError::Timeout`] (the transfer aborted) when it is not over in time.
+    async fn wait_own_end(&self) -> Result<(), BusError> {
+        let r = i2c_regs();
+        let deadline = Instant::now() + self.timeout();
+        loop {
+            let status = r.ic_status().read();
+            let now = Controller {
+                mst_activity: status.mst_activity(),
+                tfe: status.tfe(),
+                tx_abrt: r.ic_raw_intr_stat().read().tx_abrt(),
+            };
+            match pico_rules::controller_end(now) {
+                ControllerEnd::Done => {
+                    r.ic_clr_stop_det().read();
+                    return Ok(());
+                }
+                ControllerEnd::Aborted => {
+                    let source = r.ic_tx_abrt_source().read().0;
+                    r.ic_clr_tx_abrt().read();
+                    return Err(pico_rules::abort_error(source));
+                }
+                ControllerEnd::Wait => {}
+            }
+            if Instant::now() >= deadline {
+                r.ic_enable().modify(|w| w.set_abort(true));
+                return Err(BusError::Timeout);
+            }
+            Timer::after_micros(STOP_POLL_US).await;
+        }
+    }
+
+    /// Waits up to four byte times for the controller state machine to go idle (its STOP
+    /// sent), then clears `STOP_DET`. False when it stays active.
+    async fn wait_controller_idle(&self) -> bool {
+        let deadline = Instant::now()
+            + Duration::from_micros(pico_rules::stale_activity_us(self.config.frequency_hz));
+        let r = i2c_regs();
+        loop {
+            if !r.ic_status().read().mst_activity() {
+                r.ic_clr_stop_det().read();
+                return true;
+            }
+            if Instant::now() >= deadline {
+                return false;
+            }
+            Timer::after_micros(STOP_POLL_US).await;
+        }
+    }
+
+    /// The bus-clear procedure (UM10204 §3.1.16): with the block dropped and both pins as
+    /// open-drain GPIOs, up to nine SCL pulses until SDA is released, then a STOP. The next
+    /// driver built takes the pins back. [`BusError::Bus`] when SDA stays low.
+    ///
+    /// Not exercised by the emulator rig (its bus model does not drive the pins' GPIO input
+    /// levels): verified by reading only.
+    fn recover(&mut self) -> Result<(), BusError> {
+        self.controller = None;
+        self.target = None;
+        self.target_clean = true;
+        let half = Duration::from_micros(500_000 / u64::from(self.config.frequency_hz.max(1)) + 1);
+        let mut scl = Flex::new(self.scl.reborrow());
+        let mut sda = Flex::new(self.sda.reborrow());
+        for p in [&mut scl, &mut sda] {
+            p.set_pull(Pull::Up);
+            p.set_low();
+            p.set_as_input(); // released: the pull-ups hold the line high
+        }
+        block_for(half);
+        let mut clocks = 0;
+        loop {
+            match pico_rules::recovery(sda.is_high(), clocks) {
+                Recovery::Clock => {
+                    scl.set_as_output();
+                    block_for(half);
+                    scl.set_as_input();
+                    block_for(half);
+                    clocks += 1;
+                }
+                Recovery::Stop => {
+                    scl.set_as_output();
+                    sda.set_as_output();
+                    block_for(half);
+                    scl.set_as_input();
+                    block_for(half);
+                    sda.set_as_input();
+                    block_for(half);
+                    return Ok(());
+                }
+                Recovery::GiveUp => return Err(BusError::Bus),
+            }
+        }
+    }
+
+    /// Answers a read (see [`MultiMaster::respond`]): never more bytes than the TX FIFO can
+    /// take, fill bytes one at a time, then waits for the read's STOP and checks the block.
+    async fn reply(&mut self, bytes: &[u8]) -> Result<(), BusError> {
+        let r = i2c_regs();
+        // A TX_ABRT left by a flush keeps the TX FIFO flushed and makes embassy-rp return
+        // `LeftoverBytes` at once (`i2c_slave.rs` 311-316); a stale RX_DONE would end the
+        // answer before its first byte.
+        if r.ic_raw_intr_stat().read().tx_abrt() {
+            r.ic_clr_tx_abrt().read();
+        }
+        r.ic_clr_rx_done().read();
+        let Some(t) = self.target.as_mut() else {
+            return Err(BusError::Bus);
+        };
+        let mut rest = bytes;
+        let mut failed = false;
+        loop {
+            let n = pico_rules::tx_chunk(rest.len(), r.ic_txflr().read().txflr());
+            let chunk: &[u8] = if rest.is_empty() {
+                // The controller reads on: one fill byte per request, so that none is left
+                // in the FIFO when it stops (issue 11 item 1).
+                &[FILL]
+            } else if n == 0 {
+                // The FIFO is full (cannot happen after `NeedMoreBytes`): let it drain.
+                Timer::after_micros(STOP_POLL_US).await;
+                continue;
+            } else {
+                let (c, more) = rest.split_at(n);
+                rest = more;
+                c
+            };
+            match t.respond_to_read(chunk).await {
+                Ok(i2c_slave::ReadStatus::NeedMoreBytes) => {}
+                Ok(i2c_slave::ReadStatus::Done) => break,
+                Ok(i2c_slave::ReadStatus::LeftoverBytes(_)) | Err(_) => {
+                    failed = true;
+                    break;
+                }
+            }
+        }
+        // The read ends with its STOP (or a repeated START into the next transfer).
+        let ended = loop {
+            match pico_rules::after_read(Self::target_state()) {
+                AfterRead::Wait => Timer::after_micros(STOP_POLL_US).await,
+                AfterRead::ClearStop => {
+                    r.ic_clr_stop_det().read();
+                    break true;
+                }
+                AfterRead::Leave => break true,
+            }
+        };
+        let end = ReplyEnd {
+            txflr: r.ic_txflr().read().txflr(),
+            tx_abrt: r.ic_raw_intr_stat().read().tx_abrt(),
+            ended,
+        };
+        if pico_rules::reset_after_reply(end) {
+            t.reset();
+        }
+        if failed {
+            Err(BusError::Bus)
+        } else {
+            Ok(())
         }
     }
 }
 
-fn controller_error(e: i2c::Error) -> BusError {
-    match e {
-        i2c::Error::Abort(i2c::AbortReason::NoAcknowledge) => BusError::Nack,
-        i2c::Error::Abort(i2c::AbortReason::ArbitrationLoss) => BusError::ArbitrationLost,
+fn abort_error(reason: i2c::AbortReason) -> BusError {
+    match reason {
+        i2c::AbortReason::NoAcknowledge => BusError::Nack,
+        i2c::AbortReason::ArbitrationLoss => BusError::ArbitrationLost,
+        i2c::AbortReason::Other(source) => pico_rules::abort_error(source),
         _ => BusError::Bus,
     }
 }
+
+/// How often the adapter looks at the block while waiting for a STOP, in µs.
+const STOP_POLL_US: u64 = 5;
 
 /// How often [`PicoBus`]'s `addressed` looks at the target side, in µs. The block ACKs its
 /// address and fills its 16-byte receive FIFO by itself (then stretches SCL), so a match is
@@ -289,7 +498,7 @@ impl MultiMaster for PicoBus {
         let timeout = self.timeout();
         let c = self.controller()?;
         let r = with_timeout(timeout, c.write_async(addr, bytes.iter().copied())).await;
-        self.finish(r)
+        self.finish(r).await
     }
 
     /// # Errors
@@ -310,13 +519,14 @@ impl MultiMaster for PicoBus {
             c.write_read_async(addr, bytes.iter().copied(), read),
         )
         .await;
-        self.finish(r)
+        self.finish(r).await
     }
 
     async fn addressed(&mut self) -> Result<(), BusError> {
         // Armed once; an armed target is not rebuilt, so nothing it received is reset.
         self.target();
-        while !Self::target_busy() {
+        // Only this node's own address match counts (issue 11 item 6, issue 16 defect 2).
+        while !pico_rules::addressed(Self::target_state()) {
             Timer::after_micros(ADDRESSED_POLL_US).await;
         }
         Ok(())
@@ -324,9 +534,16 @@ impl MultiMaster for PicoBus {
 
     async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
         let mut rx = [0u8; RX_LEN];
+        let timeout = self.timeout();
         let t = self.target();
         loop {
-            let n = match t.listen(&mut rx).await {
+            // A transfer that never ends (its controller gone without a STOP) must not hold
+            // the node for ever: reset the block after the timeout.
+            let Ok(heard) = with_timeout(timeout, t.listen(&mut rx)).await else {
+                self.target_clean = false;
+                return Err(BusError::Timeout);
+            };
+            let n = match heard {
                 Ok(i2c_slave::Command::Read) => return Ok(Incoming::Read),
                 Ok(i2c_slave::Command::Write(n)) => Incoming::Write(n),
                 Ok(i2c_slave::Command::WriteRead(n)) => Incoming::WriteRead(n),
@@ -353,26 +570,18 @@ impl MultiMaster for PicoBus {
     /// block aborted; [`BusError::Timeout`] when the controller stopped clocking.
     async fn respond(&mut self, bytes: &[u8]) -> Result<(), BusError> {
         let timeout = self.timeout();
-        // Set again when the answer completes; a dropped future or a failure leaves it false,
+        if self.target.is_none() {
+            return Err(BusError::Bus);
+        }
+        // Set again when the answer completes; a dropped future or a timeout leaves it false,
         // and the block is reset before the next listen.
         self.target_clean = false;
-        let Some(t) = self.target.as_mut() else {
-            return Err(BusError::Bus);
-        };
-        let fut = async {
-            if bytes.is_empty() {
-                t.respond_till_stop(0xFF).await
-            } else {
-                t.respond_and_fill(bytes, 0xFF).await.map(|_| ())
-            }
-        };
-        let r = with_timeout(timeout, fut).await;
+        let r = with_timeout(timeout, self.reply(bytes)).await;
         match r {
-            Ok(Ok(())) => {
+            Ok(r) => {
                 self.target_clean = true;
-                Ok(())
+                r
             }
-            Ok(Err(_)) => Err(BusError::Bus),
             Err(_) => Err(BusError::Timeout),
         }
     }

@@ -191,6 +191,50 @@ pub fn abort_error(source: u32) -> BusError {
     }
 }
 
+/// The controller side, read from `IC_STATUS` and `IC_RAW_INTR_STAT` after embassy-rp's
+/// `write_async` or `write_read_async` returned `Ok`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Controller {
+    /// `IC_STATUS.MST_ACTIVITY`: the controller state machine is not idle.
+    pub mst_activity: bool,
+    /// `IC_STATUS.TFE`: the TX FIFO (this node's commands) is empty.
+    pub tfe: bool,
+    /// `IC_RAW_INTR_STAT.TX_ABRT`.
+    pub tx_abrt: bool,
+}
+
+/// What a controller transfer that embassy-rp reported as done really did.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ControllerEnd {
+    /// Sent whole, its own STOP seen.
+    Done,
+    /// Ended by an abort after all (read `IC_TX_ABRT_SOURCE`, then clear it).
+    Aborted,
+    /// Not over: commands still queued or the state machine busy. Look again.
+    Wait,
+}
+
+/// The rule for [`ControllerEnd`].
+///
+/// embassy-rp ends a transfer on `IC_RAW_INTR_STAT.STOP_DET` (`i2c.rs` 296-322) and never
+/// clears that flag before it starts one. With `IC_CON.STOP_DET_IF_MASTER_ACTIVE` at 0 (its
+/// reset value) the block raises it for every STOP on the bus, another controller's too, and
+/// its own target side's transfers leave it set: a write queued behind such a STOP returns
+/// `Ok` at once, while its bytes still sit in the TX FIFO. The role switch that follows
+/// resets the block and cuts the transfer without a STOP (found on the emulated pair:
+/// db-pico's boot event cut after 14 bytes). Done means: nothing queued, the state machine
+/// idle, and no abort.
+#[must_use]
+pub fn controller_end(c: Controller) -> ControllerEnd {
+    if c.tx_abrt {
+        ControllerEnd::Aborted
+    } else if c.mst_activity || !c.tfe {
+        ControllerEnd::Wait
+    } else {
+        ControllerEnd::Done
+    }
+}
+
 /// Clock pulses of the bus-clear procedure (UM10204 §3.1.16): a target holding SDA low
 /// releases it within nine clocks.
 pub const RECOVERY_CLOCKS: u8 = 9;
@@ -221,6 +265,25 @@ pub fn recovery(sda_high: bool, clocks: u8) -> Recovery {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_transfer_is_over_only_when_idle_and_empty() {
+        let c = |mst_activity, tfe, tx_abrt| Controller {
+            mst_activity,
+            tfe,
+            tx_abrt,
+        };
+        assert_eq!(controller_end(c(false, true, false)), ControllerEnd::Done);
+        // Another controller's STOP ended embassy-rp's wait: our bytes are still queued.
+        assert_eq!(controller_end(c(false, false, false)), ControllerEnd::Wait);
+        assert_eq!(controller_end(c(true, false, false)), ControllerEnd::Wait);
+        // The last byte on the wire, the STOP not sent yet.
+        assert_eq!(controller_end(c(true, true, false)), ControllerEnd::Wait);
+        // An abort (a NACK, or arbitration lost once the transfer really ran) wins.
+        for (m, t) in [(false, true), (true, true), (false, false), (true, false)] {
+            assert_eq!(controller_end(c(m, t, true)), ControllerEnd::Aborted);
+        }
+    }
 
     #[test]
     fn chunks_never_exceed_free_space() {
