@@ -17,15 +17,20 @@
 //!   channels A/B of one slice per actuator port, analog inputs are ADC0–ADC2, pulse-in uses the
 //!   GPIO edge interrupts.
 
+use core::cell::Cell;
+use core::pin::pin;
 /// The HAL, for the images' `main`.
 pub use embassy_rp as hal;
+
+use embassy_futures::poll_once;
 use embassy_rp::gpio::{Flex, Input, Pull};
 use embassy_rp::{adc, bind_interrupts, i2c, i2c_slave, pac, peripherals, pwm, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
 use embassy_sync::mutex::Mutex;
 use embassy_time::{block_for, with_deadline, with_timeout, Duration, Instant, Timer};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
-use x10_hal::ports::{PortError, Ports};
+use x10_hal::ports::{EdgeCount, PortError, Ports};
 use x10_microcode::{Edge, Level, PinRef, Port, PortKind};
 
 use crate::pico_rules::{
@@ -131,6 +136,10 @@ macro_rules! pico_build {
                         adc: Lock::new(adc),
                         sensors,
                         actuators,
+                        latches: BlockingMutex::new(Cell::new(Latches {
+                            pins: 0,
+                            kept: [EdgeCount::NONE; 30],
+                        })),
                     },
                     jumpers,
                 }
@@ -663,9 +672,96 @@ pub struct PicoPorts {
     adc: Lock<adc::Adc<'static, adc::Async>>,
     sensors: [SensorPort; SENSORS],
     actuators: [ActuatorPort; ACTUATORS],
+    latches: BlockingMutex<CriticalSectionRawMutex, Cell<Latches>>,
+}
+
+/// Which GPIOs latch their edges ([`Ports::latch_edges`]), and the edges taken off a latch
+/// that a pulse-in was about to clear, kept for the next [`Ports::take_edges`].
+#[derive(Clone, Copy)]
+struct Latches {
+    pins: u32,
+    kept: [EdgeCount; 30],
+}
+
+/// The GPIO number of a pin of the table; a name that is not one fails the build.
+const fn gpio_of(name: &str) -> u8 {
+    match pico_rules::gpio_number(name) {
+        Some(n) => n,
+        None => panic!("the Pico's pin table names a pin that is not PIN_0..PIN_29"),
+    }
+}
+
+/// GPIO numbers of the digital pins A and B of each sensor port ([`PICO`]).
+const SENSOR_GPIOS: [[u8; 2]; SENSORS] = {
+    let mut t = [[0; 2]; SENSORS];
+    let mut i = 0;
+    while i < SENSORS {
+        t[i] = [gpio_of(PICO.sensors[i].a), gpio_of(PICO.sensors[i].b)];
+        i += 1;
+    }
+    t
+};
+
+/// GPIO numbers of the digital pins A and B of each actuator port ([`PICO`]).
+const ACTUATOR_GPIOS: [[u8; 2]; ACTUATORS] = {
+    let mut t = [[0; 2]; ACTUATORS];
+    let mut i = 0;
+    while i < ACTUATORS {
+        t[i] = [gpio_of(PICO.actuators[i].a), gpio_of(PICO.actuators[i].b)];
+        i += 1;
+    }
+    t
+};
+
+/// How often [`PicoPorts`]'s `wait_edge` looks at the edge latches, in µs. embassy-rp owns
+/// the GPIO interrupt (`IO_IRQ_BANK0`) and wakes only its own pin futures, so the latches are
+/// polled; an edge is reported to the runtime within this time.
+const EDGE_POLL_US: u64 = 200;
+
+/// The raw interrupt register (`IO_BANK0.INTRn`) holding `gpio`'s edge latches.
+fn intr(gpio: u8) -> pac::common::Reg<pac::io::regs::Int, pac::common::RW> {
+    pac::IO_BANK0.intr(pico_rules::intr_slot(gpio).0)
+}
+
+/// Takes the edges latched in hardware on `gpio` and clears exactly those.
+fn take_latched(gpio: u8) -> EdgeCount {
+    let reg = intr(gpio);
+    let (n, clear) = pico_rules::latched_edges(reg.read().0, gpio);
+    if clear != 0 {
+        reg.write_value(pac::io::regs::Int(clear));
+    }
+    n
 }
 
 impl PicoPorts {
+    /// The GPIO number of a digital pin, from the pin table.
+    fn gpio(pin: PinRef) -> Result<u8, PortError> {
+        let i = usize::from(pin.port.index());
+        let ports = match pin.port.kind() {
+            PortKind::Sensor => &SENSOR_GPIOS[..],
+            PortKind::Actuator => &ACTUATOR_GPIOS[..],
+        };
+        ports
+            .get(i)
+            .and_then(|p| p.get(pin.pin.index()))
+            .copied()
+            .ok_or(PortError::NoSuchPin)
+    }
+
+    /// Moves the edges latched on `gpio` into the kept counts (before a pulse-in's edge
+    /// future clears the latch, `gpio.rs` 296-299), plus `extra`.
+    fn keep(&self, gpio: u8, extra: EdgeCount) {
+        self.latches.lock(|l| {
+            let mut v = l.get();
+            if v.pins & (1 << gpio) != 0 {
+                if let Some(k) = v.kept.get_mut(usize::from(gpio)) {
+                    *k = k.plus(take_latched(gpio)).plus(extra);
+                }
+                l.set(v);
+            }
+        });
+    }
+
     fn digital(&self, pin: PinRef) -> Result<&Lock<Flex<'static>>, PortError> {
         let i = usize::from(pin.port.index());
         let pins = match pin.port.kind() {
@@ -756,10 +852,24 @@ impl Ports for PicoPorts {
         adc.read(&mut ch).await.map_err(|_| PortError::Busy)
     }
 
+    /// # Errors
+    /// As the trait.
+    ///
+    /// Each edge is awaited with embassy-rp's pin future, which clears the pin's edge latch
+    /// when it arms (`gpio.rs` 296-299): the latched edges of a pin with events are kept first
+    /// and the pulse's first edge is added back (its latch is cleared by the second arming).
+    /// The end of the pulse is looked for right after the second future is armed (the pin's
+    /// level), so a pulse that ends before the task wakes from its start is measured (as at
+    /// most the wake-up time) instead of missed (issue 11 item 9). Afterwards the pin's edge
+    /// interrupt is disarmed: a future dropped at the timeout leaves it armed otherwise, and
+    /// the next pulse-in would wake on the wrong edge.
     async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError> {
+        let gpio = Self::gpio(pin)?;
         let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
         f.set_as_input();
+        self.keep(gpio, EdgeCount::NONE);
         let deadline = Instant::now() + Duration::from_millis(u64::from(timeout_ms));
+        let mut started = false;
         let measure = async {
             // An edge, not a level: a pin already in the pulse waits for the next one.
             match edge {
@@ -767,17 +877,103 @@ impl Ports for PicoPorts {
                 Edge::Falling => f.wait_for_falling_edge().await,
             }
             let start = Instant::now();
-            match edge {
-                Edge::Rising => f.wait_for_falling_edge().await,
-                Edge::Falling => f.wait_for_rising_edge().await,
+            started = true;
+            let high_at_end = matches!(edge, Edge::Falling);
+            let mut end = pin!(async {
+                match edge {
+                    Edge::Rising => f.wait_for_falling_edge().await,
+                    Edge::Falling => f.wait_for_rising_edge().await,
+                }
+            });
+            // The first poll arms the future; then the level says whether the pulse is over.
+            if poll_once(end.as_mut()).is_pending() && gpio_level(gpio) != high_at_end {
+                end.await;
             }
             start.elapsed().as_micros()
         };
-        with_deadline(deadline, measure)
-            .await
-            .map(|us| u32::try_from(us).unwrap_or(u32::MAX))
+        let r = with_deadline(deadline, measure).await;
+        disarm(gpio);
+        let first = match (started, edge) {
+            (false, _) => EdgeCount::NONE,
+            (true, Edge::Rising) => EdgeCount {
+                rising: 1,
+                falling: 0,
+            },
+            (true, Edge::Falling) => EdgeCount {
+                rising: 0,
+                falling: 1,
+            },
+        };
+        self.keep(gpio, first);
+        r.map(|us| u32::try_from(us).unwrap_or(u32::MAX))
             .map_err(|_| PortError::Timeout)
     }
+
+    /// Latches with `IO_BANK0.INTRn`'s raw edge bits, which the RP2040 sets on every edge of
+    /// every GPIO whether or not its interrupt is enabled (datasheet §2.19.6.2): no edge is
+    /// missed, several edges of one direction between two takes count as one.
+    fn latch_edges(&self, pin: PinRef) -> Result<(), PortError> {
+        let gpio = Self::gpio(pin)?;
+        self.latches.lock(|l| {
+            let mut v = l.get();
+            take_latched(gpio);
+            v.pins |= 1 << gpio;
+            if let Some(k) = v.kept.get_mut(usize::from(gpio)) {
+                *k = EdgeCount::NONE;
+            }
+            l.set(v);
+        });
+        Ok(())
+    }
+
+    fn take_edges(&self, pin: PinRef) -> Result<EdgeCount, PortError> {
+        let gpio = Self::gpio(pin)?;
+        self.latches.lock(|l| {
+            let mut v = l.get();
+            if v.pins & (1 << gpio) == 0 {
+                return Err(PortError::Unsupported);
+            }
+            let kept = v
+                .kept
+                .get_mut(usize::from(gpio))
+                .map_or(EdgeCount::NONE, |k| core::mem::replace(k, EdgeCount::NONE));
+            l.set(v);
+            Ok(kept.plus(take_latched(gpio)))
+        })
+    }
+
+    async fn wait_edge(&self) {
+        loop {
+            let waiting = self.latches.lock(|l| {
+                let v = l.get();
+                v.kept.iter().any(|k| !k.is_none())
+                    || (0..4).any(|reg| {
+                        pac::IO_BANK0.intr(reg).read().0 & pico_rules::edge_mask(v.pins, reg) != 0
+                    })
+            });
+            if waiting {
+                return;
+            }
+            Timer::after_micros(EDGE_POLL_US).await;
+        }
+    }
+}
+
+/// The input level of `gpio` (`SIO.GPIO_IN`), read without its pin driver.
+fn gpio_level(gpio: u8) -> bool {
+    pac::SIO.gpio_in(0).read() & (1 << gpio) != 0
+}
+
+/// Disarms `gpio`'s edge and level interrupts for core 0 (what embassy-rp's interrupt handler
+/// does when one fires), in a critical section against that handler.
+fn disarm(gpio: u8) {
+    let (n, shift) = pico_rules::intr_slot(gpio);
+    cortex_m::interrupt::free(|_| {
+        pac::IO_BANK0
+            .int_proc(0)
+            .inte(n)
+            .modify(|w| w.0 &= !(0xf << shift));
+    });
 }
 
 #[cfg(feature = "motherboard")]

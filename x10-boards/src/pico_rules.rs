@@ -1,10 +1,12 @@
-//! The decisions [`pico`](crate::pico)'s bus adapter makes about the RP2040's I2C block
-//! (DW_apb_i2c), as pure functions on register snapshots: tested on the host, no HAL.
+//! The decisions [`pico`](crate::pico)'s adapters make about the RP2040's I2C block
+//! (DW_apb_i2c) and its GPIO edge latches, as pure functions on register snapshots: tested on
+//! the host, no HAL.
 //!
-//! Register and bit names are the RP2040 datasheet's (§4.3); the HAL lines each rule works
-//! around are embassy-rp 0.10.0's (`i2c_slave.rs`, `i2c.rs`).
+//! Register and bit names are the RP2040 datasheet's (§4.3 I2C, §2.19 GPIO); the HAL lines
+//! each rule works around are embassy-rp 0.10.0's (`i2c_slave.rs`, `i2c.rs`, `gpio.rs`).
 
 use x10_hal::bus::BusError;
+use x10_hal::ports::EdgeCount;
 
 /// Depth of the block's TX FIFO (`IC_TXFLR` counts up to it).
 pub const TX_FIFO: u8 = 16;
@@ -235,6 +237,71 @@ pub fn controller_end(c: Controller) -> ControllerEnd {
     }
 }
 
+/// The GPIO number of a pin named as in the pin table (`"PIN_4"` → 4); `None` for any other
+/// name or a number past the RP2040's 30 user GPIOs.
+/// A `const fn`, so that the adapter's GPIO table is computed at compile time.
+#[must_use]
+pub const fn gpio_number(name: &str) -> Option<u8> {
+    let b = name.as_bytes();
+    if b.len() < 5 || b.len() > 6 || b[0] != b'P' || b[1] != b'I' || b[2] != b'N' || b[3] != b'_' {
+        return None;
+    }
+    let mut n: u8 = 0;
+    let mut i = 4;
+    while i < b.len() {
+        if !b[i].is_ascii_digit() {
+            return None;
+        }
+        n = n * 10 + (b[i] - b'0');
+        i += 1;
+    }
+    if n < 30 {
+        Some(n)
+    } else {
+        None
+    }
+}
+
+/// `IO_BANK0.INTRn` holds eight GPIOs' raw interrupt bits, four each (LEVEL_LOW, LEVEL_HIGH,
+/// EDGE_LOW, EDGE_HIGH, from bit 0): the register index and the shift of `gpio`'s four bits.
+#[must_use]
+pub const fn intr_slot(gpio: u8) -> (usize, u32) {
+    ((gpio / 8) as usize, 4 * (gpio % 8) as u32)
+}
+
+/// `EDGE_LOW` within a GPIO's four bits.
+pub const EDGE_LOW: u32 = 1 << 2;
+/// `EDGE_HIGH` within a GPIO's four bits.
+pub const EDGE_HIGH: u32 = 1 << 3;
+
+/// The edges `gpio` latched, from its `INTRn` register's value `intr`, and the mask to write
+/// back to clear exactly those (the edge bits are write-1-to-clear; an edge latched after the
+/// read keeps its bit). The raw bits latch whether or not an interrupt is enabled, so no edge
+/// is missed, but they say "at least one": several edges of one direction between two reads
+/// count as one.
+#[must_use]
+pub fn latched_edges(intr: u32, gpio: u8) -> (EdgeCount, u32) {
+    let (_, shift) = intr_slot(gpio);
+    let bits = (intr >> shift) & (EDGE_LOW | EDGE_HIGH);
+    let count = EdgeCount {
+        rising: u16::from(bits & EDGE_HIGH != 0),
+        falling: u16::from(bits & EDGE_LOW != 0),
+    };
+    (count, bits << shift)
+}
+
+/// The edge bits of the GPIOs in `pins` (bit n = GPIO n) within register `INTR{reg}`: a
+/// latched edge of any of them is `intr & edge_mask(pins, reg) != 0`.
+#[must_use]
+pub fn edge_mask(pins: u32, reg: usize) -> u32 {
+    (0..8u32)
+        .filter(|i| {
+            let gpio = reg as u32 * 8 + i;
+            gpio < 32 && pins & (1 << gpio) != 0
+        })
+        .fold(0, |m, i| m | (EDGE_LOW | EDGE_HIGH) << (4 * i))
+}
+
 /// Clock pulses of the bus-clear procedure (UM10204 §3.1.16): a target holding SDA low
 /// releases it within nine clocks.
 pub const RECOVERY_CLOCKS: u8 = 9;
@@ -265,6 +332,77 @@ pub fn recovery(sda_high: bool, clocks: u8) -> Recovery {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn gpio_numbers_come_from_the_pin_table() {
+        assert_eq!(gpio_number("PIN_0"), Some(0));
+        assert_eq!(gpio_number("PIN_29"), Some(29));
+        assert_eq!(gpio_number("PIN_30"), None);
+        assert_eq!(gpio_number("PIN_"), None);
+        assert_eq!(gpio_number("PA4"), None);
+        assert_eq!(gpio_number("PIN_4x"), None);
+        assert_eq!(gpio_number("PIN_999"), None);
+        // Every digital pin of the Pico's map has one, and no two share it.
+        let map = crate::pins::PICO;
+        let mut seen = 0u32;
+        for name in map
+            .sensors
+            .iter()
+            .flat_map(|s| [s.a, s.b])
+            .chain(map.actuators.iter().flat_map(|a| [a.a, a.b]))
+        {
+            let g = gpio_number(name).expect(name);
+            assert_eq!(seen & (1 << g), 0, "{name} twice");
+            seen |= 1 << g;
+        }
+    }
+
+    #[test]
+    fn edges_are_read_from_their_gpio_and_cleared_alone() {
+        assert_eq!(intr_slot(0), (0, 0));
+        assert_eq!(intr_slot(7), (0, 28));
+        assert_eq!(intr_slot(8), (1, 0));
+        assert_eq!(intr_slot(29), (3, 20));
+        // GPIO 12 (INTR1, bits 16-19): EDGE_HIGH only; level bits and other GPIOs ignored.
+        let intr = (EDGE_HIGH | 0b0011) << 16 | (EDGE_LOW << 20) | EDGE_HIGH;
+        let (n, clear) = latched_edges(intr, 12);
+        assert_eq!(
+            n,
+            EdgeCount {
+                rising: 1,
+                falling: 0
+            }
+        );
+        assert_eq!(clear, EDGE_HIGH << 16);
+        // Both directions (a pulse): one each, both bits cleared.
+        let (n, clear) = latched_edges((EDGE_LOW | EDGE_HIGH) << 28, 7);
+        assert_eq!(
+            n,
+            EdgeCount {
+                rising: 1,
+                falling: 1
+            }
+        );
+        assert_eq!(clear, (EDGE_LOW | EDGE_HIGH) << 28);
+        // Nothing latched: nothing to clear.
+        assert_eq!(latched_edges(0b0011 << 4, 9), (EdgeCount::NONE, 0));
+    }
+
+    #[test]
+    fn edge_masks_cover_the_latched_gpios_of_each_register() {
+        let pins = (1 << 2) | (1 << 14) | (1 << 15) | (1 << 29);
+        assert_eq!(edge_mask(pins, 0), 0xc << 8);
+        assert_eq!(edge_mask(pins, 1), (0xc << 24) | (0xc << 28));
+        assert_eq!(edge_mask(pins, 2), 0);
+        assert_eq!(edge_mask(pins, 3), 0xc << 20);
+        assert_eq!(edge_mask(0, 1), 0);
+        // Consistent with latched_edges: a pin's edge bits are inside its register's mask.
+        for gpio in 0..30u8 {
+            let (reg, _) = intr_slot(gpio);
+            let (_, clear) = latched_edges(u32::MAX, gpio);
+            assert_eq!(edge_mask(1 << gpio, reg), clear);
+        }
+    }
 
     #[test]
     fn a_transfer_is_over_only_when_idle_and_empty() {
