@@ -77,7 +77,7 @@ async fn main(spawner: Spawner) {
     let board = Board::new(init(), |jumpers| {
         // BASE + 0..2^JUMPERS was checked at build time, so this cannot fail.
         own = unwrap!(address::address(BASE, jumpers).ok());
-        BusConfig::standard(own.get())
+        BusConfig::for_build(own.get())
     });
     // MB was checked at build time.
     let mb = unwrap!(Address::external(MB).ok());

@@ -94,8 +94,92 @@ impl BusConfig {
             timeout_us: 20_000,
         }
     }
+
+    /// [`BusConfig::standard`] at the bus frequency this image was built for ([`BUS_HZ`]):
+    /// what the images use.
+    pub const fn for_build(own_address: u8) -> BusConfig {
+        BusConfig {
+            frequency_hz: BUS_HZ,
+            ..BusConfig::standard(own_address)
+        }
+    }
 }
+
+/// The SCL frequencies an image may be built for: standard mode, fast mode, fast-mode plus.
+pub const BUS_FREQUENCIES: [u32; 3] = [100_000, 400_000, 1_000_000];
+
+/// Why `X10_BUS_HZ` was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BusHzError {
+    /// Not a decimal number.
+    NotANumber,
+    /// A number, but not one of [`BUS_FREQUENCIES`].
+    Unsupported,
+}
+
+/// The bus frequency for a build: `X10_BUS_HZ` as given by `env` (the caller passes
+/// `option_env!("X10_BUS_HZ")`), in Hz, decimal; 100 000 when it is not set. Every board on
+/// one bus must be built with the same value.
+///
+/// # Errors
+/// [`BusHzError`] for anything but `100000`, `400000` or `1000000`.
+pub const fn bus_hz(env: Option<&str>) -> Result<u32, BusHzError> {
+    let Some(s) = env else {
+        return Ok(BUS_FREQUENCIES[0]);
+    };
+    let b = s.as_bytes();
+    if b.is_empty() || b.len() > 9 {
+        return Err(BusHzError::NotANumber);
+    }
+    let mut n: u32 = 0;
+    let mut i = 0;
+    while i < b.len() {
+        if !b[i].is_ascii_digit() {
+            return Err(BusHzError::NotANumber);
+        }
+        n = n * 10 + (b[i] - b'0') as u32;
+        i += 1;
+    }
+    let mut k = 0;
+    while k < BUS_FREQUENCIES.len() {
+        if BUS_FREQUENCIES[k] == n {
+            return Ok(n);
+        }
+        k += 1;
+    }
+    Err(BusHzError::Unsupported)
+}
+
+/// The bus frequency of this build: the environment variable `X10_BUS_HZ` when the image is
+/// built (`X10_BUS_HZ=400000 cargo db-pico`), else 100 kHz. Anything but 100000, 400000 or
+/// 1000000 fails the build.
+pub const BUS_HZ: u32 = match bus_hz(option_env!("X10_BUS_HZ")) {
+    Ok(hz) => hz,
+    Err(_) => panic!("X10_BUS_HZ must be 100000, 400000 or 1000000 (Hz)"),
+};
 
 /// Receive buffer size of the adapters: the longest frame plus one byte, so that a longer
 /// write is seen (and answered `BusError::Overrun`) instead of being cut silently.
 pub const RX_LEN: usize = x10_microcode::MAX_FRAME_LEN + 1;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_bus_frequency_is_one_of_three_or_the_build_fails() {
+        assert_eq!(bus_hz(None), Ok(100_000));
+        assert_eq!(bus_hz(Some("100000")), Ok(100_000));
+        assert_eq!(bus_hz(Some("400000")), Ok(400_000));
+        assert_eq!(bus_hz(Some("1000000")), Ok(1_000_000));
+        assert_eq!(bus_hz(Some("200000")), Err(BusHzError::Unsupported));
+        assert_eq!(bus_hz(Some("0")), Err(BusHzError::Unsupported));
+        assert_eq!(bus_hz(Some("400k")), Err(BusHzError::NotANumber));
+        assert_eq!(bus_hz(Some("")), Err(BusHzError::NotANumber));
+        assert_eq!(bus_hz(Some("99999999999")), Err(BusHzError::NotANumber));
+        let c = BusConfig::for_build(9);
+        assert_eq!(c.frequency_hz, BUS_HZ);
+        assert_eq!(c.own_address, 9);
+        assert_eq!(c.timeout_us, BusConfig::standard(9).timeout_us);
+    }
+}

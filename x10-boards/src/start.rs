@@ -63,7 +63,7 @@ macro_rules! motherboard_starter {
             mut config: firmware_mb::MbConfig,
         ) -> Result<firmware_mb::X10, crate::start::StartError> {
             let address = config.address.get();
-            let board = Board::new(p, |_jumpers| crate::BusConfig::standard(address));
+            let board = Board::new(p, |_jumpers| crate::BusConfig::for_build(address));
             config.internal.board = $kind;
             let mb: &'static StartedMb = MOTHERBOARD
                 .try_init(firmware_mb::Motherboard::new(config, board.ports))

@@ -210,6 +210,13 @@ pub fn output_low(pin: Peri<'static, embassy_stm32::gpio::AnyPin>) -> Flex<'stat
 // Bus
 // ---------------------------------------------------------------------------------------
 
+// Fast-mode plus (1 MHz) needs the pins' Fm+ drive (SYSCFG_CFGR1 I2Cx_FMP), which this
+// adapter does not set: an STM32 image is built for 100 or 400 kHz only.
+const _: () = assert!(
+    crate::BUS_HZ <= 400_000,
+    "X10_BUS_HZ=1000000 is for the Pico only: the STM32 adapter does not enable Fm+ drive"
+);
+
 /// [`MultiMaster`] on an STM32 I2C v2 block (see the module doc).
 pub struct Stm32Bus {
     i2c: I2c<'static, Async, i2c::MultiMaster>,

@@ -2,7 +2,8 @@
 //!
 //! Builds mb-pico and db-pico in release (the same cargo calls as `cargo xtask size`, one per
 //! image; db-pico with its default base address 9: DB 10 is the same image with jumper 0
-//! fitted) and the host `x10` tool, installs the rig's Node packages from `emu/package-lock.json`
+//! fitted; db-pico also for 400 kHz and 1 MHz buses, `X10_BUS_HZ`, copied to
+//! `target/emu/db-pico-HZ`) and the host `x10` tool, installs the rig's Node packages from `emu/package-lock.json`
 //! with `npm ci` when `emu/node_modules` is missing or older than the lock file, then runs
 //! `node emu/run.mjs` on the two ELFs. The rig, its scenarios and what they check are in
 //! `emu/` and `docs/emulation.md`; the trace of each scenario (bus transfers decoded by
@@ -11,7 +12,7 @@
 use std::path::Path;
 use std::process::{Command, ExitCode};
 
-use crate::{build, target_dir, Error, IMAGES};
+use crate::{target_dir, Error, IMAGES};
 
 /// Runs the task with its arguments (scenario names, `--list`).
 ///
@@ -28,20 +29,32 @@ pub fn emu(args: &[String]) -> Result<ExitCode, Error> {
     if args.iter().any(|a| a == "--list") {
         return node(&emu, &["run.mjs".into(), "--list".into()]);
     }
+    let out = target_dir(&cargo)?.join("emu");
+    std::fs::create_dir_all(&out).map_err(Error::Run)?;
     let mut elfs = Vec::new();
+    let mut fast = Vec::new();
     for name in ["mb-pico", "db-pico"] {
         let image = IMAGES
             .iter()
             .find(|i| i.bin == name)
             .ok_or_else(|| Error::Usage(format!("no image {name}")))?;
         crate::check_targets("cargo xtask emu", &[image.target])?;
-        build(&cargo, image)?;
-        elfs.push(
-            target_dir(&cargo)?
-                .join(image.target)
-                .join("release")
-                .join(name),
-        );
+        let elf = target_dir(&cargo)?
+            .join(image.target)
+            .join("release")
+            .join(name);
+        if name == "db-pico" {
+            // db-pico for the faster buses too (`X10_BUS_HZ`, a rebuild of x10-boards and a
+            // link: seconds), each copied aside; the default build comes last.
+            for hz in FAST_BUSES {
+                build_at(&cargo, image, Some(hz))?;
+                let copy = out.join(format!("db-pico-{hz}"));
+                std::fs::copy(&elf, &copy).map_err(Error::Run)?;
+                fast.push(format!("{hz}={}", copy.display()));
+            }
+        }
+        build_at(&cargo, image, None)?;
+        elfs.push(elf);
     }
     let status = Command::new(&cargo)
         .args(["build", "-q", "-p", "x10-sim", "--bin", "x10"])
@@ -51,7 +64,6 @@ pub fn emu(args: &[String]) -> Result<ExitCode, Error> {
         return Err(Error::Build("x10"));
     }
     let x10 = target_dir(&cargo)?.join("debug").join("x10");
-    let out = target_dir(&cargo)?.join("emu");
     let mut a: Vec<String> = vec![
         "run.mjs".into(),
         "--mb".into(),
@@ -63,8 +75,40 @@ pub fn emu(args: &[String]) -> Result<ExitCode, Error> {
         "--out".into(),
         out.display().to_string(),
     ];
+    for f in fast {
+        a.push("--db-at".into());
+        a.push(f);
+    }
     a.extend(args.iter().cloned());
     node(&emu, &a)
+}
+
+/// The bus frequencies, besides the default 100 kHz, that the `event-latency` scenario
+/// measures with a db-pico built for them.
+const FAST_BUSES: [u32; 2] = [400_000, 1_000_000];
+
+/// Builds `image` for a bus of `hz` (`X10_BUS_HZ`), or for the default bus (the variable
+/// removed, whatever the caller's environment holds).
+fn build_at(cargo: &str, image: &crate::Image, hz: Option<u32>) -> Result<(), Error> {
+    let mut c = Command::new(cargo);
+    c.args([
+        "build",
+        "--release",
+        "-p",
+        image.package,
+        "--target",
+        image.target,
+    ])
+    .args(["--features", image.features, "--bin", image.bin]);
+    match hz {
+        Some(hz) => c.env("X10_BUS_HZ", hz.to_string()),
+        None => c.env_remove("X10_BUS_HZ"),
+    };
+    if c.status().map_err(Error::Run)?.success() {
+        Ok(())
+    } else {
+        Err(Error::Build(image.bin))
+    }
 }
 
 /// `npm ci` in `emu/` unless its packages are installed and newer than the lock file.
