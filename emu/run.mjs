@@ -24,6 +24,7 @@ const opt = (name) => {
 };
 const mbElf = opt('--mb');
 const dbElf = opt('--db');
+const mbDoorbellElf = opt('--mb-doorbell');
 // db-pico built for faster buses: --db-at HZ=ELF, any number of times.
 const dbAt = {};
 for (let v = opt('--db-at'); v; v = opt('--db-at')) {
@@ -44,7 +45,7 @@ if (list) {
   process.exit(0);
 }
 if (!mbElf || !dbElf) {
-  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--x10 X10] [--out DIR] [SCENARIO...] | --list');
+  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
   process.exit(2);
 }
 const wanted = args.filter((a) => !a.startsWith('--'));
@@ -130,7 +131,7 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   const figures = [];
   const rigs = [];
   const ctx = {
-    mbElf, dbElf, dbAt,
+    mbElf, dbElf, dbAt, mbDoorbellElf,
     rig(options = {}) { const r = new Rig(options); rigs.push(r); return r; },
     check(name, ok, detail = '') { checks.push({ name, ok: !!ok, detail }); },
     figure(name, value) { figures.push({ name, value }); },

@@ -1,4 +1,4 @@
-// Scenarios with the real mb-pico image (thesis Figure 4.4) against db-pico 9.
+// Scenarios with the real mb-pico images (thesis Figure 4.4; the doorbell) against db-pico 9.
 import { motorTrack } from '../lib/world.js';
 
 const JUMPERS_OPEN = { 20: 1, 21: 1, 22: 1 }; // no jumper fitted (pull-ups are not modelled)
@@ -6,7 +6,7 @@ const MOTOR_PINS = [2, 4, 5];
 
 function pair(ctx, options = {}) {
   const rig = ctx.rig(options);
-  const mb = rig.addChip('mb', ctx.mbElf, { watch: MOTOR_PINS });
+  const mb = rig.addChip('mb', options.mbElf ?? ctx.mbElf, { watch: MOTOR_PINS });
   const db = rig.addChip('db09', ctx.dbElf, { inputs: JUMPERS_OPEN, watch: MOTOR_PINS });
   return { rig, mb, db };
 }
@@ -73,6 +73,38 @@ export default [
       }
       ctx.figure('simulated s per wall s (2 chips, fig4_4)', (END_MS / 1000 / wall).toFixed(2));
       ctx.figure('stack high-water mark after fig4_4, mb-pico / db-pico (bytes)', `${mb.stackUsed()} / ${db.stackUsed()}`);
+    },
+  },
+  {
+    name: 'doorbell',
+    about: 'a pin event from db-pico 9 wakes a task on the real mb-pico (robots/src/doorbell.rs): button on DB 9 S1.A to chime on the MB\'s A1.A, edge-to-task latency',
+    run(ctx) {
+      if (!ctx.mbDoorbellElf) {
+        ctx.check('the doorbell image was given (--mb-doorbell)', false);
+        return;
+      }
+      const S1A = 14, CHIME = 4;
+      const { rig, mb, db } = pair(ctx, { mbElf: ctx.mbDoorbellElf });
+      db.setPin(S1A, false);
+      rig.run(100e6); // boot, prepare DB 9, enable its events
+      const chime = () => mb.pinLog.filter((p) => p.pin === CHIME);
+      const lat = [];
+      const states = [];
+      for (const [press, holdMs] of [[true, 300], [false, 300], [true, 50], [false, 300]]) {
+        const before = chime().length;
+        const t = rig.now();
+        db.setPin(S1A, press);
+        rig.run(t + 100e6, () => chime().length > before);
+        const c = chime()[before];
+        if (c) { lat.push((c.t - t) / 1e3); states.push(c.v); }
+        rig.run(rig.now() + holdMs * 1e6);
+      }
+      const mbLog = ctx.defmt(mb).map((l) => l.text).join('\n');
+      ctx.check('mb-pico logs the robot program', /doorbell/.test(mbLog), mbLog.split('\n').find((l) => /robot program/.test(l)));
+      ctx.check('four button changes, four chime changes: on, off, on, off', lat.length === 4 && states.join(',') === 'high,low,high,low',
+        `${states.join(', ')} after ${lat.map((l) => `${l.toFixed(0)} µs`).join(', ')}`);
+      ctx.figure('button edge on DB 9 to the chime pin on the MB, 100 kHz (µs, min/max: latch poll, event, MB task, one debounce read of DB 9, the GPIO write)', lat.length ? `${Math.min(...lat).toFixed(0)} / ${Math.max(...lat).toFixed(0)}` : 'none');
+      ctx.figure('stack high-water mark after doorbell, mb-pico-doorbell / db-pico (bytes)', `${mb.stackUsed()} / ${db.stackUsed()}`);
     },
   },
 ];

@@ -12,6 +12,7 @@
 //! | `fig4_4` | [`fig4_2::single_board`], [`fig4_4::light_motor`] | SELF, 9 | Fig. 4.4: Fig. 4.2 unchanged, plus light > 700 runs a second motor at 50 % |
 //! | `fig4_6` | [`fig4_6::temperature_alarm`] | 17, 108, 10 | Fig. 4.6: freezer > 1 °C or oven < 200 °F raises the alarm |
 //! | `bumper` | [`bumper::heartbeat`], [`bumper::lamp`], [`bumper::bumper`] | SELF, 9 | three concurrent tasks: a blinking LED, a light-following lamp, and a timed back-off when the bumper is hit |
+//! | `doorbell` | [`doorbell::doorbell`] | 9, SELF | a button's events from board 9 wake the task, which mirrors the button on a chime |
 //!
 //! ## Keeping the actuators driven
 //! The thesis programs send an actuator command when the wanted state changes, and also every
@@ -30,6 +31,7 @@ use embassy_time::Duration;
 use x10::Refresh;
 
 pub mod bumper;
+pub mod doorbell;
 pub mod fig4_2;
 pub mod fig4_4;
 pub mod fig4_6;

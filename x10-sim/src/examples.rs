@@ -4,7 +4,7 @@
 //! own crate with its own world file and `sim` command (`x10 new`,
 //! `docs/your-first-robot.md`).
 
-use x10_robots::{bumper, fig4_2, fig4_4, fig4_6};
+use x10_robots::{bumper, doorbell, fig4_2, fig4_4, fig4_6};
 
 use crate::sim::{Sim, SimConfig};
 use crate::world::{World, WorldError};
@@ -23,7 +23,7 @@ pub struct Example {
 }
 
 /// Every example.
-pub const EXAMPLES: [Example; 4] = [
+pub const EXAMPLES: [Example; 5] = [
     Example {
         name: "fig4_2",
         description: "thesis Fig. 4.2: button (SELF S2.B) or force (SELF S1) > 100 runs the motor (SELF A1) at 100 %",
@@ -54,6 +54,12 @@ pub const EXAMPLES: [Example; 4] = [
                 .with_robot("bumper", bumper::bumper)
         },
         world: include_str!("../../robots/worlds/bumper.toml"),
+    },
+    Example {
+        name: "doorbell",
+        description: "a button on DB 9 (S1.A) rings a chime on the motherboard (SELF A1.A) while held: its events wake the task",
+        add_tasks: |sim| sim.with_robot("doorbell", doorbell::doorbell),
+        world: include_str!("../../robots/worlds/doorbell.toml"),
     },
 ];
 

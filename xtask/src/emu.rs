@@ -56,6 +56,20 @@ pub fn emu(args: &[String]) -> Result<ExitCode, Error> {
         build_at(&cargo, image, None)?;
         elfs.push(elf);
     }
+    // The doorbell example's motherboard image: a DB event waking an MB task.
+    let mb = IMAGES
+        .iter()
+        .find(|i| i.bin == "mb-pico")
+        .ok_or_else(|| Error::Usage("no image mb-pico".into()))?;
+    let doorbell = crate::Image {
+        bin: "mb-pico-doorbell",
+        ..*mb
+    };
+    build_at(&cargo, &doorbell, None)?;
+    let doorbell_elf = target_dir(&cargo)?
+        .join(mb.target)
+        .join("release")
+        .join(doorbell.bin);
     let status = Command::new(&cargo)
         .args(["build", "-q", "-p", "x10-sim", "--bin", "x10"])
         .status()
@@ -75,6 +89,8 @@ pub fn emu(args: &[String]) -> Result<ExitCode, Error> {
         "--out".into(),
         out.display().to_string(),
     ];
+    a.push("--mb-doorbell".into());
+    a.push(doorbell_elf.display().to_string());
     for f in fast {
         a.push("--db-at".into());
         a.push(f);

@@ -145,7 +145,8 @@ const IMAGES: &[Image] = &[
 /// sizes when the budgets were last set (after issue 10's safe defaults, event changes and the
 /// H-bridge's safe command order and the per-task event waiters, about 0.7 KiB of the
 /// motherboards'; the Pico's after its bus-adapter fixes of issues 11 and 16, 1.3 KiB each, and
-/// its edge latches and pulse-in fixes, 1.2 KiB each),
+/// its edge latches and pulse-in fixes, 1.2 KiB each; the images' shared `mb_image!` macro, which
+/// logs the task names as arguments, 52 B on the G431),
 /// rounded up to 256 B. CI fails when an image grows past its budget; lower them as the
 /// images shrink.
 const DB_PICO_FLASH: u64 = 43_776;
@@ -156,7 +157,7 @@ const DB_C011_FLASH: u64 = 44_800;
 /// See [`DB_PICO_FLASH`].
 const MB_PICO_FLASH: u64 = 72_192;
 /// See [`DB_PICO_FLASH`].
-const MB_G431_FLASH: u64 = 76_032;
+const MB_G431_FLASH: u64 = 76_288;
 
 /// RAM starts here on both chips (SRAM at 0x2000_0000).
 const RAM_START: u64 = 0x2000_0000;

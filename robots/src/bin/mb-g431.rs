@@ -1,10 +1,17 @@
 //! Motherboard image for the STM32G431 running the thesis's Figure 4.4: `cargo mb-g431` builds
 //! it, flashes it with probe-rs and streams its defmt log. The image itself is
-//! `../mb_image.rs`, shared with the other board.
+//! `../mb_image.rs`, shared with the other board and the other examples.
 #![no_std]
 #![no_main]
 
 use x10_boards::g431 as board;
 
 #[path = "../mb_image.rs"]
+#[macro_use]
 mod image;
+
+mb_image!(
+    "thesis Figure 4.4 (tasks single_board, light_motor)",
+    single_board = x10_robots::fig4_2::single_board,
+    light_motor = x10_robots::fig4_4::light_motor,
+);
