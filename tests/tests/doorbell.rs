@@ -33,7 +33,13 @@ fn the_chime_follows_the_button_on_another_board() {
         let delay = t - pressed_ms * MS;
         // An event from board 9, the task, one confirming read of the button, the write: a
         // few bus transactions at 400 kHz.
-        assert!(delay < 3 * MS, "chime {delay} ns after the button: {changes:?}");
+        assert!(
+            delay < 3 * MS,
+            "chime {delay} ns after the button: {changes:?}"
+        );
     }
-    assert!(changes.iter().all(|(t, on)| *t >= 500 * MS || !on), "{changes:?}");
+    assert!(
+        changes.iter().all(|(t, on)| *t >= 500 * MS || !on),
+        "{changes:?}"
+    );
 }
