@@ -2,28 +2,38 @@
 //!
 //! Everything here is a pure function from bytes to [`serde_json::Value`] and back, so it is
 //! unit-testable without the binary. The JSON shape is specified in `docs/protocol.md`
-//! ("The `x10` tool"); in short:
+//! ("The `x10` tool"). A frame's own keys are `x10-microcode`'s serde representation (its
+//! `serde` feature): a request is [`Request`] (`db`, `seq`, `function`, `operation`,
+//! `port_kind`, `port`, `pin`, `data` and the operation's fields), a reply [`Reply`] (`seq`,
+//! `status`, `payload`), an event [`Event`] (`source`, `event`, the port keys, `seq`,
+//! `status`, `payload`), with [`Identity`], [`Diagnostics`], [`ScanResult`] and
+//! [`EventConfig`] as they derive. What the tool adds, here:
 //!
-//! * request: `kind`, `function`, `operation`, `db`, `port_kind`, `port`, `pin`, `seq`, `data`,
-//!   plus the operation's own fields (`duty`, `timeout_ms`, `items`, …);
-//! * reply: `kind`, `seq`, `status`, `payload`, plus, when it is known which request the reply
-//!   answers (`answers`), the decoded value (`level`, `value`, `identity`, `results`, …);
-//! * event: `kind`, `source`, `event`, `port_kind`, `port`, `pin`, `seq`, `status`, `payload`,
-//!   plus the decoded value of the kind (`level`, `width_us`, `identity`, …);
-//! * with PEC: `pec_addr` (the address the PEC covers) and `pec` (the PEC byte).
-//!
-//! [`encode`] is the exact inverse of [`decode`]: it accepts what `decode` prints (and fewer
-//! keys: `data` and `payload` can be left out and are then built from the decoded fields), and
-//! refuses unknown keys and keys that disagree with the bytes.
+//! * `kind`, and with PEC `pec_addr` (the address the PEC covers) and `pec` (the PEC byte);
+//! * the decoded value of a reply, when it is known which request the reply answers
+//!   (`answers`: [`Answers`]; `ReplyValue`), and of an event's payload (`EventValue`);
+//! * encoding: [`encode`] is the exact inverse of [`decode`]. It accepts what `decode` prints,
+//!   and fewer keys: `data` and `payload` can be left out and are then built from the decoded
+//!   fields. Integers may be `"0x…"` strings. The frame built is decoded again and every key
+//!   given must be in it with the same value, so unknown keys and keys that disagree with the
+//!   bytes are refused; errors name the key.
+//! * frames in hex ([`parse_hex`], [`frames_of_args`]) and in words ([`describe`]).
 
 use std::fmt;
 
-use serde_json::{json, Map, Value};
+use serde::{Deserialize, Serialize};
+use serde_json::{Map, Value};
 use x10_microcode::{
-    pec, Address, BatchResults, BoardKind, Capabilities, Diagnostics, Event, EventConfig,
-    EventKind, Identity, Op, PinRef, PortKind, Reply, Request, ScanResult, Status,
-    DIAGNOSTIC_NAMES, MAX_FRAME_LEN, MAX_PAYLOAD, MAX_REQUEST_DATA,
+    pec, Address, BatchResults, Diagnostics, Edge, Event, EventConfig, EventKind, Identity, Op,
+    Pin, PinRef, Port, PortKind, Reply, Request, ScanResult, Status, MAX_FRAME_LEN,
+    MAX_REQUEST_DATA,
 };
+
+mod hex;
+mod words;
+
+pub use hex::{frames_of_args, parse_address, parse_hex, split_prefix, to_hex};
+pub use words::describe;
 
 /// Why a frame or a JSON object could not be decoded or encoded: one line for people.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -84,124 +94,7 @@ impl FrameKind {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Hex
-// ---------------------------------------------------------------------------------------------
-
-/// Splits an optional `request:`, `reply:` or `event:` prefix off a frame argument.
-pub fn split_prefix(arg: &str) -> (Option<FrameKind>, &str) {
-    let arg = arg.trim();
-    if let Some((head, rest)) = arg.split_once(':') {
-        if let Some(kind) = FrameKind::from_name(head.trim()) {
-            return (Some(kind), rest);
-        }
-    }
-    (None, arg)
-}
-
-/// Parses hex bytes: pairs of hex digits, optionally separated by spaces, `:`, `,`, `-` or
-/// `_`, each group optionally prefixed `0x`. `12090102`, `12 09 01 02`, `12:09:01:02` and
-/// `0x12,0x09,0x01,0x02` are the same frame.
-///
-/// # Errors
-/// A character that is not a hex digit, a group with an odd number of digits, no bytes at all.
-pub fn parse_hex(text: &str) -> Result<Vec<u8>> {
-    let mut out = Vec::new();
-    for group in text
-        .split(|c: char| c.is_whitespace() || matches!(c, ':' | ',' | '-' | '_'))
-        .filter(|g| !g.is_empty())
-    {
-        let digits = group
-            .strip_prefix("0x")
-            .or_else(|| group.strip_prefix("0X"))
-            .unwrap_or(group);
-        if let Some(bad) = digits.chars().find(|c| !c.is_ascii_hexdigit()) {
-            return Err(CodecError::new(format!(
-                "`{bad}` is not a hex digit (in `{group}`)"
-            )));
-        }
-        if digits.is_empty() || digits.len() % 2 != 0 {
-            return Err(CodecError::new(format!(
-                "`{group}` has an odd number of hex digits"
-            )));
-        }
-        for pair in digits.as_bytes().chunks(2) {
-            let s = std::str::from_utf8(pair).map_err(|_| CodecError::new("bad hex"))?;
-            let b = u8::from_str_radix(s, 16)
-                .map_err(|_| CodecError::new(format!("`{s}` is not a hex byte")))?;
-            out.push(b);
-        }
-    }
-    if out.is_empty() {
-        return Err(CodecError::new("no bytes given"));
-    }
-    Ok(out)
-}
-
-/// Lowercase hex, one space between bytes: the format [`parse_hex`] reads.
-pub fn to_hex(bytes: &[u8]) -> String {
-    bytes
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
-/// The frames given as command-line arguments. One argument is one frame, in any form
-/// [`parse_hex`] reads, except when there are two or more arguments and every one is a single
-/// byte — one or two hex digits, optionally prefixed `0x` — as logic analyzers print them: then
-/// they are the bytes of one frame, and the first may carry a `request:`, `reply:` or `event:`
-/// prefix. `12 09 01 02` (four arguments) is the frame `12 09 01 02`; `12090102 30098004` are
-/// two frames. A frame of one byte is too short for every kind, so this does not change what
-/// any valid input means.
-pub fn frames_of_args(args: Vec<String>) -> Vec<String> {
-    fn byte(arg: &str) -> Option<u8> {
-        let arg = arg.trim();
-        let digits = arg
-            .strip_prefix("0x")
-            .or_else(|| arg.strip_prefix("0X"))
-            .unwrap_or(arg);
-        if (1..=2).contains(&digits.len()) && digits.chars().all(|c| c.is_ascii_hexdigit()) {
-            u8::from_str_radix(digits, 16).ok()
-        } else {
-            None
-        }
-    }
-    let Some((first, rest)) = args.split_first() else {
-        return args;
-    };
-    if rest.is_empty() {
-        return args;
-    }
-    let (prefix, first) = split_prefix(first);
-    let bytes: Option<Vec<u8>> = std::iter::once(first)
-        .chain(rest.iter().map(String::as_str))
-        .map(byte)
-        .collect();
-    match bytes {
-        Some(bytes) => {
-            let prefix = prefix.map_or(String::new(), |k| format!("{}:", k.name()));
-            vec![format!("{prefix}{}", to_hex(&bytes))]
-        }
-        None => args,
-    }
-}
-
-/// Parses an address given on the command line: decimal, or hex with `0x`.
-///
-/// # Errors
-/// Not a number, or not a valid address (0 or `0x08..=0x77`).
-pub fn parse_address(text: &str) -> Result<Address> {
-    let t = text.trim();
-    let n = match t.strip_prefix("0x").or_else(|| t.strip_prefix("0X")) {
-        Some(h) => u8::from_str_radix(h, 16),
-        None => t.parse::<u8>(),
-    }
-    .map_err(|_| CodecError::new(format!("`{text}` is not an address (0..=0x77)")))?;
-    Address::new(n).map_err(|e| CodecError::new(e.to_string()))
-}
-
-// ---------------------------------------------------------------------------------------------
-// The operation table
+// The operations, by name
 // ---------------------------------------------------------------------------------------------
 
 /// What byte 2 of an operation names.
@@ -219,160 +112,59 @@ enum PortUse {
 struct OpInfo {
     function: &'static str,
     operation: &'static str,
+    /// Byte 0.
     fn_op: u8,
     port: PortUse,
-    /// Keys of the operation's own fields.
+    /// Keys of the operation's own fields, in the order words print them.
     fields: &'static [&'static str],
     /// True when the MB reads a reply.
     reply: bool,
 }
 
-const fn op(
-    function: &'static str,
-    operation: &'static str,
-    fn_op: u8,
-    port: PortUse,
-    fields: &'static [&'static str],
-    reply: bool,
-) -> OpInfo {
-    OpInfo {
-        function,
-        operation,
-        fn_op,
-        port,
-        fields,
-        reply,
-    }
+macro_rules! ops {
+    ($($function:ident $operation:ident $fn_op:literal $port:ident
+       [$($field:ident)*] $reply:literal;)*) => {
+        &[$(OpInfo {
+            function: stringify!($function),
+            operation: stringify!($operation),
+            fn_op: $fn_op,
+            port: PortUse::$port,
+            fields: &[$(stringify!($field)),*],
+            reply: $reply,
+        }),*]
+    };
 }
 
-const EVENT_ENABLE_FIELDS: &[&str] = &["rising", "falling", "analog_window", "low", "high"];
-
 /// Every operation (docs/protocol.md, "Functions and operands").
-const OPS: &[OpInfo] = &[
-    op("system", "ping", 0x00, PortUse::Board, &[], true),
-    op("system", "identify", 0x01, PortUse::Board, &[], true),
-    op("system", "heartbeat", 0x02, PortUse::Board, &[], false),
-    op(
-        "system",
-        "set_failsafe",
-        0x03,
-        PortUse::Board,
-        &["timeout_ms"],
-        false,
-    ),
-    op(
-        "system",
-        "event_enable",
-        0x04,
-        PortUse::Pin,
-        EVENT_ENABLE_FIELDS,
-        false,
-    ),
-    op(
-        "system",
-        "read_diagnostics",
-        0x05,
-        PortUse::Board,
-        &[],
-        true,
-    ),
-    op(
-        "system",
-        "clear_diagnostics",
-        0x06,
-        PortUse::Board,
-        &[],
-        false,
-    ),
-    op("system", "set_pec", 0x07, PortUse::Board, &["on"], false),
-    op("io", "input", 0x10, PortUse::Pin, &[], true),
-    op("io", "low", 0x11, PortUse::Pin, &[], false),
-    op("io", "high", 0x12, PortUse::Pin, &[], false),
-    op(
-        "io",
-        "pulse_in_rising",
-        0x13,
-        PortUse::Pin,
-        &["timeout_ms"],
-        true,
-    ),
-    op(
-        "io",
-        "pulse_in_falling",
-        0x14,
-        PortUse::Pin,
-        &["timeout_ms"],
-        true,
-    ),
-    op("pwm", "duty", 0x20, PortUse::Pin, &["duty"], false),
-    op("pwm", "frequency", 0x21, PortUse::Port, &["hz"], false),
-    op("pwm", "pulse_width", 0x22, PortUse::Pin, &["us"], false),
-    op("analog", "read", 0x30, PortUse::Port, &[], true),
-    op("serial", "write", 0x40, PortUse::Port, &[], false),
-    op("serial", "read", 0x41, PortUse::Port, &["count"], true),
-    op("serial", "config", 0x42, PortUse::Port, &["baud"], false),
-    op("batch", "batch", 0x50, PortUse::Board, &["items"], true),
-    op("scan", "scan", 0x60, PortUse::Board, &[], true),
-];
+const OPS: &[OpInfo] = ops! {
+    system ping              0x00 Board []                  true;
+    system identify          0x01 Board []                  true;
+    system heartbeat         0x02 Board []                  false;
+    system set_failsafe      0x03 Board [timeout_ms]        false;
+    system event_enable      0x04 Pin   [rising falling analog_window low high] false;
+    system read_diagnostics  0x05 Board []                  true;
+    system clear_diagnostics 0x06 Board []                  false;
+    system set_pec           0x07 Board [on]                false;
+    io     input             0x10 Pin   []                  true;
+    io     low               0x11 Pin   []                  false;
+    io     high              0x12 Pin   []                  false;
+    io     pulse_in_rising   0x13 Pin   [timeout_ms]        true;
+    io     pulse_in_falling  0x14 Pin   [timeout_ms]        true;
+    pwm    duty              0x20 Pin   [duty]              false;
+    pwm    frequency         0x21 Port  [hz]                false;
+    pwm    pulse_width       0x22 Pin   [us]                false;
+    analog read              0x30 Port  []                  true;
+    serial write             0x40 Port  []                  false;
+    serial read              0x41 Port  [count]             true;
+    serial config            0x42 Port  [baud]              false;
+    batch  batch             0x50 Board [items]             true;
+    scan   scan              0x60 Board []                  true;
+};
 
 fn op_info(function: &str, operation: &str) -> Option<&'static OpInfo> {
     OPS.iter()
         .find(|o| o.function == function && o.operation == operation)
 }
-
-/// Keys every request (and batch item) may carry besides its operation's fields.
-const REQUEST_KEYS: &[&str] = &[
-    "kind",
-    "function",
-    "operation",
-    "db",
-    "port_kind",
-    "port",
-    "pin",
-    "seq",
-    "data",
-    "pec_addr",
-    "pec",
-];
-const ITEM_KEYS: &[&str] = &["function", "operation", "port_kind", "port", "pin", "data"];
-const REPLY_KEYS: &[&str] = &[
-    "kind",
-    "seq",
-    "status",
-    "payload",
-    "answers",
-    "level",
-    "value",
-    "identity",
-    "diagnostics",
-    "scan",
-    "results",
-    "pec_addr",
-    "pec",
-];
-const EVENT_KEYS: &[&str] = &[
-    "kind",
-    "source",
-    "event",
-    "port_kind",
-    "port",
-    "pin",
-    "seq",
-    "status",
-    "payload",
-    "level",
-    "value",
-    "inside",
-    "width_us",
-    "timeout_ms",
-    "dropped",
-    "identity",
-    "rising_edges",
-    "falling_edges",
-    "dropped_total",
-    "pec_addr",
-    "pec",
-];
 
 // ---------------------------------------------------------------------------------------------
 // What a reply answers
@@ -411,21 +203,6 @@ impl Answers {
         })
     }
 
-    /// What a reply to `op` answers, or `None` when `op` has no reply.
-    pub fn of(op: &Op<'_>) -> Option<Answers> {
-        if !op.expects_reply() {
-            return None;
-        }
-        let items = match op {
-            Op::Batch(b) => b.iter().map(|i| Some(full_name(&i))).collect(),
-            _ => Vec::new(),
-        };
-        Some(Answers {
-            name: full_name(op),
-            items,
-        })
-    }
-
     /// What a reply to the decoded request `request` answers (see [`decode`]).
     pub fn of_request(request: &Value) -> Option<Answers> {
         let o = request.as_object()?;
@@ -458,8 +235,200 @@ fn op_name_of(o: &Map<String, Value>) -> Option<String> {
     ))
 }
 
-fn full_name(op: &Op<'_>) -> String {
-    format!("{}.{}", op.function().name(), op.name())
+// ---------------------------------------------------------------------------------------------
+// The decoded values of payloads
+// ---------------------------------------------------------------------------------------------
+
+/// The decoded value of a reply payload (or of one batch result), by what it answers: keys
+/// `level` (io.input), `value` (analog.read), `identity`, `diagnostics`, `scan`, `results`
+/// (batch.batch: one object per item, `status`, `payload` and, for a known item, `answers`
+/// and the item's value).
+#[derive(Serialize, Deserialize, Default)]
+struct ReplyValue {
+    level: Option<u8>,
+    value: Option<u16>,
+    identity: Option<Identity>,
+    diagnostics: Option<Diagnostics>,
+    scan: Option<ScanResult>,
+    results: Option<Vec<Value>>,
+}
+
+/// The keys of one batch result besides its value.
+#[derive(Serialize, Deserialize)]
+struct BatchResult<'a> {
+    status: Option<Status>,
+    payload: Option<Vec<u8>>,
+    answers: Option<&'a str>,
+}
+
+impl ReplyValue {
+    /// The value of `payload` answering `name` (empty when the payload does not have the shape
+    /// of that answer); `items` names a batch's items.
+    fn of(name: &str, items: &[Option<String>], payload: &[u8]) -> ReplyValue {
+        let mut v = ReplyValue::default();
+        match (name, payload) {
+            ("io.input", &[level]) => v.level = Some(level),
+            ("analog.read", &[a, b]) => v.value = Some(u16::from_le_bytes([a, b])),
+            ("system.identify", p) => v.identity = Identity::parse(p).ok(),
+            ("system.read_diagnostics", p) => v.diagnostics = Diagnostics::parse(p).ok(),
+            ("scan.scan", p) => v.scan = ScanResult::parse(p).ok(),
+            ("batch.batch", p) => {
+                let results: std::result::Result<Vec<_>, _> = BatchResults::new(p).collect();
+                let result = |(i, r): (usize, &x10_microcode::BatchItem<'_>)| {
+                    let item = items.get(i).and_then(Option::as_deref);
+                    let mut o = present(BatchResult {
+                        status: Some(r.status),
+                        payload: Some(r.value.to_vec()),
+                        answers: item,
+                    });
+                    if let (Some(name), true) = (item, r.status.is_ok()) {
+                        o.extend(present(ReplyValue::of(name, &[], r.value)));
+                    }
+                    Value::Object(o)
+                };
+                v.results = results
+                    .ok()
+                    .map(|r| r.iter().enumerate().map(result).collect());
+            }
+            _ => {}
+        }
+        v
+    }
+
+    /// The payload these fields of `o` make for a reply answering `name` (empty without
+    /// them).
+    fn payload(&self, name: &str, o: Input<'_>) -> Result<Vec<u8>> {
+        let bytes = match name {
+            "io.input" => self.level.map(|level| vec![level]),
+            "analog.read" => self.value.map(|v| v.to_le_bytes().to_vec()),
+            "system.identify" => self.identity.map(|id| id.to_bytes().to_vec()),
+            "system.read_diagnostics" => self.diagnostics.map(|d| d.to_bytes().to_vec()),
+            "scan.scan" => match self.scan {
+                Some(scan) => {
+                    let mut buf = [0u8; ScanResult::MAX_LEN];
+                    let n = scan
+                        .emit(&mut buf)
+                        .map_err(|e| CodecError::new(format!("scan: {e}")))?;
+                    Some(buf.get(..n).unwrap_or(&[]).to_vec())
+                }
+                None => None,
+            },
+            "batch.batch" => match (&self.results, o.get("results")) {
+                (Some(_), Some(results)) => Some(batch_results(results)?),
+                _ => None,
+            },
+            _ => None,
+        };
+        Ok(bytes.unwrap_or_default())
+    }
+}
+
+/// The payload of a batch reply from its `results`.
+fn batch_results(results: Input<'_>) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    for i in 0.. {
+        let Some(r) = results.get(i) else { break };
+        if !r.given.is_object() {
+            return Err(CodecError::new(format!("`results[{i}]` must be an object")));
+        }
+        let head: BatchResult = r.parse()?;
+        let value = match (head.payload, head.answers) {
+            (Some(v), _) => v,
+            (None, Some(name)) => r.parse::<ReplyValue>()?.payload(name, r)?,
+            (None, None) => Vec::new(),
+        };
+        let len = u8::try_from(value.len())
+            .map_err(|_| CodecError::new(format!("results[{i}]: value too long")))?;
+        out.push(head.status.unwrap_or(Status::Ok).to_byte());
+        out.push(len);
+        out.extend_from_slice(&value);
+    }
+    Ok(out)
+}
+
+/// The decoded value of an event payload, by kind: `level` (and `rising_edges`,
+/// `falling_edges` from a 5-byte `pin_change`), `value` and `inside`, `width_us`,
+/// `timeout_ms`, `dropped` (and `dropped_total` from a 6-byte `overflow`), `identity`.
+#[derive(Serialize, Deserialize, Default)]
+struct EventValue {
+    level: Option<u8>,
+    rising_edges: Option<u16>,
+    falling_edges: Option<u16>,
+    value: Option<u16>,
+    inside: Option<bool>,
+    width_us: Option<u32>,
+    timeout_ms: Option<u16>,
+    dropped: Option<u16>,
+    dropped_total: Option<u32>,
+    identity: Option<Identity>,
+}
+
+impl EventValue {
+    /// The value of `payload` of an event of `kind` (empty when the payload does not have the
+    /// kind's shape).
+    fn of(kind: EventKind, payload: &[u8]) -> EventValue {
+        let le16 = |a, b| Some(u16::from_le_bytes([a, b]));
+        let mut v = EventValue::default();
+        match (kind, payload) {
+            (EventKind::PinChange, &[level]) => v.level = Some(level),
+            (EventKind::PinChange, &[level, r0, r1, f0, f1]) => {
+                v.level = Some(level);
+                v.rising_edges = le16(r0, r1);
+                v.falling_edges = le16(f0, f1);
+            }
+            (EventKind::AnalogThreshold, &[a, b, inside]) if inside <= 1 => {
+                v.value = le16(a, b);
+                v.inside = Some(inside == 1);
+            }
+            (EventKind::DeferredReply, &[a, b, c, d]) => {
+                v.width_us = Some(u32::from_le_bytes([a, b, c, d]));
+            }
+            (EventKind::FailsafeTripped, &[a, b]) => v.timeout_ms = le16(a, b),
+            (EventKind::Overflow, &[a, b]) => v.dropped = le16(a, b),
+            (EventKind::Overflow, &[a, b, c, d, e, f]) => {
+                v.dropped = le16(a, b);
+                v.dropped_total = Some(u32::from_le_bytes([c, d, e, f]));
+            }
+            (EventKind::Boot, p) => v.identity = Identity::parse(p).ok(),
+            _ => {}
+        }
+        v
+    }
+
+    /// The payload these fields make for an event of `kind` (empty without them).
+    fn payload(&self, kind: EventKind) -> Result<Vec<u8>> {
+        let what = kind.name();
+        let bytes = match kind {
+            EventKind::PinChange => match self.level {
+                Some(level) => {
+                    let mut p = vec![level];
+                    if self.rising_edges.is_some() || self.falling_edges.is_some() {
+                        p.extend(need(self.rising_edges, "rising_edges", what)?.to_le_bytes());
+                        p.extend(need(self.falling_edges, "falling_edges", what)?.to_le_bytes());
+                    }
+                    Some(p)
+                }
+                None => None,
+            },
+            EventKind::AnalogThreshold => self.value.map(|v| {
+                let mut p = v.to_le_bytes().to_vec();
+                p.push(u8::from(self.inside.unwrap_or(false)));
+                p
+            }),
+            EventKind::DeferredReply => self.width_us.map(|w| w.to_le_bytes().to_vec()),
+            EventKind::FailsafeTripped => self.timeout_ms.map(|t| t.to_le_bytes().to_vec()),
+            EventKind::Overflow => self.dropped.map(|d| {
+                let mut p = d.to_le_bytes().to_vec();
+                if let Some(total) = self.dropped_total {
+                    p.extend(total.to_le_bytes());
+                }
+                p
+            }),
+            EventKind::Boot => self.identity.map(|id| id.to_bytes().to_vec()),
+            EventKind::Rejected | EventKind::Unknown(_) => None,
+        };
+        Ok(bytes.unwrap_or_default())
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -488,508 +457,231 @@ impl DecodeOptions {
     }
 }
 
+/// `value` as a JSON object (every representation here serializes to one).
+fn object(value: impl Serialize) -> Map<String, Value> {
+    match serde_json::to_value(value) {
+        Ok(Value::Object(m)) => m,
+        _ => Map::new(),
+    }
+}
+
+/// The keys of `value` that have one (a decoded value names only what the payload holds).
+fn present(value: impl Serialize) -> Map<String, Value> {
+    let mut m = object(value);
+    m.retain(|_, v| !v.is_null());
+    m
+}
+
 /// Decodes one frame into its JSON object.
 ///
 /// # Errors
 /// The frame does not parse (the message names the error and the status a board would
 /// answer), or its PEC does not match.
 pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Value> {
+    let invalid = |e| CodecError::frame(opts.kind, e);
     let (frame, pec_byte) = match opts.pec {
         Some(addr) => {
             let read = opts.kind == FrameKind::Reply;
-            let frame = pec::strip(addr.addr_byte(read), bytes)
-                .map_err(|e| CodecError::frame(opts.kind, e))?;
+            let frame = pec::strip(addr.addr_byte(read), bytes).map_err(invalid)?;
             (frame, bytes.last().copied())
         }
         None => (bytes, None),
     };
-    let mut v = match opts.kind {
-        FrameKind::Request => {
-            let r = Request::parse(frame).map_err(|e| CodecError::frame(opts.kind, e))?;
-            request_value(&r)
-        }
+    let mut m = match opts.kind {
+        FrameKind::Request => object(Request::parse(frame).map_err(invalid)?),
         FrameKind::Reply => {
-            let r = Reply::parse(frame).map_err(|e| CodecError::frame(opts.kind, e))?;
-            reply_value(&r, opts.answers.as_ref())
+            let r = Reply::parse(frame).map_err(invalid)?;
+            let mut m = object(r);
+            if let Some(a) = &opts.answers {
+                m.insert("answers".into(), a.name.clone().into());
+                if r.status.is_ok() {
+                    m.extend(present(ReplyValue::of(&a.name, &a.items, r.payload)));
+                }
+            }
+            m
         }
         FrameKind::Event => {
-            let e = Event::parse(frame).map_err(|e| CodecError::frame(opts.kind, e))?;
-            event_value(&e)
+            let e = Event::parse(frame).map_err(invalid)?;
+            let mut m = object(e);
+            m.extend(present(EventValue::of(e.kind, e.payload)));
+            m
         }
     };
+    m.insert("kind".into(), opts.kind.name().into());
     if let (Some(addr), Some(p)) = (opts.pec, pec_byte) {
-        v.insert("pec_addr".into(), json!(addr.get()));
-        v.insert("pec".into(), json!(p));
+        m.insert("pec_addr".into(), addr.get().into());
+        m.insert("pec".into(), p.into());
     }
-    Ok(Value::Object(v))
-}
-
-fn port_keys(m: &mut Map<String, Value>, pin: Option<PinRef>) {
-    match pin {
-        Some(p) => {
-            let kind = match p.port.kind() {
-                PortKind::Sensor => "sensor",
-                PortKind::Actuator => "actuator",
-            };
-            let pin = match p.pin {
-                x10_microcode::Pin::A => "A",
-                x10_microcode::Pin::B => "B",
-            };
-            m.insert("port_kind".into(), json!(kind));
-            m.insert("port".into(), json!(p.port.number()));
-            m.insert("pin".into(), json!(pin));
-        }
-        None => {
-            for k in ["port_kind", "port", "pin"] {
-                m.insert(k.into(), Value::Null);
-            }
-        }
-    }
-}
-
-fn op_value(op: &Op<'_>) -> Map<String, Value> {
-    let mut m = Map::new();
-    m.insert("function".into(), json!(op.function().name()));
-    m.insert("operation".into(), json!(op.name()));
-    port_keys(&mut m, op.pin_ref());
-    let mut data = [0u8; MAX_REQUEST_DATA];
-    let n = op.emit_data(&mut data).unwrap_or(0);
-    m.insert("data".into(), json!(data.get(..n).unwrap_or(&[])));
-    match *op {
-        Op::SetFailsafe { timeout_ms } => {
-            m.insert("timeout_ms".into(), json!(timeout_ms));
-        }
-        Op::EventEnable(_, cfg) => {
-            m.insert("rising".into(), json!(cfg.rising));
-            m.insert("falling".into(), json!(cfg.falling));
-            m.insert("analog_window".into(), json!(cfg.analog_window));
-            m.insert("low".into(), json!(cfg.low));
-            m.insert("high".into(), json!(cfg.high));
-        }
-        Op::SetPec(on) => {
-            m.insert("on".into(), json!(on));
-        }
-        Op::PulseIn { timeout_ms, .. } => {
-            m.insert("timeout_ms".into(), json!(timeout_ms));
-        }
-        Op::PwmDuty(_, duty) => {
-            m.insert("duty".into(), json!(duty));
-        }
-        Op::PwmFrequency(_, hz) => {
-            m.insert("hz".into(), json!(hz));
-        }
-        Op::PwmPulseWidth(_, us) => {
-            m.insert("us".into(), json!(us));
-        }
-        Op::SerialRead(_, count) => {
-            m.insert("count".into(), json!(count));
-        }
-        Op::SerialConfig(_, baud) => {
-            m.insert("baud".into(), json!(baud));
-        }
-        Op::Batch(b) => {
-            let items: Vec<Value> = b.iter().map(|i| Value::Object(op_value(&i))).collect();
-            m.insert("items".into(), Value::Array(items));
-        }
-        Op::Ping
-        | Op::Identify
-        | Op::Heartbeat
-        | Op::ReadDiagnostics
-        | Op::ClearDiagnostics
-        | Op::DigitalRead(_)
-        | Op::DigitalWrite(..)
-        | Op::AnalogRead(_)
-        | Op::SerialWrite(..)
-        | Op::Scan => {}
-    }
-    m
-}
-
-fn request_value(r: &Request<'_>) -> Map<String, Value> {
-    let mut m = Map::new();
-    m.insert("kind".into(), json!("request"));
-    m.insert("db".into(), json!(r.db.get()));
-    m.insert("seq".into(), json!(r.seq));
-    m.extend(op_value(&r.op));
-    m
-}
-
-fn status_value(s: Status) -> Value {
-    match s {
-        Status::Unknown(x) => json!(x),
-        s => json!(s.name()),
-    }
-}
-
-fn identity_value(id: &Identity) -> Value {
-    let board = match id.board.name() {
-        "unknown" if id.board != BoardKind::UNKNOWN => json!(id.board.0),
-        name => json!(name),
-    };
-    json!({
-        "protocol_version": id.protocol_version,
-        "firmware": id.firmware,
-        "board": board,
-        "sensor_ports": id.sensor_ports,
-        "actuator_ports": id.actuator_ports,
-        "capabilities": id.capabilities.0,
-        "adc_bits": id.adc_bits,
-    })
-}
-
-fn diagnostics_value(d: &Diagnostics) -> Value {
-    let m: Map<String, Value> = DIAGNOSTIC_NAMES
-        .iter()
-        .zip(d.values())
-        .map(|(k, v)| ((*k).to_string(), json!(v)))
-        .collect();
-    Value::Object(m)
-}
-
-fn scan_value(s: &ScanResult) -> Value {
-    let analog = s.analog.get(..s.ports as usize).unwrap_or(&[]);
-    json!({"ports": s.ports, "digital": s.digital, "analog": analog})
-}
-
-/// The decoded value of a reply payload that answers `name` (empty when the payload does not
-/// have the shape that answer has).
-fn interpret(name: &str, items: &[Option<String>], payload: &[u8]) -> Map<String, Value> {
-    let mut m = Map::new();
-    match name {
-        "io.input" => {
-            if let [level] = *payload {
-                m.insert("level".into(), json!(level));
-            }
-        }
-        "analog.read" => {
-            if let [a, b] = *payload {
-                m.insert("value".into(), json!(u16::from_le_bytes([a, b])));
-            }
-        }
-        "system.identify" => {
-            if let Ok(id) = Identity::parse(payload) {
-                m.insert("identity".into(), identity_value(&id));
-            }
-        }
-        "system.read_diagnostics" => {
-            if let Ok(d) = Diagnostics::parse(payload) {
-                m.insert("diagnostics".into(), diagnostics_value(&d));
-            }
-        }
-        "scan.scan" => {
-            if let Ok(s) = ScanResult::parse(payload) {
-                m.insert("scan".into(), scan_value(&s));
-            }
-        }
-        "batch.batch" => {
-            let results: std::result::Result<Vec<_>, _> = BatchResults::new(payload).collect();
-            if let Ok(results) = results {
-                let list = results
-                    .iter()
-                    .enumerate()
-                    .map(|(i, r)| {
-                        let mut o = Map::new();
-                        o.insert("status".into(), status_value(r.status));
-                        o.insert("payload".into(), json!(r.value));
-                        if let Some(Some(item)) = items.get(i) {
-                            o.insert("answers".into(), json!(item));
-                            if r.status.is_ok() {
-                                o.extend(interpret(item, &[], r.value));
-                            }
-                        }
-                        Value::Object(o)
-                    })
-                    .collect();
-                m.insert("results".into(), Value::Array(list));
-            }
-        }
-        _ => {}
-    }
-    m
-}
-
-fn reply_value(r: &Reply<'_>, answers: Option<&Answers>) -> Map<String, Value> {
-    let mut m = Map::new();
-    m.insert("kind".into(), json!("reply"));
-    m.insert("seq".into(), json!(r.seq));
-    m.insert("status".into(), status_value(r.status));
-    m.insert("payload".into(), json!(r.payload));
-    if let Some(a) = answers {
-        m.insert("answers".into(), json!(a.name));
-        if r.status.is_ok() {
-            m.extend(interpret(&a.name, &a.items, r.payload));
-        }
-    }
-    m
-}
-
-/// Event kinds that concern the whole board: byte 2 is 0 and the JSON port keys are null.
-fn board_event(kind: EventKind) -> bool {
-    matches!(
-        kind,
-        EventKind::FailsafeTripped | EventKind::Overflow | EventKind::Boot
-    )
-}
-
-fn event_value(e: &Event<'_>) -> Map<String, Value> {
-    let mut m = Map::new();
-    m.insert("kind".into(), json!("event"));
-    m.insert("source".into(), json!(e.source.get()));
-    let kind = match e.kind {
-        EventKind::Unknown(x) => json!(x),
-        k => json!(k.name()),
-    };
-    m.insert("event".into(), kind);
-    let pin = if board_event(e.kind) && e.pin.to_byte() == 0 {
-        None
-    } else {
-        Some(e.pin)
-    };
-    port_keys(&mut m, pin);
-    m.insert("seq".into(), json!(e.seq));
-    m.insert("status".into(), status_value(e.status));
-    m.insert("payload".into(), json!(e.payload));
-    let p = e.payload;
-    match (e.kind, p) {
-        (EventKind::PinChange, &[level]) => {
-            m.insert("level".into(), json!(level));
-        }
-        (EventKind::PinChange, &[level, r0, r1, f0, f1]) => {
-            m.insert("level".into(), json!(level));
-            m.insert("rising_edges".into(), json!(u16::from_le_bytes([r0, r1])));
-            m.insert("falling_edges".into(), json!(u16::from_le_bytes([f0, f1])));
-        }
-        (EventKind::AnalogThreshold, &[a, b, inside]) if inside <= 1 => {
-            m.insert("value".into(), json!(u16::from_le_bytes([a, b])));
-            m.insert("inside".into(), json!(inside == 1));
-        }
-        (EventKind::DeferredReply, &[a, b, c, d]) => {
-            m.insert("width_us".into(), json!(u32::from_le_bytes([a, b, c, d])));
-        }
-        (EventKind::FailsafeTripped, &[a, b]) => {
-            m.insert("timeout_ms".into(), json!(u16::from_le_bytes([a, b])));
-        }
-        (EventKind::Overflow, &[a, b]) => {
-            m.insert("dropped".into(), json!(u16::from_le_bytes([a, b])));
-        }
-        (EventKind::Overflow, &[a, b, c, d, e, f]) => {
-            m.insert("dropped".into(), json!(u16::from_le_bytes([a, b])));
-            m.insert(
-                "dropped_total".into(),
-                json!(u32::from_le_bytes([c, d, e, f])),
-            );
-        }
-        (EventKind::Boot, p) => {
-            if let Ok(id) = Identity::parse(p) {
-                m.insert("identity".into(), identity_value(&id));
-            }
-        }
-        _ => {}
-    }
-    m
+    Ok(Value::Object(m))
 }
 
 // ---------------------------------------------------------------------------------------------
 // Encoding
 // ---------------------------------------------------------------------------------------------
 
-/// Reads an integer: a JSON number, or a string `0x…` in hex.
-fn int_of(v: &Value) -> Option<u64> {
-    match v {
-        Value::Number(n) => n.as_u64(),
-        Value::String(s) => {
-            let h = s.strip_prefix("0x").or_else(|| s.strip_prefix("0X"))?;
-            u64::from_str_radix(h, 16).ok()
-        }
-        _ => None,
-    }
+/// The keys of a representation: its fields.
+fn keys_of<T: Serialize + Default>() -> Vec<String> {
+    object(T::default()).keys().cloned().collect()
 }
 
-fn int_in(v: &Value, key: &str, max: u64) -> Result<u64> {
-    int_of(v)
-        .filter(|n| *n <= max)
-        .ok_or_else(|| CodecError::new(format!("`{key}` must be an integer 0..={max}, got {v}")))
-}
-
-fn get_int(o: &Map<String, Value>, key: &str, max: u64) -> Result<Option<u64>> {
-    match o.get(key) {
-        None | Some(Value::Null) => Ok(None),
-        Some(v) => int_in(v, key, max).map(Some),
-    }
-}
-
-fn need_int(o: &Map<String, Value>, key: &str, max: u64, what: &str) -> Result<u64> {
-    get_int(o, key, max)?.ok_or_else(|| CodecError::new(format!("`{key}` is required for {what}")))
-}
-
-fn u8_of(n: u64) -> u8 {
-    u8::try_from(n).unwrap_or(u8::MAX)
-}
-
-fn get_bool(o: &Map<String, Value>, key: &str) -> Result<Option<bool>> {
-    match o.get(key) {
-        None | Some(Value::Null) => Ok(None),
-        Some(Value::Bool(b)) => Ok(Some(*b)),
-        Some(v) => Err(CodecError::new(format!(
-            "`{key}` must be true or false, got {v}"
-        ))),
-    }
-}
-
-fn get_str<'v>(o: &'v Map<String, Value>, key: &str) -> Result<Option<&'v str>> {
-    match o.get(key) {
-        None | Some(Value::Null) => Ok(None),
-        Some(Value::String(s)) => Ok(Some(s)),
-        Some(v) => Err(CodecError::new(format!(
-            "`{key}` must be a string, got {v}"
-        ))),
-    }
-}
-
-fn get_bytes(o: &Map<String, Value>, key: &str) -> Result<Option<Vec<u8>>> {
-    match o.get(key) {
-        None | Some(Value::Null) => Ok(None),
-        Some(Value::Array(a)) => {
-            a.iter()
-                .map(|v| {
-                    int_of(v).filter(|n| *n <= 255).map(u8_of).ok_or_else(|| {
-                        CodecError::new(format!("`{key}` holds bytes 0..=255, got {v}"))
-                    })
-                })
-                .collect::<Result<Vec<u8>>>()
-                .map(Some)
-        }
-        Some(v) => Err(CodecError::new(format!(
-            "`{key}` must be an array of bytes, got {v}"
-        ))),
-    }
-}
-
-fn check_keys(o: &Map<String, Value>, allowed: &[&str], extra: &[&str], what: &str) -> Result<()> {
-    match o
-        .keys()
-        .find(|k| !allowed.contains(&k.as_str()) && !extra.contains(&k.as_str()))
-    {
+/// Refuses a key of `o` that none of `keys` names: "unknown key `colour` for io high".
+fn check_keys(o: &Value, keys: &[Vec<String>], what: &str) -> Result<()> {
+    let known = |k: &String| keys.iter().flatten().any(|known| known == k);
+    match o.as_object().and_then(|o| o.keys().find(|k| !known(k))) {
         Some(k) => Err(CodecError::new(format!("unknown key `{k}` for {what}"))),
         None => Ok(()),
     }
 }
 
-/// Byte 2 from `port_kind`, `port`, `pin`.
-fn port_byte(o: &Map<String, Value>, info: &OpInfo, what: &str) -> Result<u8> {
-    let kind = get_str(o, "port_kind")?;
-    let number = get_int(o, "port", 255)?;
-    let pin = get_str(o, "pin")?;
-    if info.port == PortUse::Board {
-        if kind.is_some() || number.is_some() || pin.is_some() {
-            return Err(CodecError::new(format!(
-                "{what} is addressed to the whole board: `port_kind`, `port` and `pin` must be null or absent"
-            )));
+/// Refuses unknown keys inside the decoded values `identity`, `diagnostics` and `scan` of
+/// `o`, before the payload is made from them.
+fn check_value_keys(o: &Value) -> Result<()> {
+    let values = [
+        ("identity", keys_of::<Identity>()),
+        ("diagnostics", keys_of::<Diagnostics>()),
+        ("scan", keys_of::<ScanResult>()),
+    ];
+    for (key, keys) in values {
+        if let Some(v) = o.get(key) {
+            check_keys(v, &[keys], key)?;
         }
-        return Ok(0);
     }
-    let kind = match kind {
-        Some("sensor") => PortKind::Sensor,
-        Some("actuator") => PortKind::Actuator,
-        Some(k) => {
-            return Err(CodecError::new(format!(
-                "`port_kind` must be \"sensor\" or \"actuator\", got \"{k}\""
-            )))
-        }
-        None => {
-            return Err(CodecError::new(format!(
-                "`port_kind` is required for {what}"
-            )))
-        }
-    };
-    let number = number.ok_or_else(|| CodecError::new(format!("`port` is required for {what}")))?;
-    let port = x10_microcode::Port::new(kind, u8_of(number))
-        .map_err(|_| CodecError::new(format!("`port` must be 1..=64, got {number}")))?;
-    let pin = match pin {
-        None | Some("A") => x10_microcode::Pin::A,
-        Some("B") => x10_microcode::Pin::B,
-        Some(p) => {
-            return Err(CodecError::new(format!(
-                "`pin` must be \"A\" or \"B\", got \"{p}\""
-            )))
-        }
-    };
-    Ok(port.pin(pin).to_byte())
+    Ok(())
 }
 
-/// Data bytes of an operation from its own fields, when `data` is not given.
-fn data_from_fields(o: &Map<String, Value>, info: &OpInfo, what: &str) -> Result<Vec<u8>> {
-    let le16 = |key: &str| -> Result<Vec<u8>> {
-        let v = need_int(o, key, u16::MAX.into(), what)?;
-        Ok(u16::try_from(v).unwrap_or(0).to_le_bytes().to_vec())
-    };
-    Ok(match (info.function, info.operation) {
-        ("system", "set_failsafe") => le16("timeout_ms")?,
-        ("system", "event_enable") => {
-            let cfg = EventConfig {
-                rising: get_bool(o, "rising")?.unwrap_or(false),
-                falling: get_bool(o, "falling")?.unwrap_or(false),
-                analog_window: get_bool(o, "analog_window")?.unwrap_or(false),
-                low: u16::try_from(get_int(o, "low", u16::MAX.into())?.unwrap_or(0)).unwrap_or(0),
-                high: u16::try_from(get_int(o, "high", u16::MAX.into())?.unwrap_or(0)).unwrap_or(0),
-            };
-            cfg.to_bytes().to_vec()
+/// The port keys of a request, batch item or event.
+#[derive(Serialize, Deserialize, Default)]
+struct PortJson {
+    port_kind: Option<PortKind>,
+    port: Option<u8>,
+    pin: Option<Pin>,
+}
+
+impl PortJson {
+    /// The pin the port keys of `o` name for an operation (or event) `what` that names
+    /// `port`.
+    fn pin_ref(o: Input<'_>, port: PortUse, what: &str) -> Result<Option<PinRef>> {
+        if port == PortUse::Board {
+            let keys = keys_of::<PortJson>();
+            if keys
+                .iter()
+                .any(|k| o.ints.get(k).is_some_and(|v| !v.is_null()))
+            {
+                return Err(CodecError::new(format!(
+                    "{what} is addressed to the whole board: `port_kind`, `port` and `pin` must be null or absent"
+                )));
+            }
+            return Ok(None);
         }
-        ("system", "set_pec") => {
-            let on = get_bool(o, "on")?
-                .ok_or_else(|| CodecError::new(format!("`on` is required for {what}")))?;
-            vec![u8::from(on)]
-        }
-        ("io", "pulse_in_rising" | "pulse_in_falling") => match get_int(o, "timeout_ms", 0xffff)? {
-            None => Vec::new(),
-            Some(v) => u16::try_from(v).unwrap_or(0).to_le_bytes().to_vec(),
+        let p: PortJson = o.parse()?;
+        let kind = need(p.port_kind, "port_kind", what)?;
+        let number = need(p.port, "port", what)?;
+        let port = Port::new(kind, number)
+            .map_err(|_| CodecError::new(format!("`port` must be 1..=64, got {number}")))?;
+        Ok(Some(port.pin(p.pin.unwrap_or(Pin::A))))
+    }
+}
+
+/// The keys every request and batch item has besides its port: `data` may be left out, and
+/// is then made from the operation's fields ([`OpFields`]).
+#[derive(Serialize, Deserialize, Default)]
+struct OpHead {
+    function: Option<String>,
+    operation: Option<String>,
+    data: Option<Vec<u8>>,
+}
+
+/// The operations' own fields (each operation has those [`OPS`] names).
+#[derive(Deserialize)]
+struct OpFields {
+    timeout_ms: Option<u16>,
+    on: Option<bool>,
+    duty: Option<u8>,
+    hz: Option<u16>,
+    us: Option<u16>,
+    count: Option<u8>,
+    baud: Option<u32>,
+    items: Option<Vec<Value>>,
+}
+
+/// The data bytes of operation `info` on `pin` from its fields in `o`, when `data` is not
+/// given.
+fn data_from_fields(o: Input<'_>, info: &OpInfo, pin: Option<PinRef>) -> Result<Vec<u8>> {
+    let what = format!("{} {}", info.function, info.operation);
+    let f: OpFields = o.parse()?;
+    // Operations on the whole board have no pin, and none of them reads one.
+    let pin = pin.unwrap_or(PinRef::from_byte(0));
+    let op = match (info.function, info.operation) {
+        ("system", "set_failsafe") => Op::SetFailsafe {
+            timeout_ms: need(f.timeout_ms, "timeout_ms", &what)?,
         },
-        ("pwm", "duty") => vec![u8_of(need_int(o, "duty", 255, what)?)],
-        ("pwm", "frequency") => le16("hz")?,
-        ("pwm", "pulse_width") => le16("us")?,
+        ("system", "event_enable") => Op::EventEnable(pin, o.parse::<EventConfig>()?),
+        ("system", "set_pec") => Op::SetPec(need(f.on, "on", &what)?),
+        ("io", "pulse_in_rising" | "pulse_in_falling") => Op::PulseIn {
+            pin,
+            edge: if info.operation == "pulse_in_rising" {
+                Edge::Rising
+            } else {
+                Edge::Falling
+            },
+            timeout_ms: f.timeout_ms,
+        },
+        ("pwm", "duty") => Op::PwmDuty(pin, need(f.duty, "duty", &what)?),
+        ("pwm", "frequency") => Op::PwmFrequency(pin.port, need(f.hz, "hz", &what)?),
+        ("pwm", "pulse_width") => Op::PwmPulseWidth(pin, need(f.us, "us", &what)?),
         ("serial", "write") => {
             return Err(CodecError::new(format!(
                 "`data` (the bytes to send) is required for {what}"
             )))
         }
-        ("serial", "read") => vec![u8_of(need_int(o, "count", 255, what)?)],
-        ("serial", "config") => {
-            let v = need_int(o, "baud", u32::MAX.into(), what)?;
-            u32::try_from(v).unwrap_or(0).to_le_bytes().to_vec()
-        }
+        ("serial", "read") => Op::SerialRead(pin.port, need(f.count, "count", &what)?),
+        ("serial", "config") => Op::SerialConfig(pin.port, need(f.baud, "baud", &what)?),
         ("batch", "batch") => {
-            let items = match o.get("items") {
-                Some(Value::Array(items)) => items,
-                _ => {
-                    return Err(CodecError::new(
-                        "`items` (an array of operations) is required for batch",
-                    ))
-                }
-            };
-            let mut out = Vec::new();
-            for (i, item) in items.iter().enumerate() {
-                let io = item
-                    .as_object()
-                    .ok_or_else(|| CodecError::new(format!("`items[{i}]` must be an object")))?;
-                let (fn_op, port, data) =
-                    op_bytes(io, true).map_err(|e| CodecError::new(format!("items[{i}]: {e}")))?;
-                let len = u8::try_from(data.len())
-                    .map_err(|_| CodecError::new(format!("items[{i}]: data too long")))?;
-                out.extend_from_slice(&[fn_op, port, len]);
-                out.extend_from_slice(&data);
-            }
-            out
+            let items = f.items.and(o.get("items")).ok_or_else(|| {
+                CodecError::new("`items` (an array of operations) is required for batch")
+            })?;
+            return batch_data(items);
         }
-        _ => Vec::new(),
-    })
+        // The others carry no data.
+        _ => return Ok(Vec::new()),
+    };
+    let mut data = [0u8; MAX_REQUEST_DATA];
+    let n = op
+        .emit_data(&mut data)
+        .map_err(|e| CodecError::new(format!("{what}: {e}")))?;
+    Ok(data.get(..n).unwrap_or(&[]).to_vec())
 }
 
-/// Bytes 0 and 2 and the data of a request or batch item object.
-fn op_bytes(o: &Map<String, Value>, item: bool) -> Result<(u8, u8, Vec<u8>)> {
-    let function =
-        get_str(o, "function")?.ok_or_else(|| CodecError::new("`function` is required"))?;
-    let operation =
-        get_str(o, "operation")?.ok_or_else(|| CodecError::new("`operation` is required"))?;
+/// The data of a batch: its items, each `fn_op, port, len, data`.
+fn batch_data(items: Input<'_>) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    for i in 0.. {
+        let Some(item) = items.get(i) else { break };
+        if !item.given.is_object() {
+            return Err(CodecError::new(format!("`items[{i}]` must be an object")));
+        }
+        let (fn_op, port, data) =
+            op_bytes(item, &[]).map_err(|e| CodecError::new(format!("items[{i}]: {e}")))?;
+        let len = u8::try_from(data.len())
+            .map_err(|_| CodecError::new(format!("items[{i}]: data too long")))?;
+        out.extend_from_slice(&[fn_op, port, len]);
+        out.extend_from_slice(&data);
+    }
+    Ok(out)
+}
+
+/// Bytes 0 and 2 and the data of a request or batch item object, which may also have the keys
+/// `more` names.
+fn op_bytes(o: Input<'_>, more: &[Vec<String>]) -> Result<(u8, u8, Vec<u8>)> {
+    let head: OpHead = o.parse()?;
+    let function = head
+        .function
+        .as_deref()
+        .ok_or_else(|| CodecError::new("`function` is required"))?;
+    let operation = head
+        .operation
+        .as_deref()
+        .ok_or_else(|| CodecError::new("`operation` is required"))?;
     let info = op_info(function, operation).ok_or_else(|| {
         let known: Vec<&str> = OPS
             .iter()
@@ -1006,17 +698,174 @@ fn op_bytes(o: &Map<String, Value>, item: bool) -> Result<(u8, u8, Vec<u8>)> {
         }
     })?;
     let what = format!("{function} {operation}");
-    let base = if item { ITEM_KEYS } else { REQUEST_KEYS };
-    check_keys(o, base, info.fields, &what)?;
-    let port = port_byte(o, info, &what)?;
-    let data = match get_bytes(o, "data")? {
+    let fields = info.fields.iter().map(|f| (*f).to_string()).collect();
+    let keys = [keys_of::<OpHead>(), keys_of::<PortJson>(), fields];
+    check_keys(o.ints, &[&keys[..], more].concat(), &what)?;
+    let pin = PortJson::pin_ref(o, info.port, &what)?;
+    let data = match head.data {
         Some(d) => d,
-        None => data_from_fields(o, info, &what)?,
+        None => data_from_fields(o, info, pin)?,
     };
-    Ok((info.fn_op, port, data))
+    Ok((info.fn_op, pin.map_or(0, PinRef::to_byte), data))
 }
 
-/// True when every key of `given` is in `decoded` with the same value (numbers compared as
+/// The keys a frame of any kind may have besides its own.
+fn frame_keys() -> Vec<Vec<String>> {
+    vec![vec!["kind".to_string()], keys_of::<PecJson>()]
+}
+
+#[derive(Serialize, Deserialize, Default)]
+struct RequestJson {
+    db: Option<u8>,
+    seq: Option<u8>,
+}
+
+fn encode_request(o: Input<'_>) -> Result<Vec<u8>> {
+    let more = [frame_keys(), vec![keys_of::<RequestJson>()]].concat();
+    let (fn_op, port, data) = op_bytes(o, &more)?;
+    let j: RequestJson = o.parse()?;
+    let db = need(j.db, "db", "a request")?;
+    let seq = need(j.seq, "seq", "a request")?;
+    let mut bytes = vec![fn_op, db, port, seq];
+    bytes.extend_from_slice(&data);
+    Request::parse(&bytes).map_err(|e| CodecError::frame(FrameKind::Request, e))?;
+    finish(o, FrameKind::Request, bytes, None)
+}
+
+#[derive(Serialize, Deserialize, Default)]
+struct ReplyJson {
+    seq: Option<u8>,
+    status: Option<Status>,
+    payload: Option<Vec<u8>>,
+    answers: Option<String>,
+}
+
+fn encode_reply(o: Input<'_>) -> Result<Vec<u8>> {
+    let keys = [keys_of::<ReplyJson>(), keys_of::<ReplyValue>()];
+    check_keys(o.ints, &[&frame_keys()[..], &keys].concat(), "a reply")?;
+    let j: ReplyJson = o.parse()?;
+    let seq = need(j.seq, "seq", "a reply")?;
+    let answers = match &j.answers {
+        Some(name) => {
+            let mut a = Answers::parse(name)?;
+            if let Some(Value::Array(results)) = o.ints.get("results") {
+                a.items = results
+                    .iter()
+                    .map(|r| r.get("answers")?.as_str().map(str::to_string))
+                    .collect();
+            }
+            Some(a)
+        }
+        None => None,
+    };
+    let payload = match (j.payload, &answers) {
+        (Some(p), _) => p,
+        (None, Some(a)) => {
+            check_value_keys(o.ints)?;
+            o.parse::<ReplyValue>()?.payload(&a.name, o)?
+        }
+        (None, None) => Vec::new(),
+    };
+    let r = Reply {
+        seq,
+        status: j.status.unwrap_or(Status::Ok),
+        payload: &payload,
+    };
+    let bytes = emitted(FrameKind::Reply, |buf| r.emit(buf))?;
+    finish(o, FrameKind::Reply, bytes, answers)
+}
+
+#[derive(Serialize, Deserialize, Default)]
+struct EventJson {
+    source: Option<Address>,
+    event: Option<EventKind>,
+    seq: Option<u8>,
+    status: Option<Status>,
+    payload: Option<Vec<u8>>,
+}
+
+fn encode_event(o: Input<'_>) -> Result<Vec<u8>> {
+    let keys = [
+        keys_of::<EventJson>(),
+        keys_of::<PortJson>(),
+        keys_of::<EventValue>(),
+    ];
+    check_keys(o.ints, &[&frame_keys()[..], &keys].concat(), "an event")?;
+    let j: EventJson = o.parse()?;
+    let source = need(j.source, "source", "an event")?;
+    let kind = need(j.event, "event", "an event")?;
+    // Events name a pin like a request does, or nothing (byte 2 = 0).
+    let port: PortJson = o.parse()?;
+    let given = port.port_kind.is_some() || port.port.is_some() || port.pin.is_some();
+    let port_use = if given { PortUse::Pin } else { PortUse::Board };
+    let pin = PortJson::pin_ref(o, port_use, "an event")?;
+    let seq = need(j.seq, "seq", "an event")?;
+    let payload = match j.payload {
+        Some(p) => p,
+        None => {
+            check_value_keys(o.ints)?;
+            o.parse::<EventValue>()?.payload(kind)?
+        }
+    };
+    let e = Event {
+        source,
+        kind,
+        pin: pin.unwrap_or(PinRef::from_byte(0)),
+        seq,
+        status: j.status.unwrap_or(Status::Ok),
+        payload: &payload,
+    };
+    let bytes = emitted(FrameKind::Event, |buf| e.emit(buf))?;
+    finish(o, FrameKind::Event, bytes, None)
+}
+
+/// The bytes a frame's `emit` writes.
+fn emitted(
+    kind: FrameKind,
+    emit: impl FnOnce(&mut [u8]) -> x10_microcode::Result<usize>,
+) -> Result<Vec<u8>> {
+    let mut buf = [0u8; MAX_FRAME_LEN + 256];
+    let n = emit(&mut buf).map_err(|e| CodecError::frame(kind, e))?;
+    Ok(buf.get(..n).unwrap_or(&[]).to_vec())
+}
+
+/// `pec_addr`, the address the PEC covers, and `pec`, the PEC byte (checked against the
+/// frame).
+#[derive(Serialize, Deserialize, Default)]
+struct PecJson {
+    pec_addr: Option<Address>,
+    pec: Option<Value>,
+}
+
+/// Appends the PEC when `pec_addr` is given, then decodes what was built and checks every
+/// key `given` against it: this catches keys that contradict `data` or `payload` and
+/// misplaced keys, and proves the inverse.
+fn finish(
+    o: Input<'_>,
+    kind: FrameKind,
+    mut bytes: Vec<u8>,
+    answers: Option<Answers>,
+) -> Result<Vec<u8>> {
+    let mut opts = DecodeOptions::new(kind);
+    opts.answers = answers;
+    let p: PecJson = o.parse()?;
+    if let Some(addr) = p.pec_addr {
+        let read = kind == FrameKind::Reply;
+        bytes.push(pec::compute(addr.addr_byte(read), &bytes));
+        opts.pec = Some(addr);
+    } else if p.pec.is_some() {
+        return Err(CodecError::new(
+            "`pec` needs `pec_addr` (the address it covers)",
+        ));
+    }
+    let decoded = decode(&bytes, &opts)?;
+    match mismatch(o.given, &decoded, "") {
+        Some(m) => Err(CodecError::new(m)),
+        None => Ok(bytes),
+    }
+}
+
+/// `None` when every key of `given` is in `decoded` with the same value (numbers compared as
 /// integers, so `"0x09"` equals `9`); otherwise the path and both values.
 fn mismatch(given: &Value, decoded: &Value, path: &str) -> Option<String> {
     match (given, decoded) {
@@ -1045,326 +894,13 @@ fn mismatch(given: &Value, decoded: &Value, path: &str) -> Option<String> {
                 .find_map(|(i, (gv, dv))| mismatch(gv, dv, &format!("{path}[{i}]")))
         }
         (g, d) if g == d => None,
-        (g, Value::Number(n)) if int_of(g).is_some() && int_of(g) == n.as_u64() => None,
+        (Value::String(g), Value::Number(n))
+            if hex_integer(g).is_some_and(|g| Some(g) == n.as_u64()) =>
+        {
+            None
+        }
         (g, d) => Some(format!("`{path}` is {g} but the frame says {d}")),
     }
-}
-
-/// Appends the PEC when `pec_addr` is given, and checks a given `pec`.
-fn finish(
-    o: &Map<String, Value>,
-    kind: FrameKind,
-    mut bytes: Vec<u8>,
-    answers: Option<Answers>,
-) -> Result<Vec<u8>> {
-    let mut opts = DecodeOptions::new(kind);
-    opts.answers = answers;
-    if let Some(addr) = get_int(o, "pec_addr", 255)? {
-        let addr = Address::new(u8_of(addr)).map_err(|e| CodecError::new(e.to_string()))?;
-        let read = kind == FrameKind::Reply;
-        bytes.push(pec::compute(addr.addr_byte(read), &bytes));
-        opts.pec = Some(addr);
-    } else if o.get("pec").is_some_and(|v| !v.is_null()) {
-        return Err(CodecError::new(
-            "`pec` needs `pec_addr` (the address it covers)",
-        ));
-    }
-    // Decode what was built and check every given key against it: this catches keys that
-    // contradict `data`/`payload` and misplaced keys, and proves the inverse.
-    let decoded = decode(&bytes, &opts)?;
-    if let Some(m) = mismatch(&Value::Object(o.clone()), &decoded, "") {
-        return Err(CodecError::new(m));
-    }
-    Ok(bytes)
-}
-
-fn encode_request(o: &Map<String, Value>) -> Result<Vec<u8>> {
-    let (fn_op, port, data) = op_bytes(o, false)?;
-    let db = u8_of(need_int(o, "db", 255, "a request")?);
-    let seq = u8_of(need_int(o, "seq", 255, "a request")?);
-    let mut bytes = vec![fn_op, db, port, seq];
-    bytes.extend_from_slice(&data);
-    Request::parse(&bytes).map_err(|e| CodecError::frame(FrameKind::Request, e))?;
-    finish(o, FrameKind::Request, bytes, None)
-}
-
-fn status_of(o: &Map<String, Value>) -> Result<Status> {
-    match o.get("status") {
-        None | Some(Value::Null) => Ok(Status::Ok),
-        Some(Value::String(s)) => match int_of(&Value::String(s.clone())) {
-            Some(n) => Ok(Status::from_byte(u8_of(n.min(255)))),
-            None => {
-                Status::from_name(s).ok_or_else(|| CodecError::new(format!("unknown status `{s}`")))
-            }
-        },
-        Some(v) => int_in(v, "status", 255).map(|n| Status::from_byte(u8_of(n))),
-    }
-}
-
-/// Payload of a reply from its decoded value, when `payload` is not given.
-fn payload_from_fields(o: &Map<String, Value>, answers: &str, what: &str) -> Result<Vec<u8>> {
-    let obj = |key: &str| -> Result<&Map<String, Value>> {
-        o.get(key)
-            .and_then(Value::as_object)
-            .ok_or_else(|| CodecError::new(format!("`{key}` must be an object")))
-    };
-    Ok(match answers {
-        "io.input" if o.contains_key("level") => vec![u8_of(need_int(o, "level", 255, what)?)],
-        "analog.read" if o.contains_key("value") => {
-            let v = need_int(o, "value", u16::MAX.into(), what)?;
-            u16::try_from(v).unwrap_or(0).to_le_bytes().to_vec()
-        }
-        "system.identify" if o.contains_key("identity") => identity_bytes(obj("identity")?)?,
-        "system.read_diagnostics" if o.contains_key("diagnostics") => {
-            let d = obj("diagnostics")?;
-            check_keys(d, DIAGNOSTIC_NAMES, &[], "diagnostics")?;
-            let mut values = [0u16; DIAGNOSTIC_NAMES.len()];
-            for (slot, name) in values.iter_mut().zip(DIAGNOSTIC_NAMES) {
-                let v = get_int(d, name, u16::MAX.into())?.unwrap_or(0);
-                *slot = u16::try_from(v).unwrap_or(0);
-            }
-            Diagnostics::from_values(values).to_bytes().to_vec()
-        }
-        "scan.scan" if o.contains_key("scan") => {
-            let s = obj("scan")?;
-            check_keys(s, &["ports", "digital", "analog"], &[], "scan")?;
-            let analog: Vec<u64> = match s.get("analog") {
-                Some(Value::Array(a)) => a
-                    .iter()
-                    .map(|v| int_in(v, "scan.analog", u16::MAX.into()))
-                    .collect::<Result<_>>()?,
-                None | Some(Value::Null) => Vec::new(),
-                Some(v) => {
-                    return Err(CodecError::new(format!(
-                        "`scan.analog` must be an array, got {v}"
-                    )))
-                }
-            };
-            let ports =
-                get_int(s, "ports", ScanResult::MAX_PORTS as u64)?.unwrap_or(analog.len() as u64);
-            if analog.len() as u64 != ports {
-                return Err(CodecError::new(format!(
-                    "`scan.analog` has {} values for {ports} ports",
-                    analog.len()
-                )));
-            }
-            let mut scan = ScanResult {
-                ports: u8_of(ports),
-                digital: u16::try_from(get_int(s, "digital", u16::MAX.into())?.unwrap_or(0))
-                    .unwrap_or(0),
-                ..ScanResult::default()
-            };
-            for (slot, v) in scan.analog.iter_mut().zip(&analog) {
-                *slot = u16::try_from(*v).unwrap_or(0);
-            }
-            let mut buf = [0u8; MAX_PAYLOAD];
-            let n = scan
-                .emit(&mut buf)
-                .map_err(|e| CodecError::new(format!("scan: {e}")))?;
-            buf.get(..n).unwrap_or(&[]).to_vec()
-        }
-        "batch.batch" if o.contains_key("results") => {
-            let results = match o.get("results") {
-                Some(Value::Array(r)) => r,
-                _ => return Err(CodecError::new("`results` must be an array")),
-            };
-            let mut out = Vec::new();
-            for (i, r) in results.iter().enumerate() {
-                let ro = r
-                    .as_object()
-                    .ok_or_else(|| CodecError::new(format!("`results[{i}]` must be an object")))?;
-                let status = status_of(ro)?;
-                let value = match get_bytes(ro, "payload")? {
-                    Some(v) => v,
-                    None => match get_str(ro, "answers")? {
-                        Some(a) => payload_from_fields(ro, a, what)?,
-                        None => Vec::new(),
-                    },
-                };
-                let len = u8::try_from(value.len())
-                    .map_err(|_| CodecError::new(format!("results[{i}]: value too long")))?;
-                out.push(status.to_byte());
-                out.push(len);
-                out.extend_from_slice(&value);
-            }
-            out
-        }
-        _ => Vec::new(),
-    })
-}
-
-fn identity_bytes(o: &Map<String, Value>) -> Result<Vec<u8>> {
-    check_keys(
-        o,
-        &[
-            "protocol_version",
-            "firmware",
-            "board",
-            "sensor_ports",
-            "actuator_ports",
-            "capabilities",
-            "adc_bits",
-        ],
-        &[],
-        "identity",
-    )?;
-    let byte = |k: &str| -> Result<u8> { Ok(u8_of(get_int(o, k, 255)?.unwrap_or(0))) };
-    let firmware = get_bytes(o, "firmware")?.unwrap_or_else(|| vec![0, 0, 0]);
-    let [a, b, c] = firmware[..] else {
-        return Err(CodecError::new("`identity.firmware` must be 3 bytes"));
-    };
-    let board = match o.get("board") {
-        None | Some(Value::Null) => BoardKind::UNKNOWN,
-        Some(Value::String(s)) if int_of(&Value::String(s.clone())).is_none() => (0..=255u8)
-            .map(BoardKind)
-            .find(|k| k.name() == s)
-            .ok_or_else(|| CodecError::new(format!("unknown board kind `{s}`")))?,
-        Some(v) => BoardKind(u8_of(int_in(v, "identity.board", 255)?)),
-    };
-    let id = Identity {
-        protocol_version: byte("protocol_version")?,
-        firmware: [a, b, c],
-        board,
-        sensor_ports: byte("sensor_ports")?,
-        actuator_ports: byte("actuator_ports")?,
-        capabilities: Capabilities(
-            u16::try_from(get_int(o, "capabilities", u16::MAX.into())?.unwrap_or(0)).unwrap_or(0),
-        ),
-        adc_bits: byte("adc_bits")?,
-    };
-    Ok(id.to_bytes().to_vec())
-}
-
-fn encode_reply(o: &Map<String, Value>) -> Result<Vec<u8>> {
-    check_keys(o, REPLY_KEYS, &[], "a reply")?;
-    let seq = u8_of(need_int(o, "seq", 255, "a reply")?);
-    let status = status_of(o)?;
-    let answers = match get_str(o, "answers")? {
-        Some(name) => {
-            let mut a = Answers::parse(name)?;
-            if let Some(Value::Array(results)) = o.get("results") {
-                a.items = results
-                    .iter()
-                    .map(|r| r.get("answers")?.as_str().map(str::to_string))
-                    .collect();
-            }
-            Some(a)
-        }
-        None => None,
-    };
-    let payload = match get_bytes(o, "payload")? {
-        Some(p) => p,
-        None => match &answers {
-            Some(a) => payload_from_fields(o, &a.name, &a.name)?,
-            None => Vec::new(),
-        },
-    };
-    let r = Reply {
-        seq,
-        status,
-        payload: &payload,
-    };
-    let mut buf = [0u8; MAX_FRAME_LEN + 256];
-    let n = r
-        .emit(&mut buf)
-        .map_err(|e| CodecError::frame(FrameKind::Reply, e))?;
-    finish(
-        o,
-        FrameKind::Reply,
-        buf.get(..n).unwrap_or(&[]).to_vec(),
-        answers,
-    )
-}
-
-fn encode_event(o: &Map<String, Value>) -> Result<Vec<u8>> {
-    check_keys(o, EVENT_KEYS, &[], "an event")?;
-    let source = u8_of(need_int(o, "source", 255, "an event")?);
-    let source = Address::new(source).map_err(|e| CodecError::new(e.to_string()))?;
-    let kind = match o.get("event") {
-        Some(Value::String(s)) => EventKind::from_name(s)
-            .ok_or_else(|| CodecError::new(format!("unknown event kind `{s}`")))?,
-        Some(v) if !v.is_null() => EventKind::from_byte(u8_of(int_in(v, "event", 255)?)),
-        _ => return Err(CodecError::new("`event` is required for an event")),
-    };
-    // Events name a pin like a request does, or nothing (byte 2 = 0).
-    let any_port = ["port_kind", "port", "pin"]
-        .iter()
-        .any(|k| o.get(*k).is_some_and(|v| !v.is_null()));
-    let use_ = if any_port {
-        PortUse::Pin
-    } else {
-        PortUse::Board
-    };
-    let info = op("", "", 0, use_, &[], false);
-    let port = port_byte(o, &info, "an event")?;
-    let seq = u8_of(need_int(o, "seq", 255, "an event")?);
-    let status = status_of(o)?;
-    let payload = match get_bytes(o, "payload")? {
-        Some(p) => p,
-        None => event_payload_from_fields(o, kind)?,
-    };
-    let e = Event {
-        source,
-        kind,
-        pin: PinRef::from_byte(port),
-        seq,
-        status,
-        payload: &payload,
-    };
-    let mut buf = [0u8; MAX_FRAME_LEN + 256];
-    let n = e
-        .emit(&mut buf)
-        .map_err(|e| CodecError::frame(FrameKind::Event, e))?;
-    finish(
-        o,
-        FrameKind::Event,
-        buf.get(..n).unwrap_or(&[]).to_vec(),
-        None,
-    )
-}
-
-fn event_payload_from_fields(o: &Map<String, Value>, kind: EventKind) -> Result<Vec<u8>> {
-    let what = kind.name();
-    let le16 = |key: &str| -> Result<Vec<u8>> {
-        let v = need_int(o, key, u16::MAX.into(), what)?;
-        Ok(u16::try_from(v).unwrap_or(0).to_le_bytes().to_vec())
-    };
-    Ok(match kind {
-        EventKind::PinChange if o.contains_key("level") => {
-            let mut p = vec![u8_of(need_int(o, "level", 255, what)?)];
-            if o.contains_key("rising_edges") || o.contains_key("falling_edges") {
-                p.extend(le16("rising_edges")?);
-                p.extend(le16("falling_edges")?);
-            }
-            p
-        }
-        EventKind::AnalogThreshold if o.contains_key("value") => {
-            let mut p = le16("value")?;
-            p.push(u8::from(get_bool(o, "inside")?.unwrap_or(false)));
-            p
-        }
-        EventKind::DeferredReply if o.contains_key("width_us") => {
-            let v = need_int(o, "width_us", u32::MAX.into(), what)?;
-            u32::try_from(v).unwrap_or(0).to_le_bytes().to_vec()
-        }
-        EventKind::FailsafeTripped if o.contains_key("timeout_ms") => le16("timeout_ms")?,
-        EventKind::Overflow if o.contains_key("dropped") => {
-            let mut p = le16("dropped")?;
-            if o.contains_key("dropped_total") {
-                let v = need_int(o, "dropped_total", u32::MAX.into(), what)?;
-                p.extend(u32::try_from(v).unwrap_or(0).to_le_bytes());
-            }
-            p
-        }
-        EventKind::Boot if o.contains_key("identity") => {
-            let id = o
-                .get("identity")
-                .and_then(Value::as_object)
-                .ok_or_else(|| CodecError::new("`identity` must be an object"))?;
-            identity_bytes(id)?
-        }
-        _ => Vec::new(),
-    })
 }
 
 /// Encodes one JSON object (as [`decode`] prints it) into frame bytes, PEC included when the
@@ -1374,12 +910,22 @@ fn event_payload_from_fields(o: &Map<String, Value>, kind: EventKind) -> Result<
 /// Not an object, unknown `kind`, unknown or contradictory keys, values out of range, or bytes
 /// that do not make a valid frame.
 pub fn encode(v: &Value) -> Result<Vec<u8>> {
-    let o = v
-        .as_object()
-        .ok_or_else(|| CodecError::new(format!("expected a JSON object, got {v}")))?;
-    let kind = match get_str(o, "kind")? {
+    #[derive(Deserialize)]
+    struct KindJson {
+        kind: Option<String>,
+    }
+    if !v.is_object() {
+        return Err(CodecError::new(format!("expected a JSON object, got {v}")));
+    }
+    let mut ints = v.clone();
+    hex_integers(&mut ints);
+    let o = Input {
+        given: v,
+        ints: &ints,
+    };
+    let kind = match o.parse::<KindJson>()?.kind {
         None => FrameKind::Request,
-        Some(k) => FrameKind::from_name(k).ok_or_else(|| {
+        Some(k) => FrameKind::from_name(&k).ok_or_else(|| {
             CodecError::new(format!("unknown kind `{k}` (request, reply or event)"))
         })?,
     };
@@ -1391,725 +937,122 @@ pub fn encode(v: &Value) -> Result<Vec<u8>> {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Words
+// Reading JSON input: hex integers, errors that name the key
 // ---------------------------------------------------------------------------------------------
 
-fn port_words(o: &Map<String, Value>, with_pin: bool) -> Option<String> {
-    let kind = o.get("port_kind")?.as_str()?;
-    let port = o.get("port")?.as_u64()?;
-    let pin = o.get("pin")?.as_str()?;
-    Some(if with_pin {
-        format!("{kind} port {port} pin {pin}")
-    } else {
-        format!("{kind} port {port}")
-    })
+/// `"0x…"` as a number.
+fn hex_integer(s: &str) -> Option<u64> {
+    let hex = s.strip_prefix("0x").or_else(|| s.strip_prefix("0X"))?;
+    u64::from_str_radix(hex, 16).ok()
 }
 
-/// Raw bytes (`data`, `payload`) in words: hex.
-fn bytes_words(v: &Value) -> String {
-    match v {
-        Value::Array(a) => {
-            let bytes: Vec<u8> = a.iter().filter_map(Value::as_u64).map(u8_of).collect();
-            format!("[{}]", to_hex(&bytes))
-        }
-        v => v.to_string(),
-    }
-}
-
-fn scalar_words(v: &Value) -> String {
-    match v {
-        Value::String(s) => s.clone(),
-        Value::Object(m) => m
-            .iter()
-            .map(|(k, v)| format!("{k}={}", scalar_words(v)))
-            .collect::<Vec<_>>()
-            .join(" "),
-        v => v.to_string(),
-    }
-}
-
-fn op_words(o: &Map<String, Value>) -> String {
-    let function = o.get("function").and_then(Value::as_str).unwrap_or("?");
-    let operation = o.get("operation").and_then(Value::as_str).unwrap_or("?");
-    let info = op_info(function, operation);
-    let mut s = if function == operation {
-        function.to_string()
-    } else {
-        format!("{function} {operation}")
-    };
-    let with_pin = info.is_none_or(|i| i.port == PortUse::Pin);
-    if let Some(p) = port_words(o, with_pin) {
-        s.push_str(&format!(" on {p}"));
-    }
-    for f in info.map_or(&[][..], |i| i.fields) {
-        if let Some(v) = o.get(*f).filter(|_| *f != "items") {
-            s.push_str(&format!(", {f} {}", scalar_words(v)));
-        }
-    }
-    if (function, operation) == ("serial", "write") {
-        if let Some(d) = o.get("data") {
-            s.push_str(&format!(", data {}", bytes_words(d)));
-        }
-    }
-    if let Some(Value::Array(items)) = o.get("items") {
-        let list: Vec<String> = items
-            .iter()
-            .filter_map(Value::as_object)
-            .map(op_words)
-            .collect();
-        s.push_str(&format!(" of {}: {}", list.len(), list.join("; ")));
-    }
-    s
-}
-
-/// Decoded value keys of replies and batch results, in the order words print them.
-const REPLY_VALUE_KEYS: &[&str] = &["level", "value", "identity", "diagnostics", "scan"];
-/// Decoded value keys of events.
-const EVENT_VALUE_KEYS: &[&str] = &[
-    "level",
-    "value",
-    "inside",
-    "width_us",
-    "timeout_ms",
-    "rising_edges",
-    "falling_edges",
-    "dropped",
-    "dropped_total",
-    "identity",
+/// Keys whose values are names, never numbers.
+const NAME_KEYS: &[&str] = &[
+    "kind",
+    "function",
+    "operation",
+    "port_kind",
+    "pin",
+    "answers",
 ];
 
-/// `key value, …` for the decoded keys present, else the raw bytes of `raw` if any.
-fn value_words(o: &Map<String, Value>, keys: &[&str], raw: &str) -> Option<String> {
-    let decoded: Vec<String> = keys
-        .iter()
-        .filter_map(|k| Some(format!("{k} {}", scalar_words(o.get(*k)?))))
-        .collect();
-    if !decoded.is_empty() {
-        return Some(decoded.join(", "));
-    }
-    match o.get(raw) {
-        Some(Value::Array(p)) if !p.is_empty() => {
-            Some(format!("{raw} {}", bytes_words(&Value::Array(p.clone()))))
+/// Integers may be written as `"0x…"` strings (docs/protocol.md): they become numbers, except
+/// under keys that take names.
+fn hex_integers(v: &mut Value) {
+    match v {
+        Value::String(s) => {
+            if let Some(n) = hex_integer(s) {
+                *v = n.into();
+            }
         }
+        Value::Array(a) => a.iter_mut().for_each(hex_integers),
+        Value::Object(o) => o
+            .iter_mut()
+            .filter(|(k, _)| !NAME_KEYS.contains(&k.as_str()))
+            .for_each(|(_, v)| hex_integers(v)),
+        _ => {}
+    }
+}
+
+/// A value that must be given.
+fn need<T>(v: Option<T>, key: &str, what: &str) -> Result<T> {
+    v.ok_or_else(|| CodecError::new(format!("`{key}` is required for {what}")))
+}
+
+/// A JSON object (or array) of the input: as given, for messages and the final check, and
+/// with its `"0x…"` integers as numbers, to read.
+#[derive(Clone, Copy)]
+struct Input<'v> {
+    given: &'v Value,
+    ints: &'v Value,
+}
+
+impl<'v> Input<'v> {
+    /// Reads `T` from the keys it has (the other keys are other parts' business, and every
+    /// key is checked against the frame in the end).
+    fn parse<T: Deserialize<'v>>(self) -> Result<T> {
+        serde_path_to_error::deserialize(self.ints).map_err(|e| explain(&e, self.given))
+    }
+
+    /// The value of a key, or an entry of an array.
+    fn get<I: serde_json::value::Index + Copy>(self, i: I) -> Option<Input<'v>> {
+        Some(Input {
+            given: self.given.get(i)?,
+            ints: self.ints.get(i)?,
+        })
+    }
+}
+
+/// A serde error as one line that names the key and the value given.
+fn explain(e: &serde_path_to_error::Error<serde_json::Error>, root: &Value) -> CodecError {
+    use serde_path_to_error::Segment;
+    let msg = e.inner().to_string();
+    let segments: Vec<&Segment> = e.path().iter().collect();
+    let given = segments.iter().try_fold(root, |v, s| match s {
+        Segment::Seq { index } => v.get(index),
+        Segment::Map { key } => v.get(key),
         _ => None,
-    }
-}
-
-fn addr_words(v: Option<&Value>) -> String {
-    match v.and_then(Value::as_u64) {
-        Some(0) => "SELF (internal DB)".to_string(),
-        Some(a) => format!("DB {a:#04x}"),
-        None => "?".to_string(),
-    }
-}
-
-/// One line in words for a decoded frame (what `x10 decode` prints without `--json`).
-pub fn describe(v: &Value) -> String {
-    let Some(o) = v.as_object() else {
-        return v.to_string();
+    });
+    // `invalid type: …, expected E`, `invalid value: …, expected E`, `invalid length …,
+    // expected E`, `unknown variant …, expected E`; anything else is the representation's own
+    // message (an unknown status name, a bad address, …).
+    let shape = msg.starts_with("invalid ") || msg.starts_with("unknown variant ");
+    let (Some(given), Some((_, expected)), true, false) = (
+        given,
+        msg.rsplit_once(", expected "),
+        shape,
+        segments.is_empty(),
+    ) else {
+        return CodecError::new(msg);
     };
-    let seq = o.get("seq").map_or_else(String::new, Value::to_string);
-    let status = o.get("status").map(scalar_words).unwrap_or_default();
-    let mut s = match o.get("kind").and_then(Value::as_str) {
-        Some("request") => format!(
-            "request to {} seq {seq}: {}",
-            addr_words(o.get("db")),
-            op_words(o)
-        ),
-        Some("reply") => {
-            let mut s = format!("reply seq {seq}");
-            if let Some(a) = o.get("answers").and_then(Value::as_str) {
-                s.push_str(&format!(" to {a}"));
-            }
-            s.push_str(&format!(": {status}"));
-            if let Some(w) = value_words(o, REPLY_VALUE_KEYS, "payload") {
-                if !o.contains_key("results") {
-                    s.push_str(&format!(", {w}"));
-                }
-            }
-            if let Some(Value::Array(results)) = o.get("results") {
-                let list: Vec<String> = results
-                    .iter()
-                    .filter_map(Value::as_object)
-                    .map(|r| {
-                        let st = r.get("status").map(scalar_words).unwrap_or_default();
-                        match value_words(r, REPLY_VALUE_KEYS, "payload") {
-                            Some(w) => format!("{st} {w}"),
-                            None => st,
-                        }
-                    })
-                    .collect();
-                s.push_str(&format!(", results: {}", list.join("; ")));
-            }
-            s
-        }
-        Some("event") => {
-            let mut s = format!(
-                "event from {} seq {seq}: {}",
-                addr_words(o.get("source")),
-                o.get("event").map(scalar_words).unwrap_or_default()
-            );
-            if let Some(p) = port_words(o, true) {
-                s.push_str(&format!(" on {p}"));
-            }
-            s.push_str(&format!(", status {status}"));
-            if let Some(w) = value_words(o, EVENT_VALUE_KEYS, "payload") {
-                s.push_str(&format!(", {w}"));
-            }
-            s
-        }
-        _ => v.to_string(),
+    let path = e.path().to_string();
+    let key = match segments.last() {
+        Some(Segment::Map { key }) => key.as_str(),
+        _ => "",
     };
-    if let (Some(p), Some(a)) = (
-        o.get("pec").and_then(Value::as_u64),
-        o.get("pec_addr").and_then(Value::as_u64),
-    ) {
-        s.push_str(&format!(" [PEC {p:#04x} ok, address {a:#04x}]"));
-    }
-    s
+    let must = match expected {
+        "u8" | "u16" | "u32" => {
+            let max = match expected {
+                "u8" => u64::from(u8::MAX),
+                "u16" => u64::from(u16::MAX),
+                _ => u64::from(u32::MAX),
+            };
+            // A byte of a byte array: name the array.
+            if let (Some(Segment::Seq { .. }), 255) = (segments.last(), max) {
+                let array = path.rsplit_once('[').map_or(path.as_str(), |(a, _)| a);
+                return CodecError::new(format!("`{array}` holds bytes 0..=255, got {given}"));
+            }
+            format!("an integer 0..={max}")
+        }
+        "a boolean" => "true or false".to_string(),
+        "a string" | "string or map" | "map with a single key" => "a string".to_string(),
+        "a sequence" if key == "data" || key == "payload" => "an array of bytes".to_string(),
+        "a sequence" => "an array".to_string(),
+        e if e.starts_with("struct ") || e == "a map" => "an object".to_string(),
+        e => e.replace('`', "\""),
+    };
+    CodecError::new(format!("`{path}` must be {must}, got {given}"))
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use x10_microcode::{Edge, Level, Pin, Port};
-
-    fn op_info_of(op: &Op<'_>) -> Option<&'static OpInfo> {
-        op_info(op.function().name(), op.name())
-    }
-
-    fn req_json(hex: &str) -> Value {
-        decode(
-            &parse_hex(hex).unwrap(),
-            &DecodeOptions::new(FrameKind::Request),
-        )
-        .unwrap()
-    }
-
-    #[test]
-    fn op_table_agrees_with_the_protocol_crate() {
-        let s1 = Port::sensor(1).unwrap();
-        let a1 = Port::actuator(1).unwrap();
-        let ops = [
-            Op::Ping,
-            Op::Identify,
-            Op::Heartbeat,
-            Op::SetFailsafe { timeout_ms: 1 },
-            Op::EventEnable(s1.pin(Pin::A), EventConfig::OFF),
-            Op::ReadDiagnostics,
-            Op::ClearDiagnostics,
-            Op::SetPec(true),
-            Op::DigitalRead(s1.pin(Pin::A)),
-            Op::DigitalWrite(a1.pin(Pin::A), Level::Low),
-            Op::DigitalWrite(a1.pin(Pin::A), Level::High),
-            Op::PulseIn {
-                pin: s1.pin(Pin::A),
-                edge: Edge::Rising,
-                timeout_ms: None,
-            },
-            Op::PulseIn {
-                pin: s1.pin(Pin::A),
-                edge: Edge::Falling,
-                timeout_ms: None,
-            },
-            Op::PwmDuty(a1.pin(Pin::A), 1),
-            Op::PwmFrequency(a1, 1),
-            Op::PwmPulseWidth(a1.pin(Pin::A), 1),
-            Op::AnalogRead(s1),
-            Op::SerialWrite(s1, b"x"),
-            Op::SerialRead(s1, 1),
-            Op::SerialConfig(s1, 1),
-            Op::Scan,
-        ];
-        assert_eq!(ops.len() + 1, OPS.len()); // + batch, checked below
-        for op in ops {
-            let info = op_info_of(&op).unwrap();
-            assert_eq!(info.fn_op, op.fn_op_byte(), "{}", info.operation);
-            assert_eq!(info.reply, op.expects_reply(), "{}", info.operation);
-            let port = match op.pin_ref() {
-                None => PortUse::Board,
-                Some(_)
-                    if matches!(
-                        op,
-                        Op::PwmFrequency(..)
-                            | Op::AnalogRead(_)
-                            | Op::SerialWrite(..)
-                            | Op::SerialRead(..)
-                            | Op::SerialConfig(..)
-                    ) =>
-                {
-                    PortUse::Port
-                }
-                Some(_) => PortUse::Pin,
-            };
-            assert_eq!(info.port, port, "{}", info.operation);
-            // Every field the table names is in the decoded object.
-            let m = op_value(&op);
-            for f in info.fields {
-                assert!(m.contains_key(*f), "{} lacks {f}", info.operation);
-            }
-        }
-        let batch = op_info("batch", "batch").unwrap();
-        assert_eq!(batch.fn_op, 0x50);
-    }
-
-    #[test]
-    fn hex_forms() {
-        let want = vec![0x12, 0x09, 0x01, 0x02];
-        for s in [
-            "12090102",
-            "12 09 01 02",
-            "12:09:01:02",
-            "0x12,0x09,0x01,0x02",
-            " 1209 0102 ",
-            "12-09-01-02",
-            "12_09_01_02",
-            "0X12 0X09 01 02",
-        ] {
-            assert_eq!(parse_hex(s), Ok(want.clone()), "{s}");
-        }
-        assert_eq!(to_hex(&want), "12 09 01 02");
-        assert_eq!(
-            parse_hex("12 9 01 02").unwrap_err().to_string(),
-            "`9` has an odd number of hex digits"
-        );
-        assert_eq!(
-            parse_hex("12 0g").unwrap_err().to_string(),
-            "`g` is not a hex digit (in `0g`)"
-        );
-        assert_eq!(parse_hex("").unwrap_err().to_string(), "no bytes given");
-        assert_eq!(
-            parse_hex("0x").unwrap_err().to_string(),
-            "`0x` has an odd number of hex digits"
-        );
-        assert_eq!(
-            split_prefix("reply:01 00 00"),
-            (Some(FrameKind::Reply), "01 00 00")
-        );
-        assert_eq!(split_prefix("event: 09"), (Some(FrameKind::Event), " 09"));
-        assert_eq!(split_prefix("12:09"), (None, "12:09"));
-        let args = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
-        // Single bytes are one frame; anything else is one frame per argument.
-        assert_eq!(
-            frames_of_args(args(&["12", "09", "0x1", "0X02"])),
-            ["12 09 01 02"]
-        );
-        assert_eq!(
-            frames_of_args(args(&["reply:04", "00", "02", "00", "02"])),
-            ["reply:04 00 02 00 02"]
-        );
-        for unchanged in [
-            &["12"][..],
-            &["12090102", "30098004"],
-            &["12", "09", "01", "0102"],
-            &["12", "09", "01", "zz"],
-            &["12", "reply:09"],
-            &["12", "0x"],
-        ] {
-            assert_eq!(frames_of_args(args(unchanged)), args(unchanged));
-        }
-        assert!(frames_of_args(Vec::new()).is_empty());
-        assert_eq!(parse_address("0x09").unwrap().get(), 9);
-        assert_eq!(parse_address("16").unwrap().get(), 16);
-        assert!(parse_address("0x78").is_err());
-        assert!(parse_address("x").is_err());
-    }
-
-    #[test]
-    fn decode_issue_example() {
-        let v = req_json("12 09 01 02");
-        assert_eq!(
-            v,
-            json!({"kind": "request", "function": "io", "operation": "high", "db": 9,
-                   "port_kind": "actuator", "port": 1, "pin": "B", "seq": 2, "data": []})
-        );
-        assert_eq!(
-            describe(&v),
-            "request to DB 0x09 seq 2: io high on actuator port 1 pin B"
-        );
-        assert_eq!(encode(&v), Ok(vec![0x12, 0x09, 0x01, 0x02]));
-    }
-
-    #[test]
-    fn encode_from_fields_without_data() {
-        let v = json!({"kind": "request", "function": "pwm", "operation": "duty", "db": "0x09",
-                       "port_kind": "actuator", "port": 1, "pin": "B", "seq": 3, "duty": 128});
-        assert_eq!(encode(&v), Ok(vec![0x20, 0x09, 0x01, 0x03, 0x80]));
-        // `kind` defaults to request, `pin` to A.
-        let v = json!({"function": "analog", "operation": "read", "db": 9,
-                       "port_kind": "sensor", "port": 1, "seq": 4});
-        assert_eq!(encode(&v), Ok(vec![0x30, 0x09, 0x80, 0x04]));
-        let v = json!({"function": "batch", "operation": "batch", "db": 9, "seq": 0x12,
-        "items": [
-            {"function": "io", "operation": "high", "port_kind": "actuator", "port": 1, "pin": "B"},
-            {"function": "pwm", "operation": "duty", "port_kind": "actuator", "port": 1, "duty": 200},
-            {"function": "analog", "operation": "read", "port_kind": "sensor", "port": 1}
-        ]});
-        assert_eq!(
-            encode(&v).map(|b| to_hex(&b)),
-            Ok("50 09 00 12 12 01 00 20 00 01 c8 30 80 00".to_string())
-        );
-    }
-
-    #[test]
-    fn encode_errors() {
-        let cases = [
-            (json!([1]), "expected a JSON object, got [1]"),
-            (json!({"kind": "frame"}), "unknown kind `frame` (request, reply or event)"),
-            (json!({"function": "io"}), "`operation` is required"),
-            (
-                json!({"function": "io", "operation": "toggle"}),
-                "unknown operation `toggle` of io (known: input, low, high, pulse_in_rising, pulse_in_falling)",
-            ),
-            (json!({"function": "gpio", "operation": "x"}), "unknown function `gpio`"),
-            (
-                json!({"function": "io", "operation": "high", "db": 9, "seq": 1,
-                       "port_kind": "actuator", "port": 1, "colour": "red"}),
-                "unknown key `colour` for io high",
-            ),
-            (
-                json!({"function": "io", "operation": "high", "db": 9, "seq": 1,
-                       "port_kind": "actuator", "port": 1, "duty": 3}),
-                "unknown key `duty` for io high",
-            ),
-            (
-                json!({"function": "io", "operation": "high", "db": 300, "seq": 1,
-                       "port_kind": "actuator", "port": 1}),
-                "`db` must be an integer 0..=255, got 300",
-            ),
-            (
-                json!({"function": "io", "operation": "high", "db": 5, "seq": 1,
-                       "port_kind": "actuator", "port": 1}),
-                "invalid request: bad daughterboard address 0x05 (a board answers status wrong_address)",
-            ),
-            (
-                json!({"function": "io", "operation": "high", "db": 9, "seq": 1,
-                       "port_kind": "actuator", "port": 65}),
-                "`port` must be 1..=64, got 65",
-            ),
-            (
-                json!({"function": "io", "operation": "high", "db": 9, "seq": 1,
-                       "port_kind": "motor", "port": 1}),
-                "`port_kind` must be \"sensor\" or \"actuator\", got \"motor\"",
-            ),
-            (
-                json!({"function": "io", "operation": "high", "db": 9, "seq": -1,
-                       "port_kind": "actuator", "port": 1}),
-                "`seq` must be an integer 0..=255, got -1",
-            ),
-            (
-                json!({"function": "pwm", "operation": "duty", "db": 9, "seq": 1,
-                       "port_kind": "actuator", "port": 1, "duty": 256}),
-                "`duty` must be an integer 0..=255, got 256",
-            ),
-            (
-                json!({"function": "pwm", "operation": "duty", "db": 9, "seq": 1,
-                       "port_kind": "actuator", "port": 1}),
-                "`duty` is required for pwm duty",
-            ),
-            (
-                json!({"function": "pwm", "operation": "duty", "db": 9, "seq": 1,
-                       "port_kind": "sensor", "port": 1, "duty": 3}),
-                "invalid request: operation not available on this kind of port (a board answers status wrong_port_kind)",
-            ),
-            (
-                json!({"function": "pwm", "operation": "duty", "db": 9, "seq": 1,
-                       "port_kind": "actuator", "port": 1, "duty": 3, "data": [4]}),
-                "`duty` is 3 but the frame says 4",
-            ),
-            (
-                json!({"function": "system", "operation": "ping", "db": 9, "seq": 1, "port": 2}),
-                "system ping is addressed to the whole board: `port_kind`, `port` and `pin` must be null or absent",
-            ),
-            (
-                json!({"kind": "reply", "seq": 1, "status": "fine"}),
-                "unknown status `fine`",
-            ),
-            (
-                json!({"kind": "reply", "seq": 1, "payload": vec![0u8; 29]}),
-                "invalid reply: data or payload too long (a board answers status bad_length)",
-            ),
-            (
-                json!({"kind": "reply", "seq": 1, "answers": "io.high"}),
-                "io.high has no reply",
-            ),
-            (
-                json!({"kind": "reply", "seq": 1, "answers": "io.input", "payload": [1, 2], "level": 1}),
-                "unknown key `level`",
-            ),
-            (
-                json!({"kind": "event", "source": 9, "event": "pin_change", "seq": 1, "pec": 3}),
-                "`pec` needs `pec_addr` (the address it covers)",
-            ),
-            (
-                json!({"kind": "event", "source": 9, "event": "boom", "seq": 1}),
-                "unknown event kind `boom`",
-            ),
-            (
-                json!({"kind": "event", "source": 3, "event": "boot", "seq": 0}),
-                "bad daughterboard address 0x03",
-            ),
-            (
-                json!({"kind": "request", "function": "io", "operation": "high", "db": 9, "seq": 2,
-                       "port_kind": "actuator", "port": 1, "pin": "B", "pec_addr": 9, "pec": 1}),
-                "`pec` is 1 but the frame says 156",
-            ),
-        ];
-        for (v, msg) in cases {
-            assert_eq!(encode(&v).unwrap_err().to_string(), msg, "{v}");
-        }
-    }
-
-    #[test]
-    fn reply_context_and_pec() {
-        let mut opts = DecodeOptions::new(FrameKind::Reply);
-        opts.answers = Some(Answers::parse("analog.read").unwrap());
-        opts.pec = Some(Address::new(9).unwrap());
-        let bytes = parse_hex("04 00 02 00 02").unwrap();
-        let mut framed = bytes.clone();
-        framed.push(pec::compute(0x13, &bytes));
-        let v = decode(&framed, &opts).unwrap();
-        assert_eq!(v["value"], json!(512));
-        assert_eq!(v["pec_addr"], json!(9));
-        assert_eq!(encode(&v), Ok(framed.clone()));
-        assert_eq!(
-            describe(&v),
-            format!(
-                "reply seq 4 to analog.read: ok, value 512 [PEC {:#04x} ok, address 0x09]",
-                framed[5]
-            )
-        );
-        // The context of a decoded batch request carries its items.
-        let req = req_json("50 09 00 12 12 01 00 20 00 01 c8 30 80 00");
-        let a = Answers::of_request(&req).unwrap();
-        assert_eq!(a.name, "batch.batch");
-        assert_eq!(
-            a.items,
-            ["io.high", "pwm.duty", "analog.read"].map(|s| Some(s.to_string()))
-        );
-        let mut opts = DecodeOptions::new(FrameKind::Reply);
-        opts.answers = Some(a);
-        let v = decode(
-            &parse_hex("12 00 08 00 00 00 00 00 02 00 02").unwrap(),
-            &opts,
-        )
-        .unwrap();
-        assert_eq!(v["results"][2]["value"], json!(512));
-        assert_eq!(v["results"][2]["answers"], json!("analog.read"));
-        assert_eq!(
-            encode(&v).map(|b| to_hex(&b)),
-            Ok("12 00 08 00 00 00 00 00 02 00 02".into())
-        );
-        // Requests without a reply give no context.
-        assert_eq!(Answers::of_request(&req_json("12 09 01 02")), None);
-        // A wrong PEC is refused.
-        let mut bad = framed;
-        bad[5] ^= 1;
-        let mut opts = DecodeOptions::new(FrameKind::Reply);
-        opts.pec = Some(Address::new(9).unwrap());
-        assert!(decode(&bad, &opts)
-            .unwrap_err()
-            .to_string()
-            .starts_with("invalid reply: PEC mismatch"));
-    }
-
-    /// Removes `data` / `payload` wherever the decoded fields say the same, so that `encode`
-    /// has to rebuild them.
-    fn strip_raw(v: &mut Value) {
-        let Some(o) = v.as_object_mut() else { return };
-        let is_serial_write = o.get("function") == Some(&json!("serial"))
-            && o.get("operation") == Some(&json!("write"));
-        if o.contains_key("function") && !is_serial_write {
-            o.remove("data");
-        }
-        if let Some(Value::Array(items)) = o.get_mut("items") {
-            items.iter_mut().for_each(strip_raw);
-        }
-        if let Some(Value::Array(results)) = o.get_mut("results") {
-            for r in results.iter_mut() {
-                let decoded = REPLY_VALUE_KEYS.iter().any(|k| r.get(*k).is_some());
-                if let Some(ro) = r.as_object_mut() {
-                    if decoded || ro.get("payload") == Some(&json!([])) {
-                        ro.remove("payload");
-                    }
-                }
-            }
-        }
-        let decoded = REPLY_VALUE_KEYS
-            .iter()
-            .chain(EVENT_VALUE_KEYS)
-            .chain(&["results"])
-            .any(|k| o.contains_key(*k));
-        if decoded || o.get("payload") == Some(&json!([])) {
-            o.remove("payload");
-        }
-    }
-
-    fn frame_strategy(
-    ) -> impl proptest::strategy::Strategy<Value = (FrameKind, Vec<u8>, Option<String>)> {
-        use proptest::prelude::*;
-        let request = (
-            proptest::sample::select(OPS.iter().map(|o| o.fn_op).collect::<Vec<_>>()),
-            prop_oneof![Just(9u8), Just(0u8), any::<u8>()],
-            prop_oneof![Just(0u8), any::<u8>()],
-            any::<u8>(),
-            proptest::collection::vec(any::<u8>(), 0..8),
-        )
-            .prop_map(|(f, db, port, seq, data)| {
-                let mut v = vec![f, db, port, seq];
-                v.extend(data);
-                (FrameKind::Request, v, None)
-            });
-        let names: Vec<String> = OPS
-            .iter()
-            .filter(|o| o.reply)
-            .map(|o| format!("{}.{}", o.function, o.operation))
-            .collect();
-        let reply = (
-            any::<u8>(),
-            prop_oneof![4 => Just(0u8), 1 => any::<u8>()],
-            prop_oneof![
-                Just(vec![1u8]),
-                Just(vec![0u8, 2]),
-                proptest::collection::vec(any::<u8>(), 10..=10),
-                proptest::collection::vec(any::<u8>(), 28..=28),
-                proptest::collection::vec(any::<u8>(), 0..=28),
-                Just(vec![0u8, 0, 0, 0, 0, 2, 7, 1]),
-                Just(vec![4u8, 0x96, 0, 1, 0, 2, 0, 3, 0, 4, 0]),
-            ],
-            proptest::option::of(proptest::sample::select(names)),
-        )
-            .prop_map(|(seq, status, payload, answers)| {
-                let mut v = vec![seq, status, payload.len() as u8];
-                v.extend(payload);
-                (FrameKind::Reply, v, answers)
-            });
-        let event = (
-            prop_oneof![Just(9u8), Just(0u8), any::<u8>()],
-            prop_oneof![4 => 1u8..=7, 1 => any::<u8>()],
-            prop_oneof![Just(0u8), any::<u8>()],
-            any::<u8>(),
-            prop_oneof![4 => Just(0u8), 1 => any::<u8>()],
-            prop_oneof![
-                proptest::collection::vec(any::<u8>(), 0..=4),
-                Just(vec![0x89u8, 3, 1]),
-                proptest::collection::vec(any::<u8>(), 10..=10),
-            ],
-        )
-            .prop_map(|(src, kind, port, seq, status, payload)| {
-                let mut v = vec![src, kind, port, seq, status, payload.len() as u8];
-                v.extend(payload);
-                (FrameKind::Event, v, None)
-            });
-        prop_oneof![request, reply, event]
-    }
-
-    proptest::proptest! {
-        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(3000))]
-
-        /// decode → encode gives the same bytes, with and without PEC, and so does encoding
-        /// from the decoded fields alone (raw `data`/`payload` removed).
-        #[test]
-        fn decode_encode_roundtrip((kind, bytes, answers) in frame_strategy(),
-                                   with_pec in proptest::prelude::any::<bool>()) {
-            let mut opts = DecodeOptions::new(kind);
-            opts.answers = answers.map(|a| Answers::parse(&a).unwrap());
-            let mut framed = bytes.clone();
-            if with_pec {
-                let addr = Address::new(0x09).unwrap();
-                framed.push(pec::compute(addr.addr_byte(kind == FrameKind::Reply), &bytes));
-                opts.pec = Some(addr);
-            }
-            if let Ok(v) = decode(&framed, &opts) {
-                proptest::prop_assert_eq!(encode(&v), Ok(framed.clone()), "{}", v);
-                let mut stripped = v.clone();
-                strip_raw(&mut stripped);
-                proptest::prop_assert_eq!(encode(&stripped), Ok(framed.clone()), "{}", stripped);
-                // Words never fail.
-                proptest::prop_assert!(!describe(&v).is_empty());
-            }
-        }
-
-        /// Arbitrary JSON-ish objects never panic the encoder.
-        #[test]
-        fn encode_arbitrary_objects(keys in proptest::collection::vec(
-            (proptest::sample::select(vec!["kind", "function", "operation", "db", "port_kind",
-                "port", "pin", "seq", "data", "payload", "status", "answers", "results", "items",
-                "event", "source", "identity", "scan", "pec_addr", "pec", "duty", "level"]),
-             0u8..8), 0..10)) {
-            let samples = [json!(null), json!(9), json!("io"), json!([1, 2]), json!({}),
-                           json!(-1), json!("reply"), json!([{"function": "io"}])];
-            let mut o = Map::new();
-            for (k, i) in keys {
-                o.insert(k.to_string(), samples[i as usize].clone());
-            }
-            let _ = encode(&Value::Object(o));
-        }
-    }
-
-    #[test]
-    fn encode_replies_and_events_from_fields() {
-        let cases = [
-            (
-                json!({"kind": "reply", "seq": 18, "answers": "batch.batch", "results": [
-                    {"status": "ok"}, {"status": "ok"},
-                    {"status": "ok", "answers": "analog.read", "value": 512}]}),
-                "12 00 08 00 00 00 00 00 02 00 02",
-            ),
-            (
-                json!({"kind": "reply", "seq": 2, "answers": "system.identify", "identity": {
-                    "protocol_version": 1, "firmware": [0, 1, 0], "board": "pico",
-                    "sensor_ports": 4, "actuator_ports": 4, "capabilities": 511, "adc_bits": 12}}),
-                "02 00 0a 01 00 01 00 03 04 04 ff 01 0c",
-            ),
-            (
-                json!({"kind": "reply", "seq": 19, "answers": "scan.scan",
-                       "scan": {"ports": 2, "digital": 6, "analog": [100, 200]}}),
-                "13 00 07 02 06 00 64 00 c8 00",
-            ),
-            (
-                json!({"kind": "reply", "seq": 6, "answers": "system.read_diagnostics",
-                       "diagnostics": {"frames_ok": 1000, "pec_errors": 5}}),
-                "06 00 1c e8 03 00 00 00 00 00 00 00 00 00 00 05 00 00 00 00 00 00 00 00 00 00 00 00 00 00 00",
-            ),
-            (json!({"kind": "reply", "seq": 11, "status": "pending"}), "0b 01 00"),
-            (json!({"kind": "reply", "seq": 7, "status": 66}), "07 42 00"),
-            (
-                json!({"kind": "event", "source": 9, "event": "pin_change", "port_kind": "sensor",
-                       "port": 1, "pin": "A", "seq": 7, "level": 1}),
-                "09 01 80 07 00 01 01",
-            ),
-            (
-                json!({"kind": "event", "source": 9, "event": "analog_threshold",
-                       "port_kind": "sensor", "port": 2, "seq": 8, "value": 905, "inside": false}),
-                "09 02 82 08 00 03 89 03 00",
-            ),
-            (
-                json!({"kind": "event", "source": 9, "event": "deferred_reply",
-                       "port_kind": "sensor", "port": 3, "pin": "B", "seq": 11, "width_us": 1520}),
-                "09 03 85 0b 00 04 f0 05 00 00",
-            ),
-            (
-                json!({"kind": "event", "source": 9, "event": "failsafe_tripped", "seq": 9,
-                       "timeout_ms": 500}),
-                "09 04 00 09 00 02 f4 01",
-            ),
-            (
-                json!({"kind": "event", "source": 9, "event": "overflow", "seq": 10, "dropped": 3}),
-                "09 06 00 0a 00 02 03 00",
-            ),
-            (
-                json!({"kind": "event", "source": 0, "event": 32, "seq": 11}),
-                "00 20 00 0b 00 00",
-            ),
-            (
-                json!({"kind": "event", "source": 9, "event": "pin_change", "port_kind": "sensor",
-                       "port": 1, "seq": 7, "level": 1, "pec_addr": 16}),
-                "09 01 80 07 00 01 01 95",
-            ),
-        ];
-        for (v, hex) in cases {
-            assert_eq!(encode(&v).map(|b| to_hex(&b)), Ok(hex.to_string()), "{v}");
-        }
-    }
-}
+mod tests;
