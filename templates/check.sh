@@ -11,7 +11,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 dir="$work/my-robot"
 
-cargo run -q --manifest-path "$root/Cargo.toml" -p x10-sim --bin x10 -- new "$dir"
+cargo run -q --manifest-path "$root/Cargo.toml" -p x10-cli --bin x10 -- new "$dir"
 cd "$dir"
 export CARGO_TARGET_DIR="$root/target/template"
 # As the repository's own dev profile (Cargo.toml): line tables only, to keep target/ small.

@@ -1,6 +1,6 @@
 //! The latency table's figures: simulated end-to-end times against the wire-time minimum.
 
-use x10_sim::report::{latency_table, measure};
+use x10_cli::report::{latency_table, measure};
 use x10_sim::timing::Speed;
 
 #[test]

@@ -29,7 +29,9 @@
 //!   returns [`Error::BufferTooShort`].
 //!
 //! The crate is `no_std` and never allocates. With the `defmt` feature every public type
-//! implements `defmt::Format`.
+//! implements `defmt::Format`. With the `serde` feature the frames and their values implement
+//! `serde::Serialize`, and the values `serde::Deserialize`, in the JSON shape of the `x10`
+//! tool (`docs/protocol.md`, "The `x10` tool"); see the `serde_repr` module's source.
 #![no_std]
 #![cfg_attr(
     not(test),
@@ -48,6 +50,8 @@ mod op;
 pub mod pec;
 mod reply;
 mod request;
+#[cfg(feature = "serde")]
+mod serde_repr;
 mod status;
 mod system;
 mod types;

@@ -126,6 +126,7 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> ReplyFrame<T> {
 /// A reply: the sequence number it answers, a status, and the value bytes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct Reply<'a> {
     /// Sequence number of the request answered.
     pub seq: u8,

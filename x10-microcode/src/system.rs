@@ -4,7 +4,7 @@
 use crate::{Error, Result};
 
 /// Board kind codes reported by `identify`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BoardKind(pub u8);
 
@@ -38,6 +38,11 @@ impl BoardKind {
 /// Capability bits reported by `identify`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(transparent)
+)]
 pub struct Capabilities(pub u16);
 
 impl Capabilities {
@@ -67,8 +72,13 @@ impl Capabilities {
 }
 
 /// Reply payload of `identify` (10 bytes).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
 pub struct Identity {
     /// [`crate::PROTOCOL_VERSION`] of the board.
     pub protocol_version: u8,
@@ -136,6 +146,11 @@ macro_rules! diagnostics {
         /// u16 LE each, in this order, saturating at 65535.
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
         #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+        #[cfg_attr(
+            feature = "serde",
+            derive(serde::Serialize, serde::Deserialize),
+            serde(default)
+        )]
         pub struct Diagnostics {
             $($(#[$doc])* pub $name: u16,)*
         }
@@ -226,6 +241,11 @@ impl Diagnostics {
 /// `low..=high`); other bits must be zero.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(default)
+)]
 pub struct EventConfig {
     /// Event on a rising edge of the digital pin.
     pub rising: bool,
@@ -290,6 +310,14 @@ impl EventConfig {
 /// of sensor port `i + 1`, bit `2i + 1` its pin B.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(
+        into = "crate::serde_repr::ScanRepr",
+        try_from = "crate::serde_repr::ScanRepr"
+    )
+)]
 pub struct ScanResult {
     /// Number of sensor ports reported (at most [`ScanResult::MAX_PORTS`]).
     pub ports: u8,

@@ -11,6 +11,11 @@ use crate::{Error, Result};
 /// `0x08..=0x77` (the range I2C leaves to ordinary devices).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(try_from = "u8", into = "u8")
+)]
 pub struct Address(u8);
 
 impl Address {
@@ -61,6 +66,21 @@ impl Address {
     }
 }
 
+impl TryFrom<u8> for Address {
+    type Error = Error;
+
+    /// As [`Address::new`].
+    fn try_from(raw: u8) -> Result<Address> {
+        Address::new(raw)
+    }
+}
+
+impl From<Address> for u8 {
+    fn from(a: Address) -> u8 {
+        a.0
+    }
+}
+
 impl fmt::Display for Address {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         if self.is_internal() {
@@ -74,6 +94,11 @@ impl fmt::Display for Address {
 /// Kind of port: byte 2, bit 7 (1 = sensor).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "lowercase")
+)]
 pub enum PortKind {
     /// Actuator port: 2 PWM pins and 2 digital I/O pins.
     Actuator,
@@ -84,6 +109,7 @@ pub enum PortKind {
 /// One of the two pins of a port: byte 2, bit 0 (A = 0, B = 1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize, serde::Deserialize))]
 pub enum Pin {
     /// Pin A (bit 0 clear).
     A,

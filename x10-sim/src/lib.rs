@@ -2,7 +2,8 @@
 //!
 //! A deterministic simulator that runs the real motherboard and daughterboard runtimes
 //! (`firmware-mb`, `firmware-db`) against one simulated multi-master I2C bus and simulated
-//! ports, in virtual time, and the `x10` command-line tool.
+//! ports, in virtual time: a library for tests and tools. The `x10` command-line tool and the
+//! `cargo sim` command of a robot crate are `x10-cli`'s.
 //!
 //! * [`exec`]: the single-threaded executor with virtual time, its [`exec::SimClock`] and a
 //!   seeded generator.
@@ -14,27 +15,19 @@
 //! * [`board`]: a daughterboard running the real `firmware-db`, restarted on reset.
 //! * [`sim`]: the simulation builder ([`sim::Sim`]) running the real motherboard runtime,
 //!   daughterboards, robot programs (`async fn`s taking an [`sim::X10`]) and test tasks; the
-//!   executor is embassy-time's driver, so programs sleep in virtual time.
+//!   executor is embassy-time's driver, so programs sleep in virtual time. Its outcome
+//!   ([`sim::SimOutcome`]) holds the trace, the bus records, the actuator log and the
+//!   counters.
 //! * [`trace`] and [`vcd`]: the readable trace and the SDA/SCL waveform.
-//! * [`soak`]: `x10 soak`, many calls on a faulty bus checked against the ground truth.
-//! * [`report`]: the latency table and the end-of-run summary; [`cli_sim`]: the `x10 sim` and
-//!   `x10 report` subcommands; [`app`]: the simulator command of a robot crate (`cargo sim`);
-//!   [`examples`]: the example robots of `x10-robots` by name; [`new`]: `x10 new`, a robot
-//!   crate from the template.
 //! * [`world`]: the boards, devices and scripted signals a program runs against, from a
 //!   builder or a TOML file; [`timeline`]: what each device did over a run, as a short
 //!   summary, an SVG or an HTML page.
-pub mod app;
+//! * [`examples`]: the example robots of `x10-robots` by name, with their worlds.
 pub mod board;
 pub mod bus;
-pub mod cli_sim;
-pub mod codec;
 pub mod examples;
 pub mod exec;
-pub mod new;
 pub mod ports;
-pub mod report;
-pub mod soak;
 
 pub mod sim;
 pub mod timeline;

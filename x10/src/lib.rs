@@ -28,7 +28,7 @@
 //! * on a board: the image's `main` starts the motherboard runtime
 //!   (`x10_boards::pico::start_motherboard`) and spawns an embassy task that awaits it;
 //! * in the simulator: `x10_sim::Sim::with_robot("bumper", bumper)` (or a world file and the
-//!   `x10_sim::app` command line), in virtual time, against simulated daughterboards.
+//!   `x10_cli::app` command line), in virtual time, against simulated daughterboards.
 //!
 //! [`X10`] is `Copy`: give it to as many tasks as the robot has. Every driver method returns
 //! a [`Result`]; nothing panics. Boards are addressed by number, [`SELF`] (0) being the

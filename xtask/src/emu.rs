@@ -71,7 +71,7 @@ pub fn emu(args: &[String]) -> Result<ExitCode, Error> {
         .join("release")
         .join(doorbell.bin);
     let status = Command::new(&cargo)
-        .args(["build", "-q", "-p", "x10-sim", "--bin", "x10"])
+        .args(["build", "-q", "-p", "x10-cli", "--bin", "x10"])
         .status()
         .map_err(Error::Run)?;
     if !status.success() {

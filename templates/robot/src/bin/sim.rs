@@ -2,7 +2,7 @@
 //! device did (`cargo sim -- --help` for the options: duration, full trace, SVG plot, …).
 
 fn main() -> std::process::ExitCode {
-    x10_sim::app::main("world.toml", |sim| {
+    x10_cli::app::main("world.toml", |sim| {
         sim.with_robot("blink", robot::blink)
             .with_robot("drive", robot::drive)
     })

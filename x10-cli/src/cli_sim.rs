@@ -5,9 +5,9 @@ use std::process::ExitCode;
 use clap::Args;
 
 use crate::app::{self, RunArgs};
-use crate::examples::{self, Example};
 use crate::report;
-use crate::world::World;
+use x10_sim::examples::{self, Example};
+use x10_sim::world::World;
 
 const SIM_HELP: &str = "\
 EXAMPLES (robots/src, their worlds in robots/worlds)

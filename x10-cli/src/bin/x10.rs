@@ -12,8 +12,8 @@ use std::io::{self, BufRead, Write};
 use std::process::ExitCode;
 
 use clap::{Args, Parser, Subcommand};
+use x10_cli::codec::{self, Answers, DecodeOptions, FrameKind};
 use x10_microcode::Address;
-use x10_sim::codec::{self, Answers, DecodeOptions, FrameKind};
 
 #[derive(Parser)]
 #[command(
@@ -33,16 +33,16 @@ enum Command {
     /// Encode frames from JSON (what `decode --json` prints) into hex.
     Encode(EncodeArgs),
     /// Run a robot program against simulated boards and print the trace.
-    Sim(x10_sim::cli_sim::SimArgs),
+    Sim(x10_cli::cli_sim::SimArgs),
     /// Print the latency table: simulated, wire minimum and the thesis's figures.
-    Report(x10_sim::cli_sim::ReportArgs),
+    Report(x10_cli::cli_sim::ReportArgs),
     /// Create a robot crate of your own (program, world, simulator command, host test,
     /// Pico and STM32G431 images) in PATH, outside this repository.
     New(NewArgs),
     /// Many calls from 12 tasks to 8 boards and SELF on a faulty bus, checked against the
     /// simulator's ground truth, per PEC mode and corruption level (docs/reliability.md).
     /// Fails (exit 1) when a mode that must be clean is not.
-    Soak(x10_sim::soak::SoakArgs),
+    Soak(x10_cli::soak::SoakArgs),
 }
 
 const NEW_HELP: &str = "\
@@ -73,7 +73,7 @@ struct NewArgs {
 }
 
 fn new_main(args: NewArgs) -> ExitCode {
-    use x10_sim::new;
+    use x10_cli::new;
     let raw = match &args.name {
         Some(n) => n.clone(),
         None => args
@@ -366,9 +366,9 @@ fn main() -> ExitCode {
     match cli.command {
         Command::Decode(args) => decode(args),
         Command::Encode(args) => encode(args),
-        Command::Sim(args) => x10_sim::cli_sim::sim_main(args),
-        Command::Report(args) => x10_sim::cli_sim::report_main(args),
+        Command::Sim(args) => x10_cli::cli_sim::sim_main(args),
+        Command::Report(args) => x10_cli::cli_sim::report_main(args),
         Command::New(args) => new_main(args),
-        Command::Soak(args) => x10_sim::soak::soak_main(&args),
+        Command::Soak(args) => x10_cli::soak::soak_main(&args),
     }
 }

@@ -58,7 +58,7 @@ fn every_rust_and_toml_block_is_a_template_file_word_for_word() {
 #[test]
 fn the_template_is_what_x10_new_writes() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../templates/robot");
-    for (rel, text) in x10_sim::new::TEMPLATE {
+    for (rel, text) in x10_cli::new::TEMPLATE {
         if rel == ".gitignore" {
             continue;
         }

@@ -7,9 +7,9 @@
 //!   (robot task → request channel → dispatcher → bus → real daughterboard runtime → reply →
 //!   pending table → robot task), the mean of N back-to-back calls, as the thesis measured
 //!   (Tables 4.2 and 4.3: 20 consecutive calls). Virtual time only advances on the bus and in
-//!   the port model ([`crate::ports::PortsTiming`]: a 2 µs ADC conversion); CPU time is not
+//!   the port model ([`x10_sim::ports::PortsTiming`]: a 2 µs ADC conversion); CPU time is not
 //!   modelled, so the internal board's figures are the port model alone.
-//! * **wire**: the wire-time minimum of the same bytes ([`crate::timing`]): START, 9 bits per
+//! * **wire**: the wire-time minimum of the same bytes ([`x10_sim::timing`]): START, 9 bits per
 //!   byte, repeated START for reads, STOP; no `t_BUF`, no stretching.
 //! * **thesis**: the means the thesis measured on an Arduino Mega (bus at 230–300 kHz).
 
@@ -20,11 +20,11 @@ use std::rc::Rc;
 use x10_devices::SELF;
 use x10_microcode::{Address, Level, Op, Pin, Port, DIAGNOSTIC_NAMES};
 
-use crate::bus::Outcome;
-use crate::exec::Nanos;
-use crate::sim::{task, Sim, SimConfig, SimError, SimOutcome};
-use crate::timing::Speed;
-use crate::trace::micros;
+use x10_sim::bus::Outcome;
+use x10_sim::exec::Nanos;
+use x10_sim::sim::{task, Sim, SimConfig, SimError, SimOutcome};
+use x10_sim::timing::Speed;
+use x10_sim::trace::micros;
 
 /// The thesis's means, µs: (operation, internal (Table 4.2), external (Table 4.3)).
 pub const THESIS_MEANS: [(&str, f64, f64); 4] = [
@@ -247,7 +247,7 @@ pub fn summary(o: &SimOutcome) -> String {
     let _ = writeln!(
         s,
         "# end {}: bus at {}: {} transactions, {} arbitration lost, {} NACK, {} timeouts, {} bus faults, {} faults injected, {} resets",
-        crate::trace::timestamp(o.end_ns),
+        x10_sim::trace::timestamp(o.end_ns),
         o.speed,
         b.transactions,
         b.arbitration_lost,

@@ -15,7 +15,7 @@
 //! * **What each input really held**: the scripts of the sensor inputs, functions of time.
 //! * **What each output really held**: the [`ActuatorLog`] of every board, with the instants
 //!   at which a board's firmware applied its safe state ([`ActuatorLog::safe_states`]) and the
-//!   board resets ([`crate::bus::SimBus`] records each injected reset).
+//!   board resets ([`x10_sim::bus::SimBus`] records each injected reset).
 //!
 //! The invariants (see [`Row`] for each count): no `Ok` with a wrong value, no uncommanded
 //! actuator change, no call that never ends, no event lost silently.
@@ -30,12 +30,12 @@ use firmware_mb::{MbConfig, MbDiagnostics, Motherboard};
 use x10_devices::LinkError;
 use x10_microcode::{Address, EventConfig, Level, Op, Pin, PinRef, Port, Request};
 
-use crate::board::{DbBoard, DiagnosticsCell, Notes, PecLog};
-use crate::bus::{BusConfig, BusRecord, BusStats, FaultConfig, NodeConfig, Outcome, SimBus};
-use crate::exec::{Executor, Nanos, Rng, SimClock};
-use crate::ports::{ActuatorLog, Analog, Change, Digital, SensorScript, SimPorts};
-use crate::sim::MB_ADDRESS;
-use crate::timing::Speed;
+use x10_sim::board::{DbBoard, DiagnosticsCell, Notes, PecLog};
+use x10_sim::bus::{BusConfig, BusRecord, BusStats, FaultConfig, NodeConfig, Outcome, SimBus};
+use x10_sim::exec::{Executor, Nanos, Rng, SimClock};
+use x10_sim::ports::{ActuatorLog, Analog, Change, Digital, SensorScript, SimPorts};
+use x10_sim::sim::MB_ADDRESS;
+use x10_sim::timing::Speed;
 
 /// How the soak sets PEC on the daughterboards. The mode is the soak's own setting, whatever
 /// the runtime's default is: `On` and `Off` send `set_pec` to each board at its every boot.
@@ -198,7 +198,7 @@ fn board_addr(b: usize) -> Address {
 }
 
 fn board_name(b: usize) -> String {
-    crate::board::board_name(board_addr(b))
+    x10_sim::board::board_name(board_addr(b))
 }
 
 fn analog_value(board: usize, t_ns: Nanos) -> u16 {
@@ -377,7 +377,7 @@ fn corrupted_into_other(
 /// # Errors
 /// The executor's error when a task livelocks.
 #[allow(clippy::too_many_lines)]
-pub fn run(cfg: SoakConfig) -> Result<Row, crate::exec::RunError> {
+pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
     let clock = SimClock::new();
     let log = ActuatorLog::new();
     let notes = Notes::new();

@@ -6,7 +6,7 @@
 //! ```no_run
 //! fn main() -> std::process::ExitCode {
 //!     # async fn drive(_x10: x10_sim::sim::X10) {}
-//!     x10_sim::app::main("world.toml", |sim| sim.with_robot("drive", drive))
+//!     x10_cli::app::main("world.toml", |sim| sim.with_robot("drive", drive))
 //! }
 //! ```
 
@@ -16,10 +16,10 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser};
 
-use crate::sim::{Sim, SimConfig, SimOutcome};
-use crate::timeline;
-use crate::timing::Speed;
-use crate::world::World;
+use x10_sim::sim::{Sim, SimConfig, SimOutcome};
+use x10_sim::timeline;
+use x10_sim::timing::Speed;
+use x10_sim::world::World;
 
 /// How to run and what to print: the options of `cargo sim` and `x10 sim`.
 #[derive(Args, Debug, Clone)]
