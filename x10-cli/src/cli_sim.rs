@@ -15,6 +15,7 @@ EXAMPLES (robots/src, their worlds in robots/worlds)
   fig4_4  Fig. 4.2 plus a second task: light on DB 9 S1 > 700 runs a motor on DB 9 A1 at 50 %
   fig4_6  thesis Fig. 4.6: freezer (DB 17 S1) > 1 °C or oven (DB 108 S6) < 200 °F: alarm (DB 10 A3.A)
   bumper  three tasks: heartbeat LED, a lamp following the light, a timed back-off on a bump
+  doorbell  a button on DB 9 S1.A rings a chime on SELF A1.A: its events wake the task
 
 OUTPUT
   A summary: what each device did and when, the bus load, warnings. --trace prints instead one
@@ -35,7 +36,7 @@ EXAMPLES
 #[derive(Args, Debug)]
 #[command(after_help = SIM_HELP)]
 pub struct SimArgs {
-    /// Example robot: fig4_2, fig4_4, fig4_6 or bumper.
+    /// Example robot: fig4_2, fig4_4, fig4_6, bumper or doorbell.
     #[arg(required_unless_present = "report", value_parser = example)]
     pub program: Option<&'static Example>,
     /// How to run, what to print.
@@ -98,6 +99,20 @@ pub fn report_main(args: ReportArgs) -> ExitCode {
         Err(e) => {
             eprintln!("x10 report: {e}");
             ExitCode::FAILURE
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn the_help_names_every_example() {
+        for e in x10_sim::examples::EXAMPLES {
+            assert!(
+                super::SIM_HELP.contains(&format!("  {} ", e.name)),
+                "{} missing from the help",
+                e.name
+            );
         }
     }
 }
