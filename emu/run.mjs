@@ -136,6 +136,13 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
     check(name, ok, detail = '') { checks.push({ name, ok: !!ok, detail }); },
     figure(name, value) { figures.push({ name, value }); },
     defmt: decodeDefmt,
+    /** Runs the `x10` tool (null when none was given): its stdout, or throws. */
+    x10(args) {
+      if (!x10) return null;
+      const r = spawnSync(x10, args, { maxBuffer: 64 << 20 });
+      if (r.status !== 0) throw new Error(`x10 ${args.join(' ')}: ${r.stderr}`);
+      return r.stdout.toString();
+    },
   };
   const wall0 = Date.now();
   try {

@@ -103,6 +103,97 @@ pub fn report_main(args: ReportArgs) -> ExitCode {
     }
 }
 
+/// Arguments of `x10 signals`.
+#[derive(Args, Debug)]
+pub struct SignalsArgs {
+    /// Example robot whose world to read (fig4_2, fig4_4, fig4_6, bumper, doorbell).
+    #[arg(value_parser = example, required_unless_present = "world")]
+    pub program: Option<&'static Example>,
+    /// A world file instead of an example's.
+    #[arg(long)]
+    pub world: Option<std::path::PathBuf>,
+    /// How much virtual time, in ms.
+    #[arg(long, default_value_t = 5_000)]
+    pub duration_ms: u64,
+    /// Sampling step, in ms.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    pub step_ms: u64,
+}
+
+/// `x10 signals`: what a world gives the boards, as JSON lines, for a rig that drives real
+/// boards from the same description as the simulator (the emulated Picos, `emu/`). First one
+/// line per device (`{"device", "kind", "board", "port", "output"}`), then, for every sensor
+/// port of every board, its two pins and its analog input at 0 ms and at every step where one
+/// of them changes (`{"t_ms", "board", "port", "a", "b", "analog"}`, in time order). The
+/// values are the simulator's own (`World::sensor_script`): what its ports read.
+pub fn signals_main(args: SignalsArgs) -> ExitCode {
+    let (world, source) = match (&args.world, args.program) {
+        (Some(path), _) => (World::load(path), path.display().to_string()),
+        (None, Some(e)) => (e.world(), format!("robots/worlds/{}.toml", e.name)),
+        (None, None) => {
+            eprintln!("x10 signals: name an example or give --world");
+            return ExitCode::from(2);
+        }
+    };
+    let world = match world {
+        Ok(w) => w,
+        Err(e) => {
+            eprintln!("x10 signals: {source}: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let mut out = Vec::new();
+    for d in world.devices() {
+        let board = world.board_of(d).map(|b| b.address());
+        out.push(serde_json::json!({
+            "device": d.name(),
+            "kind": d.kind().name(),
+            "board": board,
+            "port": d.port_number(),
+            "output": d.kind().is_output(),
+        }));
+    }
+    let mut ports = Vec::new();
+    for b in world.boards() {
+        for port in 1..=b.kind().sensor_ports() {
+            if let Some(script) = world.sensor_script(b.address(), port) {
+                ports.push((b.address(), port, script, None));
+            }
+        }
+    }
+    let mut t_ms = 0;
+    while t_ms <= args.duration_ms {
+        let t_ns = t_ms * 1_000_000;
+        for (board, port, script, last) in &mut ports {
+            let now = (
+                script.a.level_at(t_ns),
+                script.b.level_at(t_ns),
+                script.analog.value_at(t_ns),
+            );
+            if *last != Some(now) {
+                *last = Some(now);
+                out.push(serde_json::json!({
+                    "t_ms": t_ms, "board": board, "port": port,
+                    "a": now.0, "b": now.1, "analog": now.2,
+                }));
+            }
+        }
+        t_ms += args.step_ms;
+    }
+    let mut text = String::new();
+    for line in out {
+        text.push_str(&line.to_string());
+        text.push('\n');
+    }
+    match std::io::Write::write_all(&mut std::io::stdout().lock(), text.as_bytes()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("x10 signals: cannot write: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

@@ -36,6 +36,9 @@ enum Command {
     Sim(x10_cli::cli_sim::SimArgs),
     /// Print the latency table: simulated, wire minimum and the thesis's figures.
     Report(x10_cli::cli_sim::ReportArgs),
+    /// Print what a world gives each board's sensor ports over time, as JSON lines (for rigs
+    /// that drive real or emulated boards from the same world as the simulator).
+    Signals(x10_cli::cli_sim::SignalsArgs),
     /// Create a robot crate of your own (program, world, simulator command, host test,
     /// Pico and STM32G431 images) in PATH, outside this repository.
     New(NewArgs),
@@ -368,6 +371,7 @@ fn main() -> ExitCode {
         Command::Encode(args) => encode(args),
         Command::Sim(args) => x10_cli::cli_sim::sim_main(args),
         Command::Report(args) => x10_cli::cli_sim::report_main(args),
+        Command::Signals(args) => x10_cli::cli_sim::signals_main(args),
         Command::New(args) => new_main(args),
         Command::Soak(args) => x10_cli::soak::soak_main(&args),
     }
