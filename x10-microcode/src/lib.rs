@@ -50,6 +50,9 @@ mod reply;
 mod request;
 mod status;
 mod system;
+#[cfg(feature = "test-support")]
+#[doc(hidden)]
+pub mod test_support;
 mod types;
 
 pub use batch::{Batch, BatchItem, BatchItems, BatchResults, BatchWriter};
