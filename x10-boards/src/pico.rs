@@ -26,11 +26,11 @@ use embassy_sync::mutex::Mutex;
 use embassy_time::{with_deadline, with_timeout, Duration, Instant, Timer};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{PortError, Ports};
-use x10_microcode::{Edge, Level, PinRef, Port, PortKind};
+use x10_microcode::{Edge, Level, PinRef, Port};
 
 use crate::pins::PICO;
 use crate::pwm::{rp2040_slice, Output, SliceTiming, Timebase, DEFAULT_HZ};
-use crate::{address, BusConfig, RX_LEN};
+use crate::{address, port_lookup, BusConfig, RX_LEN};
 
 bind_interrupts!(
     /// The interrupts the Pico images use: the bus's I2C block and the ADC.
@@ -458,23 +458,17 @@ pub struct PicoPorts {
 
 impl PicoPorts {
     fn digital(&self, pin: PinRef) -> Result<&Lock<Flex<'static>>, PortError> {
-        let i = usize::from(pin.port.index());
-        let pins = match pin.port.kind() {
-            PortKind::Sensor => &self.sensors.get(i).ok_or(PortError::NoSuchPin)?.pins,
-            PortKind::Actuator => &self.actuators.get(i).ok_or(PortError::NoSuchPin)?.pins,
-        };
-        pins.get(pin.pin.index()).ok_or(PortError::NoSuchPin)
+        port_lookup::digital(
+            &self.sensors,
+            &self.actuators,
+            pin,
+            |s| &s.pins,
+            |a| &a.pins,
+        )
     }
 
     fn pwm(&self, port: Port) -> Result<&Lock<PwmUnit>, PortError> {
-        match port.kind() {
-            PortKind::Actuator => self
-                .actuators
-                .get(usize::from(port.index()))
-                .map(|a| &a.pwm)
-                .ok_or(PortError::NoSuchPin),
-            PortKind::Sensor => Err(PortError::Unsupported),
-        }
+        port_lookup::actuator(&self.actuators, port).map(|a| &a.pwm)
     }
 }
 
@@ -535,13 +529,7 @@ impl Ports for PicoPorts {
     /// As the trait; a conversion the ADC flags as bad is answered [`PortError::Busy`] (worth
     /// a retry).
     async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
-        let sensor = match port.kind() {
-            PortKind::Sensor => self
-                .sensors
-                .get(usize::from(port.index()))
-                .ok_or(PortError::NoSuchPin)?,
-            PortKind::Actuator => return Err(PortError::Unsupported),
-        };
+        let sensor = port_lookup::sensor(&self.sensors, port)?;
         let mut ch = sensor.analog.lock().await;
         let mut adc = self.adc.lock().await;
         adc.read(&mut ch).await.map_err(|_| PortError::Busy)

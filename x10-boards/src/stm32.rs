@@ -30,12 +30,12 @@ use embassy_sync::mutex::Mutex;
 use embassy_time::{Duration, Instant};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{PortError, Ports};
-use x10_microcode::{Edge, Level, Pin, PinRef, Port, PortKind, MAX_FRAME_LEN};
+use x10_microcode::{Edge, Level, Pin, PinRef, Port, MAX_FRAME_LEN};
 
 use crate::i2c_v2::{self, After, Lines, Outcome};
 use crate::pulse::PulseIn;
 use crate::pwm::{stm32_compare, stm32_frequency_ok, Output, Timebase, DEFAULT_HZ};
-use crate::RX_LEN;
+use crate::{port_lookup, RX_LEN};
 
 /// An async mutex (pins and timers are shared by the runtime's tasks).
 pub type Lock<T> = Mutex<CriticalSectionRawMutex, T>;
@@ -581,23 +581,17 @@ impl<U: PwmTimer, const S: usize, const A: usize> Stm32Ports<U, S, A> {
     }
 
     fn digital(&self, pin: PinRef) -> Result<&Lock<Flex<'static>>, PortError> {
-        let i = usize::from(pin.port.index());
-        let pins = match pin.port.kind() {
-            PortKind::Sensor => &self.sensors.get(i).ok_or(PortError::NoSuchPin)?.pins,
-            PortKind::Actuator => &self.actuators.get(i).ok_or(PortError::NoSuchPin)?.pins,
-        };
-        pins.get(pin.pin.index()).ok_or(PortError::NoSuchPin)
+        port_lookup::digital(
+            &self.sensors,
+            &self.actuators,
+            pin,
+            |s| &s.pins,
+            |a| &a.pins,
+        )
     }
 
     fn pwm(&self, port: Port) -> Result<&Lock<(U, [Output; 2])>, PortError> {
-        match port.kind() {
-            PortKind::Actuator => self
-                .actuators
-                .get(usize::from(port.index()))
-                .map(|a| &a.pwm)
-                .ok_or(PortError::NoSuchPin),
-            PortKind::Sensor => Err(PortError::Unsupported),
-        }
+        port_lookup::actuator(&self.actuators, port).map(|a| &a.pwm)
     }
 
     /// Sets one output of a port, or changes nothing when it does not fit the period.
@@ -674,13 +668,7 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
     }
 
     async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
-        let sensor = match port.kind() {
-            PortKind::Sensor => self
-                .sensors
-                .get(usize::from(port.index()))
-                .ok_or(PortError::NoSuchPin)?,
-            PortKind::Actuator => return Err(PortError::Unsupported),
-        };
+        let sensor = port_lookup::sensor(&self.sensors, port)?;
         let mut ch = sensor.analog.lock().await;
         let mut adc = self.adc.lock().await;
         // A blocking conversion: 47.5 + 12.5 ADC cycles, under 2 µs at the G431's 42.5 MHz
