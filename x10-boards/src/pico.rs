@@ -22,7 +22,7 @@ pub use embassy_rp as hal;
 use embassy_rp::gpio::{Flex, Input, Pull};
 use embassy_rp::{adc, bind_interrupts, i2c, i2c_slave, pac, peripherals, pwm, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::mutex::Mutex;
+use embassy_sync::mutex::{Mutex, MutexGuard};
 use embassy_time::{with_deadline, with_timeout, Duration, Instant, Timer};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{PortError, Ports};
@@ -51,6 +51,8 @@ pub const JUMPERS: usize = PICO.jumpers.len();
 pub const ADC_BITS: u8 = 12;
 
 type Lock<T> = Mutex<CriticalSectionRawMutex, T>;
+/// A digital pin, taken.
+type PinGuard<'a> = MutexGuard<'a, CriticalSectionRawMutex, Flex<'static>>;
 
 /// Starts the HAL: clocks from the Pico's 12 MHz crystal (125 MHz system clock), time driver.
 pub fn init() -> embassy_rp::Peripherals {
@@ -457,14 +459,16 @@ pub struct PicoPorts {
 }
 
 impl PicoPorts {
-    fn digital(&self, pin: PinRef) -> Result<&Lock<Flex<'static>>, PortError> {
-        port_lookup::digital(
+    /// The digital pin `pin`, unless a pulse-in holds it ([`PortError::Busy`]).
+    fn digital(&self, pin: PinRef) -> Result<PinGuard<'_>, PortError> {
+        let lock = port_lookup::digital(
             &self.sensors,
             &self.actuators,
             pin,
             |s| &s.pins,
             |a| &a.pins,
-        )
+        )?;
+        lock.try_lock().map_err(|_| PortError::Busy)
     }
 
     fn pwm(&self, port: Port) -> Result<&Lock<PwmUnit>, PortError> {
@@ -486,18 +490,14 @@ impl Ports for PicoPorts {
     }
 
     async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
-        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
+        let mut f = self.digital(pin)?;
         f.set_as_input();
         Ok(Level::from_bool(f.is_high()))
     }
 
     async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
-        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
-        f.set_level(if level.is_high() {
-            embassy_rp::gpio::Level::High
-        } else {
-            embassy_rp::gpio::Level::Low
-        });
+        let mut f = self.digital(pin)?;
+        f.set_level(level.is_high().into());
         f.set_as_output();
         Ok(())
     }
@@ -536,7 +536,7 @@ impl Ports for PicoPorts {
     }
 
     async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError> {
-        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
+        let mut f = self.digital(pin)?;
         f.set_as_input();
         let deadline = Instant::now() + Duration::from_millis(u64::from(timeout_ms));
         let measure = async {
