@@ -7,6 +7,7 @@ use common::{FakePorts, PortOp, TestClock};
 use embassy_futures::block_on;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{Daughterboard, DbConfig, OutEvent, EVENT_QUEUE_LEN};
+use x10_microcode::test_support::{a, s};
 use x10_microcode::{
     pec, Address, BoardKind, Capabilities, Diagnostics, EventConfig, EventKind, Level, PinRef,
     Port, Status,
@@ -39,14 +40,6 @@ fn read(db: &Db) -> Vec<u8> {
 
 fn events(db: &Db) -> Vec<OutEvent> {
     std::iter::from_fn(|| db.try_next_event()).collect()
-}
-
-fn s(n: u8) -> Port {
-    Port::sensor(n).unwrap()
-}
-
-fn a(n: u8) -> Port {
-    Port::actuator(n).unwrap()
 }
 
 fn pin(p: Port, b: bool) -> PinRef {

@@ -1,4 +1,5 @@
-//! Counters of the motherboard runtime.
+//! Counters of the motherboard runtime: [`MbDiagnostics`], kept with the bookkeeping under
+//! the motherboard's lock and counted by every part of it.
 
 /// What the motherboard runtime counted since start (each saturating at `u32::MAX`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -77,6 +78,47 @@ pub struct MbDiagnostics {
     pub unexpected_reads: u32,
     /// Listener errors.
     pub listener_errors: u32,
+}
+
+impl MbDiagnostics {
+    /// Every counter at 0 (as `Default`, for a `const` table).
+    pub(crate) const fn new() -> MbDiagnostics {
+        MbDiagnostics {
+            requests: 0,
+            completed: 0,
+            timeouts: 0,
+            nacks: 0,
+            arbitration_failures: 0,
+            bus_errors: 0,
+            bad_replies: 0,
+            status_errors: 0,
+            busy: 0,
+            arbitration_lost: 0,
+            nacked: 0,
+            retries: 0,
+            yields: 0,
+            keepalives: 0,
+            failsafe_resends: 0,
+            keepalive_failures: 0,
+            abandoned: 0,
+            cancelled: 0,
+            late_replies: 0,
+            duplicate_replies: 0,
+            unknown_replies: 0,
+            events: 0,
+            bad_events: 0,
+            events_dropped: 0,
+            rejected: 0,
+            failsafe_trips: 0,
+            boots: 0,
+            overflows: 0,
+            event_gaps: 0,
+            events_lost: 0,
+            pec_resyncs: 0,
+            unexpected_reads: 0,
+            listener_errors: 0,
+        }
+    }
 }
 
 /// Adds one, stopping at the maximum.

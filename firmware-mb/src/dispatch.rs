@@ -1,5 +1,9 @@
 //! The dispatcher: the only user of the bus controller role, and, while idle, the
-//! DB-interrupt listener at the motherboard's own address.
+//! DB-interrupt listener at the motherboard's own address. Owns the bus once
+//! [`MbCore::run_dispatcher`] runs: the jobs, their retries (listening meanwhile), the
+//! preparation of each external board (PEC, failsafe) and its keepalives. Keeps no state of
+//! its own besides the bus: what a transfer means is [`crate::transfer`]'s, where a received
+//! event goes [`crate::routing`]'s.
 
 use embassy_futures::select::{select, select3, Either, Either3};
 use heapless::Vec;
@@ -9,10 +13,13 @@ use x10_hal::retry::Backoff;
 use x10_hal::time::Instant;
 use x10_microcode::{Address, Op, Request, Status, MAX_FRAME_LEN, REPLY_HEADER_LEN};
 
+use crate::boards::pec_change;
 use crate::diag::bump;
+use crate::jobs::{Job, JobMeta};
 use crate::keepalive::{KeepaliveOp, Next};
-use crate::motherboard::{link_error, now, pec_change, request_op, sleep_until, MbCore, Outcome};
-use crate::table::{Job, JobMeta, Ticket};
+use crate::mb_core::{now, sleep_until, MbCore};
+use crate::requests::Ticket;
+use crate::transfer::{link_error, request_op, Outcome};
 
 impl MbCore {
     /// The dispatcher and the DB-interrupt listener on `bus`; never returns. Part of
@@ -41,7 +48,7 @@ impl MbCore {
     /// `Bus`. A request whose caller already gave up is not sent.
     ///
     /// Between two jobs it keeps the external boards' failsafes alive (see
-    /// [`crate::keepalive`]): a keepalive that is due goes before the next job, with a
+    /// the module `keepalive`): a keepalive that is due goes before the next job, with a
     /// sequence number of its own and no pending slot, so callers that keep every slot busy
     /// delay it by one transfer at most.
     pub async fn run_dispatcher<B: MultiMaster>(&self, mut bus: B) -> ! {
@@ -50,7 +57,7 @@ impl MbCore {
         loop {
             let t_now = now();
             let timeout = self.config.request_timeout_us;
-            let next = self.with(|t| t.keepalive.next(t_now, false, timeout));
+            let next = self.with(|t| t.boards.keepalive.next(t_now, false, timeout));
             let wake = match next {
                 Next::Send(board, op, timeout_us) => {
                     nth = nth.wrapping_add(1);
@@ -100,7 +107,7 @@ impl MbCore {
         let deadline = now().plus_us(timeout_us);
         let r = match op {
             KeepaliveOp::SetFailsafe(_) if self.config.manages_boards() => {
-                self.with(|t| t.set_ready(board, false));
+                self.with(|t| t.boards.set_ready(board, false));
                 self.ensure_ready(bus, board, seed, rx).await
             }
             KeepaliveOp::SetFailsafe(ms) => {
@@ -116,12 +123,12 @@ impl MbCore {
                     .await;
                 if r.is_ok() {
                     let t_now = now();
-                    self.with(|t| t.failsafe_set(board, ms, t_now));
+                    self.with(|t| t.boards.failsafe_set(board, ms, t_now));
                 }
                 r
             }
             KeepaliveOp::Heartbeat
-                if !self.with(|t| t.ready(board)) && self.config.manages_boards() =>
+                if !self.with(|t| t.boards.ready(board)) && self.config.manages_boards() =>
             {
                 self.ensure_ready(bus, board, seed, rx).await
             }
@@ -134,7 +141,11 @@ impl MbCore {
             warn!("keepalive of board {} failed: {}", board.get(), e);
         }
         let t_now = now();
-        self.with(|t| t.keepalive.done(board, op, r.is_ok(), t_now, &mut t.diag));
+        self.with(|t| {
+            t.boards
+                .keepalive
+                .done(board, op, r.is_ok(), t_now, &mut t.diag)
+        });
     }
 
     /// After [`MultiMaster::addressed`] returned: receives and serves that transaction, never
@@ -342,7 +353,7 @@ impl MbCore {
         }
         let mut last = Err(LinkError::BadReply);
         for _ in 0..3 {
-            if self.with(|t| t.ready(db)) {
+            if self.with(|t| t.boards.ready(db)) {
                 return Ok(());
             }
             last = self.prepare(bus, db, seed, rx).await;
@@ -351,9 +362,9 @@ impl MbCore {
             }
             let pec_wanted = self.config.pec;
             if self.with(|t| {
-                let done = !pec_wanted || t.pec(db);
+                let done = !pec_wanted || t.boards.pec(db);
                 if done {
-                    t.set_ready(db, true);
+                    t.boards.set_ready(db, true);
                 }
                 done
             }) {
@@ -370,10 +381,10 @@ impl MbCore {
         seed: u32,
         rx: &mut [u8],
     ) -> Result<(), LinkError> {
-        if self.config.pec && !self.with(|t| t.pec(db)) {
+        if self.config.pec && !self.with(|t| t.boards.pec(db)) {
             self.setup_op(bus, db, Op::SetPec(true), seed, rx).await?;
         }
-        let ms = match self.with(|t| t.keepalive.timeout_ms(db)) {
+        let ms = match self.with(|t| t.boards.keepalive.timeout_ms(db)) {
             0 => self.config.failsafe_ms,
             ms => ms,
         };
@@ -381,7 +392,7 @@ impl MbCore {
             self.setup_op(bus, db, Op::SetFailsafe { timeout_ms: ms }, seed, rx)
                 .await?;
             let t_now = now();
-            self.with(|t| t.failsafe_set(db, ms, t_now));
+            self.with(|t| t.boards.failsafe_set(db, ms, t_now));
             self.notify_keepalive();
         }
         Ok(())
@@ -416,7 +427,7 @@ impl MbCore {
         seed: u32,
         rx: &mut [u8],
     ) -> Result<(), LinkError> {
-        let seq = self.with(|t| t.fresh_seq(db));
+        let seq = self.with(|t| t.requests.fresh_seq(db));
         let req = Request { db, seq, op };
         let mut frame: Vec<u8, MAX_FRAME_LEN> = Vec::new();
         let _ = frame.resize(req.buffer_len().min(MAX_FRAME_LEN), 0);
@@ -447,14 +458,14 @@ impl MbCore {
             match self.attempt(bus, db.get(), &tx, read_len, &mut read).await {
                 Ok(None) => {
                     let t_now = now();
-                    self.with(|t| t.keepalive.sent(db, t_now));
+                    self.with(|t| t.boards.keepalive.sent(db, t_now));
                     return Ok(());
                 }
                 Ok(Some(bytes)) => {
                     let (outcome, state) = self.interpret(&job.meta, pec, &op, bytes);
                     self.board_pec_is(db, state);
                     let t_now = now();
-                    self.with(|t| t.keepalive.sent(db, t_now));
+                    self.with(|t| t.boards.keepalive.sent(db, t_now));
                     return match outcome {
                         Outcome::Complete(Ok(_)) => Ok(()),
                         Outcome::Complete(Err(LinkError::Status(Status::PecMismatch)))

@@ -1,11 +1,11 @@
-//! Reception bookkeeping of events: gaps in each board's event counter, and the drops the
-//! boards report in their `overflow` events.
+//! Reception bookkeeping of events, per board: the event counter expected next (gaps are
+//! counted), and the drops the boards report in their `overflow` events. Owns [`EventBook`];
+//! the routing of the events themselves is `MbCore::route_event`'s.
 
 use x10_microcode::{Event, EventKind};
 
+use crate::board_set::{board_index, BoardSet, BOARDS};
 use crate::diag::MbDiagnostics;
-
-const BOARDS: usize = 128;
 
 /// Per board (by address): the event counter expected next (known once a first event came:
 /// one bit per board), and the low 16 bits of the cumulative drop count of its last
@@ -14,7 +14,7 @@ const BOARDS: usize = 128;
 /// arrive; 16 bits rather than 32 keep the book at 416 bytes).
 pub(crate) struct EventBook {
     expected: [u8; BOARDS],
-    known: [u32; BOARDS / 32],
+    known: BoardSet,
     dropped: [u16; BOARDS],
 }
 
@@ -22,15 +22,9 @@ impl EventBook {
     pub(crate) const fn new() -> EventBook {
         EventBook {
             expected: [0; BOARDS],
-            known: [0; BOARDS / 32],
+            known: BoardSet::new(),
             dropped: [0; BOARDS],
         }
-    }
-
-    fn is_known(&self, i: usize) -> bool {
-        self.known
-            .get(i / 32)
-            .is_some_and(|w| w >> (i % 32) & 1 != 0)
     }
 
     /// Accounts for one event: a gap in the board's counter is added to `event_gaps`, the
@@ -38,7 +32,7 @@ impl EventBook {
     /// board's counter and its cumulative count. `deferred_reply` and `rejected` carry a
     /// request's sequence number instead of the counter and are not counted here.
     pub(crate) fn received(&mut self, ev: &Event<'_>, diag: &mut MbDiagnostics) {
-        let i = usize::from(ev.source.get()) % BOARDS;
+        let i = board_index(ev.source);
         let counted = matches!(
             ev.kind,
             EventKind::PinChange
@@ -54,7 +48,12 @@ impl EventBook {
             if let Some(d) = self.dropped.get_mut(i) {
                 *d = 0;
             }
-        } else if let Some(expected) = self.expected.get(i).copied().filter(|_| self.is_known(i)) {
+        } else if let Some(expected) = self
+            .expected
+            .get(i)
+            .copied()
+            .filter(|_| self.known.contains(i))
+        {
             // Events never overtake each other; a number behind the expected one (a
             // retransmission the board did not know was received) is no gap.
             let gap = ev.seq.wrapping_sub(expected);
@@ -65,9 +64,7 @@ impl EventBook {
         if let Some(e) = self.expected.get_mut(i) {
             *e = ev.seq.wrapping_add(1);
         }
-        if let Some(w) = self.known.get_mut(i / 32) {
-            *w |= 1 << (i % 32);
-        }
+        self.known.set(i, true);
         if ev.kind == EventKind::Overflow {
             let lost = match *ev.payload {
                 // Cumulative since the board's boot: what grew since the last report.

@@ -1,11 +1,12 @@
-//! [`X10`]: the handle robot programs use.
+//! [`X10`]: the handle robot programs use, a `&'static` reference to the [`MbCore`] (and
+//! the [`Link`] implementations through which the drivers reach it).
 
 use x10_devices::{Link, LinkError, PinEvent};
 use x10_microcode::{Address, Op, Payload, PinRef};
 
+use crate::config::MbConfig;
 use crate::diag::MbDiagnostics;
-use crate::motherboard::MbCore;
-use crate::MbConfig;
+use crate::mb_core::MbCore;
 
 /// The robot programs' handle on the running motherboard: one concrete, `Copy` type, the same
 /// on every board and in the simulator, so a robot program is a plain `async fn` that takes

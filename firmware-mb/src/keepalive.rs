@@ -17,16 +17,16 @@
 //! Callers that keep every slot busy, or a long queue, delay a heartbeat by one transfer at
 //! most. The state is one fixed entry per 7-bit address (no cap below the bus's 111 boards):
 //! [`KEEPALIVE_RAM_BYTES`] bytes.
+//!
+//! Owns [`Keepalives`], the schedule: which board has a failsafe kept alive, when its next
+//! keepalive is due and what it is. Part of the per-board state (`boards`); the sending is
+//! the dispatcher's and the internal worker's.
 
 use x10_hal::time::Instant;
-use x10_microcode::{Address, Op};
+use x10_microcode::Address;
 
+use crate::board_set::{board_index as index, BoardSet, BOARDS};
 use crate::diag::{bump, MbDiagnostics};
-
-/// Every 7-bit address.
-const BOARDS: usize = 128;
-/// 32-bit words of a bitmap over [`BOARDS`] (no 128-bit shifts on the M0).
-const WORDS: usize = BOARDS / 32;
 
 /// The static RAM the keepalive state takes: a timeout (2 bytes) and a due time (4 bytes)
 /// per address, and two bitmaps.
@@ -51,8 +51,8 @@ pub(crate) enum KeepaliveOp {
     SetFailsafe(u16),
 }
 
-/// The failsafes being kept alive (part of the pending table, under its lock), one entry per
-/// address.
+/// The failsafes being kept alive, one entry per address (part of the per-board state, under
+/// the motherboard's lock).
 pub(crate) struct Keepalives {
     /// The timeout each board accepted, in ms (0: none kept alive).
     timeout_ms: [u16; BOARDS],
@@ -61,9 +61,9 @@ pub(crate) struct Keepalives {
     /// a due time is never more than a third of a 65 s timeout away.
     due: [u32; BOARDS],
     /// Boards with a timeout kept alive.
-    active: [u32; WORDS],
+    active: BoardSet,
     /// Boards that rebooted: their failsafe must be set again.
-    resend: [u32; WORDS],
+    resend: BoardSet,
 }
 
 /// A third of `timeout_ms`, in µs.
@@ -79,31 +79,13 @@ pub(crate) fn keepalive_timeout_us(timeout_ms: u16, request_timeout_us: u64) -> 
     (interval_us(timeout_ms) / 2).min(request_timeout_us)
 }
 
-fn bit(bits: &[u32; WORDS], i: usize) -> bool {
-    bits.get(i / 32).is_some_and(|w| w >> (i % 32) & 1 != 0)
-}
-
-fn set_bit(bits: &mut [u32; WORDS], i: usize, on: bool) {
-    if let Some(w) = bits.get_mut(i / 32) {
-        if on {
-            *w |= 1 << (i % 32);
-        } else {
-            *w &= !(1 << (i % 32));
-        }
-    }
-}
-
-fn index(board: Address) -> usize {
-    usize::from(board.get()) % BOARDS
-}
-
 impl Keepalives {
     pub(crate) const fn new() -> Keepalives {
         Keepalives {
             timeout_ms: [0; BOARDS],
             due: [0; BOARDS],
-            active: [0; WORDS],
-            resend: [0; WORDS],
+            active: BoardSet::new(),
+            resend: BoardSet::new(),
         }
     }
 
@@ -136,22 +118,22 @@ impl Keepalives {
         if let Some(t) = self.timeout_ms.get_mut(i) {
             *t = timeout_ms;
         }
-        set_bit(&mut self.active, i, timeout_ms > 0);
-        set_bit(&mut self.resend, i, false);
+        self.active.set(i, timeout_ms > 0);
+        self.resend.set(i, false);
         self.set_due(i, now.plus_us(interval_us(timeout_ms)));
     }
 
     /// True when a failsafe is kept alive on `board`: only then does
     /// [`Keepalives::sent`] record anything.
     pub(crate) fn tracks(&self, board: Address) -> bool {
-        bit(&self.active, index(board))
+        self.active.contains(index(board))
     }
 
     /// Something was sent to `board` (a transaction it acknowledged) at `now`: its next
     /// heartbeat is due a third of its timeout later.
     pub(crate) fn sent(&mut self, board: Address, now: Instant) {
         let i = index(board);
-        if bit(&self.active, i) && !bit(&self.resend, i) {
+        if self.active.contains(i) && !self.resend.contains(i) {
             let ms = self.timeout_ms.get(i).copied().unwrap_or(0);
             self.set_due(i, now.plus_us(interval_us(ms)));
         }
@@ -161,10 +143,10 @@ impl Keepalives {
     /// once. True when it must.
     pub(crate) fn booted(&mut self, board: Address, now: Instant) -> bool {
         let i = index(board);
-        if !bit(&self.active, i) {
+        if !self.active.contains(i) {
             return false;
         }
-        set_bit(&mut self.resend, i, true);
+        self.resend.set(i, true);
         self.set_due(i, now);
         true
     }
@@ -174,7 +156,7 @@ impl Keepalives {
     /// after the last transaction), or when to look again.
     pub(crate) fn next(&self, now: Instant, internal: bool, request_timeout_us: u64) -> Next {
         let mut best: Option<(Instant, usize)> = None;
-        for (w, &word) in self.active.iter().enumerate() {
+        for (w, &word) in self.active.words().iter().enumerate() {
             let mut bits = word;
             while bits != 0 {
                 let i = w * 32 + bits.trailing_zeros() as usize;
@@ -199,7 +181,7 @@ impl Keepalives {
             return Next::Idle;
         };
         let ms = self.timeout_ms.get(i).copied().unwrap_or(0);
-        let op = if bit(&self.resend, i) {
+        let op = if self.resend.contains(i) {
             KeepaliveOp::SetFailsafe(ms)
         } else {
             KeepaliveOp::Heartbeat
@@ -225,11 +207,11 @@ impl Keepalives {
             (KeepaliveOp::Heartbeat, true) => bump(&mut diag.keepalives),
             (KeepaliveOp::SetFailsafe(_), true) => {
                 bump(&mut diag.failsafe_resends);
-                set_bit(&mut self.resend, i, false);
+                self.resend.set(i, false);
             }
             (_, false) => bump(&mut diag.keepalive_failures),
         }
-        if bit(&self.active, i) {
+        if self.active.contains(i) {
             self.set_due(i, now.plus_us(interval_us(ms)));
         }
     }
@@ -237,18 +219,6 @@ impl Keepalives {
     /// The timeout kept alive for `board` (0: none).
     pub(crate) fn timeout_ms(&self, board: Address) -> u16 {
         self.timeout_ms.get(index(board)).copied().unwrap_or(0)
-    }
-}
-
-/// The last `set_failsafe` of an operation (or of a batch's items).
-pub(crate) fn failsafe_change(op: &Op<'_>) -> Option<u16> {
-    match op {
-        Op::SetFailsafe { timeout_ms } => Some(*timeout_ms),
-        Op::Batch(b) => b.iter().fold(None, |acc, item| match item {
-            Op::SetFailsafe { timeout_ms } => Some(timeout_ms),
-            _ => acc,
-        }),
-        _ => None,
     }
 }
 

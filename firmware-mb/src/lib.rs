@@ -33,20 +33,42 @@
 #[macro_use]
 mod fmt;
 
+// The modules in layers, bottom up; a module uses only modules of the layers before its own
+// (docs/architecture.md, "Modules of firmware-mb"). 1. Leaves: the bitmap over the boards,
+// configuration, counters, the call observer.
+mod board_set;
 mod config;
 mod diag;
-mod dispatch;
-mod events_in;
-mod handle;
-mod keepalive;
-mod motherboard;
 mod observe;
+// 2. Bookkeeping, one thing each (pure: no waiting, no I/O): the events received per board,
+// the keepalive schedule, the pending requests, the event waiters.
+mod events_in;
+mod keepalive;
+mod requests;
+mod waiters;
+// 3. Built on 2: the per-board state (with the keepalive), the job queue (slots' tickets).
+mod boards;
+mod jobs;
+// 4. The table: all of 2 and 3 under one lock.
 mod table;
+// 5. The shared core (the table, the signals, the call path).
+mod mb_core;
+// 6. On the core: what a finished transfer means, where events go.
+mod routing;
+mod transfer;
+// 7. The dispatcher (transfers, events) and the programs' handle (calls, events).
+mod dispatch;
+mod handle;
+// 8. The top: the motherboard and its tasks.
+mod motherboard;
 
 pub use config::MbConfig;
 pub use diag::MbDiagnostics;
 pub use handle::X10;
+pub use jobs::REQUEST_QUEUE_LEN;
 pub use keepalive::KEEPALIVE_RAM_BYTES;
-pub use motherboard::{MbCore, Motherboard, REQUEST_QUEUE_LEN};
+pub use mb_core::MbCore;
+pub use motherboard::Motherboard;
 pub use observe::{CallObserver, CallRecord};
-pub use table::{MAX_EVENT_WAITERS, MAX_PENDING, RECENT_LEN, UNCLAIMED_EVENTS};
+pub use requests::{MAX_PENDING, RECENT_LEN};
+pub use waiters::{MAX_EVENT_WAITERS, UNCLAIMED_EVENTS};

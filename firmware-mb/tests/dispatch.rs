@@ -4,6 +4,7 @@ mod common;
 
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
+use x10_microcode::test_support::{a, s};
 
 use common::{db, mb_address, Db, Fault, LoopBus, Node, PortOp, Seen, BUS_TIMEOUT_US, TRANSFER_US};
 use embassy_futures::join::{join, join_array};
@@ -12,7 +13,7 @@ use firmware_mb::{MbConfig, MAX_PENDING};
 use x10_devices::LinkError;
 use x10_hal::bus::BusError;
 use x10_hal::time::{Clock, Instant};
-use x10_microcode::{pec, Address, Edge, EventConfig, EventKind, Level, Op, Pin, Port, Status};
+use x10_microcode::{pec, Address, Edge, EventConfig, EventKind, Level, Op, Pin, Status};
 
 /// The shared world (MB and DB 9) plus a second real daughterboard at 17.
 struct TwoBoards {
@@ -37,14 +38,6 @@ fn world() -> TwoBoards {
 
 fn addr(a: u8) -> Address {
     Address::new(a).unwrap()
-}
-
-fn s(n: u8) -> Port {
-    Port::sensor(n).unwrap()
-}
-
-fn a(n: u8) -> Port {
-    Port::actuator(n).unwrap()
 }
 
 /// When the tests that must not see the boards' boot events start their calls.

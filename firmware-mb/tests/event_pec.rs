@@ -9,7 +9,8 @@ mod common;
 use common::{Db, World};
 use embassy_futures::join::join;
 use embassy_futures::select::{select, Either};
-use x10_microcode::{pec, Address, EventKind, Op, Pin, PinRef, Port};
+use x10_microcode::test_support::db9;
+use x10_microcode::{pec, EventKind, Op, Pin, PinRef, Port};
 
 impl World {
     /// Negotiates PEC with DB 9 (at 1 000 µs).
@@ -27,10 +28,6 @@ impl World {
             Either::Second(()) => None,
         }
     }
-}
-
-fn db9() -> Address {
-    Address::external(9).unwrap()
 }
 
 fn s1a() -> PinRef {

@@ -8,6 +8,7 @@ use embassy_futures::join::join;
 use embassy_futures::select::select;
 use firmware_db::SafeState;
 use x10_hal::time::{Clock, Instant};
+use x10_microcode::test_support::db9;
 use x10_microcode::{Address, Level, Op, Pin, Port};
 
 impl World {
@@ -22,10 +23,6 @@ impl World {
             })
             .collect()
     }
-}
-
-fn db9() -> Address {
-    Address::external(9).unwrap()
 }
 
 /// `set_failsafe` to DB 9 with sequence number `seq`.

@@ -9,7 +9,8 @@ use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{Daughterboard, DbConfig};
 use x10_hal::time::Clock;
-use x10_microcode::{pec, Address, BoardKind, Edge, EventKind, Level, Pin, PinRef, Port, Status};
+use x10_microcode::test_support::{a, s};
+use x10_microcode::{pec, Address, BoardKind, Edge, EventKind, Level, Pin, PinRef, Status};
 use x10_qemu_tests::{block_on, FakePorts, PortOp, QemuClock};
 
 type Db = Daughterboard<NoopRawMutex, FakePorts>;
@@ -23,14 +24,6 @@ fn board() -> Db {
 fn exchange(db: &Db, request: &[u8], buf: &mut [u8; 40]) -> usize {
     block_on(db.handle_write(request, true));
     db.take_reply(buf)
-}
-
-fn s(n: u8) -> Port {
-    Port::sensor(n).unwrap()
-}
-
-fn a(n: u8) -> Port {
-    Port::actuator(n).unwrap()
 }
 
 #[defmt_test::tests]

@@ -6,19 +6,12 @@
 #![no_main]
 
 use x10_hal::time::Clock;
+use x10_microcode::test_support::{a, s};
 use x10_microcode::{
-    pec, Address, Edge, Error, Event, EventConfig, EventKind, Level, Op, Pin, PinRef, Port, Reply,
+    pec, Address, Edge, Error, Event, EventConfig, EventKind, Level, Op, Pin, PinRef, Reply,
     Request, Status, MAX_FRAME_LEN,
 };
 use x10_qemu_tests::QemuClock;
-
-fn s(n: u8) -> Port {
-    Port::sensor(n).unwrap()
-}
-
-fn a(n: u8) -> Port {
-    Port::actuator(n).unwrap()
-}
 
 /// (bytes, db, seq, op)
 fn requests() -> [(&'static [u8], u8, u8, Op<'static>); 12] {

@@ -15,7 +15,8 @@ use firmware_db::{Daughterboard, DbConfig, TargetConfig};
 use firmware_mb::{MbConfig, Motherboard};
 use x10_devices::LinkError;
 use x10_hal::time::Clock;
-use x10_microcode::{Address, BoardKind, Edge, Level, Op, Pin, Port};
+use x10_microcode::test_support::{a, s};
+use x10_microcode::{Address, BoardKind, Edge, Level, Op, Pin};
 use x10_qemu_tests::{block_on, FakePorts, PortOp, QemuClock, Wire};
 
 type Mb = Motherboard<FakePorts>;
@@ -23,14 +24,6 @@ type Db = Daughterboard<NoopRawMutex, FakePorts>;
 
 const MB: u8 = 0x08;
 const DB: u8 = 0x09;
-
-fn s(n: u8) -> Port {
-    Port::sensor(n).unwrap()
-}
-
-fn a(n: u8) -> Port {
-    Port::actuator(n).unwrap()
-}
 
 /// What a board's background task does first: every actuator port to its safe state.
 fn safe_state() -> [PortOp; 8] {

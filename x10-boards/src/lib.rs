@@ -27,8 +27,8 @@
 //!
 //! Features: `rp2040`, `stm32g431` (one per build: each brings its HAL and critical section),
 //! `time` (only [`EmbassyClock`]). Without any, only the portable parts compile:
-//! the pin tables, PWM arithmetic ([`pwm`]), pulse-in edge logic ([`pulse`]) and addresses,
-//! all tested on the host.
+//! the pin tables, PWM arithmetic ([`pwm`]), pulse-in edge logic ([`pulse`]), where a
+//! request's port or pin leads ([`port_lookup`]) and addresses, all tested on the host.
 #![no_std]
 
 #[macro_use]
@@ -36,6 +36,7 @@ pub mod pins;
 pub mod address;
 pub mod i2c_v2;
 pub mod pico_rules;
+pub mod port_lookup;
 pub mod pulse;
 pub mod pwm;
 

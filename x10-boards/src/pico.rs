@@ -27,7 +27,7 @@ use embassy_rp::gpio::{Flex, Input, Pull};
 use embassy_rp::{adc, bind_interrupts, i2c, i2c_slave, pac, peripherals, pwm, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
-use embassy_sync::mutex::Mutex;
+use embassy_sync::mutex::{Mutex, MutexGuard};
 use embassy_time::{block_for, with_deadline, with_timeout, Duration, Instant, Timer};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{EdgeCount, PortError, Ports};
@@ -38,7 +38,7 @@ use crate::pico_rules::{
 };
 use crate::pins::PICO;
 use crate::pwm::{rp2040_slice, Output, SliceTiming, Timebase, DEFAULT_HZ};
-use crate::{address, BusConfig, RX_LEN};
+use crate::{address, port_lookup, BusConfig, RX_LEN};
 
 bind_interrupts!(
     /// The interrupts the Pico images use: the bus's I2C block and the ADC.
@@ -59,6 +59,8 @@ pub const JUMPERS: usize = PICO.jumpers.len();
 pub const ADC_BITS: u8 = 12;
 
 type Lock<T> = Mutex<CriticalSectionRawMutex, T>;
+/// A digital pin, taken.
+type PinGuard<'a> = MutexGuard<'a, CriticalSectionRawMutex, Flex<'static>>;
 
 /// Starts the HAL: clocks from the Pico's 12 MHz crystal (125 MHz system clock), time driver.
 pub fn init() -> embassy_rp::Peripherals {
@@ -762,24 +764,20 @@ impl PicoPorts {
         });
     }
 
-    fn digital(&self, pin: PinRef) -> Result<&Lock<Flex<'static>>, PortError> {
-        let i = usize::from(pin.port.index());
-        let pins = match pin.port.kind() {
-            PortKind::Sensor => &self.sensors.get(i).ok_or(PortError::NoSuchPin)?.pins,
-            PortKind::Actuator => &self.actuators.get(i).ok_or(PortError::NoSuchPin)?.pins,
-        };
-        pins.get(pin.pin.index()).ok_or(PortError::NoSuchPin)
+    /// The digital pin `pin`, unless a pulse-in holds it ([`PortError::Busy`]).
+    fn digital(&self, pin: PinRef) -> Result<PinGuard<'_>, PortError> {
+        let lock = port_lookup::digital(
+            &self.sensors,
+            &self.actuators,
+            pin,
+            |s| &s.pins,
+            |a| &a.pins,
+        )?;
+        lock.try_lock().map_err(|_| PortError::Busy)
     }
 
     fn pwm(&self, port: Port) -> Result<&Lock<PwmUnit>, PortError> {
-        match port.kind() {
-            PortKind::Actuator => self
-                .actuators
-                .get(usize::from(port.index()))
-                .map(|a| &a.pwm)
-                .ok_or(PortError::NoSuchPin),
-            PortKind::Sensor => Err(PortError::Unsupported),
-        }
+        port_lookup::actuator(&self.actuators, port).map(|a| &a.pwm)
     }
 }
 
@@ -797,18 +795,14 @@ impl Ports for PicoPorts {
     }
 
     async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
-        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
+        let mut f = self.digital(pin)?;
         f.set_as_input();
         Ok(Level::from_bool(f.is_high()))
     }
 
     async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
-        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
-        f.set_level(if level.is_high() {
-            embassy_rp::gpio::Level::High
-        } else {
-            embassy_rp::gpio::Level::Low
-        });
+        let mut f = self.digital(pin)?;
+        f.set_level(level.is_high().into());
         f.set_as_output();
         Ok(())
     }
@@ -840,13 +834,7 @@ impl Ports for PicoPorts {
     /// As the trait; a conversion the ADC flags as bad is answered [`PortError::Busy`] (worth
     /// a retry).
     async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
-        let sensor = match port.kind() {
-            PortKind::Sensor => self
-                .sensors
-                .get(usize::from(port.index()))
-                .ok_or(PortError::NoSuchPin)?,
-            PortKind::Actuator => return Err(PortError::Unsupported),
-        };
+        let sensor = port_lookup::sensor(&self.sensors, port)?;
         let mut ch = sensor.analog.lock().await;
         let mut adc = self.adc.lock().await;
         adc.read(&mut ch).await.map_err(|_| PortError::Busy)
@@ -865,7 +853,7 @@ impl Ports for PicoPorts {
     /// the next pulse-in would wake on the wrong edge.
     async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError> {
         let gpio = Self::gpio(pin)?;
-        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
+        let mut f = self.digital(pin)?;
         f.set_as_input();
         self.keep(gpio, EdgeCount::NONE);
         let deadline = Instant::now() + Duration::from_millis(u64::from(timeout_ms));

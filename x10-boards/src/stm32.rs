@@ -26,19 +26,21 @@ use embassy_stm32::i2c::{self, I2c, SlaveCommandKind};
 use embassy_stm32::mode::Async;
 use embassy_stm32::{pac, peripherals, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::mutex::Mutex;
+use embassy_sync::mutex::{Mutex, MutexGuard};
 use embassy_time::{Duration, Instant};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{PortError, Ports};
-use x10_microcode::{Edge, Level, Pin, PinRef, Port, PortKind, MAX_FRAME_LEN};
+use x10_microcode::{Edge, Level, Pin, PinRef, Port, MAX_FRAME_LEN};
 
 use crate::i2c_v2::{self, After, Lines, Outcome};
 use crate::pulse::PulseIn;
 use crate::pwm::{stm32_compare, stm32_frequency_ok, Output, Timebase, DEFAULT_HZ};
-use crate::RX_LEN;
+use crate::{port_lookup, RX_LEN};
 
 /// An async mutex (pins and timers are shared by the runtime's tasks).
 pub type Lock<T> = Mutex<CriticalSectionRawMutex, T>;
+/// A digital pin, taken.
+type PinGuard<'a> = MutexGuard<'a, CriticalSectionRawMutex, Flex<'static>>;
 
 /// What the chip module does with one actuator port's timer (its `PwmUnit` enum, one variant
 /// per timer of the table).
@@ -587,24 +589,20 @@ impl<U: PwmTimer, const S: usize, const A: usize> Stm32Ports<U, S, A> {
         }
     }
 
-    fn digital(&self, pin: PinRef) -> Result<&Lock<Flex<'static>>, PortError> {
-        let i = usize::from(pin.port.index());
-        let pins = match pin.port.kind() {
-            PortKind::Sensor => &self.sensors.get(i).ok_or(PortError::NoSuchPin)?.pins,
-            PortKind::Actuator => &self.actuators.get(i).ok_or(PortError::NoSuchPin)?.pins,
-        };
-        pins.get(pin.pin.index()).ok_or(PortError::NoSuchPin)
+    /// The digital pin `pin`, unless a pulse-in holds it ([`PortError::Busy`]).
+    fn digital(&self, pin: PinRef) -> Result<PinGuard<'_>, PortError> {
+        let lock = port_lookup::digital(
+            &self.sensors,
+            &self.actuators,
+            pin,
+            |s| &s.pins,
+            |a| &a.pins,
+        )?;
+        lock.try_lock().map_err(|_| PortError::Busy)
     }
 
     fn pwm(&self, port: Port) -> Result<&Lock<(U, [Output; 2])>, PortError> {
-        match port.kind() {
-            PortKind::Actuator => self
-                .actuators
-                .get(usize::from(port.index()))
-                .map(|a| &a.pwm)
-                .ok_or(PortError::NoSuchPin),
-            PortKind::Sensor => Err(PortError::Unsupported),
-        }
+        port_lookup::actuator(&self.actuators, port).map(|a| &a.pwm)
     }
 
     /// Sets one output of a port, or changes nothing when it does not fit the period.
@@ -634,18 +632,14 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
     }
 
     async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
-        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
+        let mut f = self.digital(pin)?;
         f.set_as_input(Pull::Down);
         Ok(Level::from_bool(f.is_high()))
     }
 
     async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
-        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
-        f.set_level(if level.is_high() {
-            embassy_stm32::gpio::Level::High
-        } else {
-            embassy_stm32::gpio::Level::Low
-        });
+        let mut f = self.digital(pin)?;
+        f.set_level(level.is_high().into());
         f.set_as_output(Speed::Low);
         Ok(())
     }
@@ -681,13 +675,7 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
     }
 
     async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
-        let sensor = match port.kind() {
-            PortKind::Sensor => self
-                .sensors
-                .get(usize::from(port.index()))
-                .ok_or(PortError::NoSuchPin)?,
-            PortKind::Actuator => return Err(PortError::Unsupported),
-        };
+        let sensor = port_lookup::sensor(&self.sensors, port)?;
         let mut ch = sensor.analog.lock().await;
         let mut adc = self.adc.lock().await;
         // A blocking conversion: 47.5 + 12.5 ADC cycles, under 2 µs at the G431's 42.5 MHz
@@ -699,7 +687,7 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
     /// [`PulseIn`] decide. The resolution is the time between two samples: the longest the
     /// other code runs without yielding (see `docs/boards.md`).
     async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError> {
-        let mut f = self.digital(pin)?.try_lock().map_err(|_| PortError::Busy)?;
+        let mut f = self.digital(pin)?;
         f.set_as_input(Pull::Down);
         let mut m = PulseIn::new(edge, Instant::now().as_micros(), timeout_ms);
         loop {

@@ -5,20 +5,17 @@
 //! table is updated.
 
 use std::collections::BTreeSet;
+use x10_microcode::test_support::db9;
 
 use embassy_futures::block_on;
 use x10_devices::testing::RecordingLink;
 use x10_devices::{
-    Actuator, Address, AnalogSensor, Button, DcMotor, Degrees, DigitalOutput, Duty, Edge,
-    EventConfig, EventKind, HBridge, Kept, Level, Output, Pin, PinEvent, Ramp, Refresh, Sensor,
-    Servo, Speed, Thermistor, Ultrasonic,
+    Actuator, AnalogSensor, Button, DcMotor, Degrees, DigitalOutput, Duty, Edge, EventConfig,
+    EventKind, HBridge, Kept, Level, Output, Pin, PinEvent, Ramp, Refresh, Sensor, Servo, Speed,
+    Thermistor, Ultrasonic,
 };
 
 type Link = RecordingLink<32>;
-
-fn db9() -> Address {
-    Address::new(9).unwrap()
-}
 
 /// Every row of the table: the call as written there, and how to run it (DB 9, port 1).
 const ROWS: &[&str] = &[

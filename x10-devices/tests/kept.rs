@@ -4,15 +4,12 @@
 use embassy_futures::block_on;
 use x10_devices::testing::RecordingLink;
 use x10_devices::{
-    Address, DcMotor, DigitalOutput, Error, Kept, Level, LinkError, Output, Pin, Refresh, Speed,
+    DcMotor, DigitalOutput, Error, Kept, Level, LinkError, Output, Pin, Refresh, Speed,
 };
+use x10_microcode::test_support::db9;
 
 type Link = RecordingLink<64>;
 type Motor<'a> = Kept<DcMotor<&'a Link>>;
-
-fn db9() -> Address {
-    Address::new(9).unwrap()
-}
 
 /// A kept motor on DB 9 actuator port 1, re-sent every `steps` steps, nothing sent yet.
 fn motor(link: &Link, steps: u16) -> Motor<'_> {

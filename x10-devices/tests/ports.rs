@@ -3,13 +3,10 @@
 use embassy_futures::block_on;
 use x10_devices::testing::RecordingLink;
 use x10_devices::{
-    Actuator, Address, Duty, Edge, Error, EventConfig, EventKind, Level, LinkError, Pin, PinEvent,
-    Quantity, RangeError, Sensor, Status, SELF,
+    Actuator, Duty, Edge, Error, EventConfig, EventKind, Level, LinkError, Pin, PinEvent, Quantity,
+    RangeError, Sensor, Status, SELF,
 };
-
-fn db9() -> Address {
-    Address::new(9).unwrap()
-}
+use x10_microcode::test_support::db9;
 
 #[test]
 fn port_numbers_count_from_one() {

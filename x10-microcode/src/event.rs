@@ -7,16 +7,17 @@
 
 use core::fmt;
 
+use crate::reply::layout;
 use crate::types::{Address, PinRef};
-use crate::{pec, Error, Result, Status, EVENT_HEADER_LEN, MAX_PAYLOAD};
+use crate::{pec, Error, ReplyFrame, Result, Status, EVENT_HEADER_LEN, MAX_PAYLOAD};
 
 mod field {
     pub const SOURCE: usize = 0;
     pub const KIND: usize = 1;
     pub const PORT: usize = 2;
-    pub const SEQ: usize = 3;
-    pub const STATUS: usize = 4;
-    pub const LEN: usize = 5;
+    /// From here on (`seq, status, len, payload[len]`), the frame is laid out as a reply
+    /// ([`crate::reply::layout`]).
+    pub const REPLY: usize = 3;
     pub const PAYLOAD: usize = 6;
 }
 
@@ -134,15 +135,7 @@ impl<T: AsRef<[u8]>> EventFrame<T> {
     /// [`Error::Truncated`], or [`Error::TooLong`] for a declared payload over
     /// [`MAX_PAYLOAD`].
     pub fn check_len(&self) -> Result<()> {
-        let b = self.buffer.as_ref();
-        let len = *b.get(field::LEN).ok_or(Error::Truncated)? as usize;
-        if len > MAX_PAYLOAD {
-            return Err(Error::TooLong);
-        }
-        if b.len() < EVENT_HEADER_LEN + len {
-            return Err(Error::Truncated);
-        }
-        Ok(())
+        layout::check_len(self.reply_part())
     }
 
     /// The underlying buffer.
@@ -152,6 +145,11 @@ impl<T: AsRef<[u8]>> EventFrame<T> {
 
     fn byte(&self, i: usize) -> u8 {
         self.buffer.as_ref().get(i).copied().unwrap_or(0)
+    }
+
+    /// Bytes 3.., laid out as a reply.
+    fn reply_part(&self) -> &[u8] {
+        self.buffer.as_ref().get(field::REPLY..).unwrap_or(&[])
     }
 
     /// Byte 0, the sender's address.
@@ -171,30 +169,27 @@ impl<T: AsRef<[u8]>> EventFrame<T> {
 
     /// Byte 3, the sequence number.
     pub fn seq(&self) -> u8 {
-        self.byte(field::SEQ)
+        ReplyFrame::new_unchecked(self.reply_part()).seq()
     }
 
     /// Byte 4, the status.
     pub fn status(&self) -> Status {
-        Status::from_byte(self.byte(field::STATUS))
+        ReplyFrame::new_unchecked(self.reply_part()).status()
     }
 
     /// Byte 5, the payload length.
     pub fn payload_len(&self) -> u8 {
-        self.byte(field::LEN)
+        ReplyFrame::new_unchecked(self.reply_part()).payload_len()
     }
 
     /// Header plus payload.
     pub fn frame_len(&self) -> usize {
-        EVENT_HEADER_LEN + self.payload_len() as usize
+        field::REPLY + layout::frame_len(self.reply_part())
     }
 
     /// The payload.
     pub fn payload(&self) -> &[u8] {
-        self.buffer
-            .as_ref()
-            .get(field::PAYLOAD..self.frame_len())
-            .unwrap_or(&[])
+        layout::payload(self.reply_part())
     }
 }
 
@@ -203,6 +198,16 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> EventFrame<T> {
         if let Some(b) = self.buffer.as_mut().get_mut(i) {
             *b = v;
         }
+    }
+
+    /// Bytes 3.., laid out as a reply, writable.
+    fn reply_part_mut(&mut self) -> ReplyFrame<&mut [u8]> {
+        ReplyFrame::new_unchecked(
+            self.buffer
+                .as_mut()
+                .get_mut(field::REPLY..)
+                .unwrap_or(&mut []),
+        )
     }
 
     /// Sets byte 0.
@@ -222,26 +227,22 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> EventFrame<T> {
 
     /// Sets byte 3.
     pub fn set_seq(&mut self, v: u8) {
-        self.set_byte(field::SEQ, v)
+        self.reply_part_mut().set_seq(v)
     }
 
     /// Sets byte 4.
     pub fn set_status(&mut self, s: Status) {
-        self.set_byte(field::STATUS, s.to_byte())
+        self.reply_part_mut().set_status(s)
     }
 
     /// Sets byte 5.
     pub fn set_payload_len(&mut self, v: u8) {
-        self.set_byte(field::LEN, v)
+        self.reply_part_mut().set_payload_len(v)
     }
 
     /// The payload, writable (as long as byte 5 declares).
     pub fn payload_mut(&mut self) -> &mut [u8] {
-        let end = self.frame_len();
-        self.buffer
-            .as_mut()
-            .get_mut(field::PAYLOAD..end)
-            .unwrap_or(&mut [])
+        layout::payload_mut(self.reply_part_mut().into_inner())
     }
 }
 

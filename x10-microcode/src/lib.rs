@@ -54,6 +54,9 @@ mod request;
 mod serde_repr;
 mod status;
 mod system;
+#[cfg(feature = "test-support")]
+#[doc(hidden)]
+pub mod test_support;
 mod types;
 
 pub use batch::{Batch, BatchItem, BatchItems, BatchResults, BatchWriter};

@@ -516,18 +516,6 @@ impl<'a> Op<'a> {
     /// [`Error::BufferTooShort`] when `buf` is shorter than [`Op::data_len`].
     pub fn emit_data(&self, buf: &mut [u8]) -> Result<usize> {
         match *self {
-            Op::Ping
-            | Op::Identify
-            | Op::Heartbeat
-            | Op::ReadDiagnostics
-            | Op::ClearDiagnostics
-            | Op::DigitalRead(_)
-            | Op::DigitalWrite(..)
-            | Op::AnalogRead(_)
-            | Op::Scan
-            | Op::PulseIn {
-                timeout_ms: None, ..
-            } => Ok(0),
             Op::SetPec(on) => copy_into(buf, &[on as u8]),
             Op::PwmDuty(_, d) => copy_into(buf, &[d]),
             Op::SerialRead(_, n) => copy_into(buf, &[n]),
@@ -542,6 +530,10 @@ impl<'a> Op<'a> {
             Op::EventEnable(_, cfg) => copy_into(buf, &cfg.to_bytes()),
             Op::SerialWrite(_, data) => copy_into(buf, data),
             Op::Batch(b) => copy_into(buf, b.as_bytes()),
+            // The operations without data: those whose `data_len` is 0 (which of them carry
+            // data is `data_len`'s to say; tests/vectors.rs `request_emit` checks that the two
+            // agree for every operation).
+            _ => Ok(0),
         }
     }
 

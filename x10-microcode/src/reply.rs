@@ -42,15 +42,7 @@ impl<T: AsRef<[u8]>> ReplyFrame<T> {
     /// [`Error::Truncated`] when they are not, [`Error::TooLong`] when the declared payload
     /// exceeds [`MAX_PAYLOAD`].
     pub fn check_len(&self) -> Result<()> {
-        let b = self.buffer.as_ref();
-        let len = *b.get(field::LEN).ok_or(Error::Truncated)? as usize;
-        if len > MAX_PAYLOAD {
-            return Err(Error::TooLong);
-        }
-        if b.len() < REPLY_HEADER_LEN + len {
-            return Err(Error::Truncated);
-        }
-        Ok(())
+        layout::check_len(self.buffer.as_ref())
     }
 
     /// The underlying buffer.
@@ -79,15 +71,12 @@ impl<T: AsRef<[u8]>> ReplyFrame<T> {
 
     /// Length of the frame: header plus payload.
     pub fn frame_len(&self) -> usize {
-        REPLY_HEADER_LEN + self.payload_len() as usize
+        layout::frame_len(self.buffer.as_ref())
     }
 
     /// The payload.
     pub fn payload(&self) -> &[u8] {
-        self.buffer
-            .as_ref()
-            .get(field::PAYLOAD..self.frame_len())
-            .unwrap_or(&[])
+        layout::payload(self.buffer.as_ref())
     }
 }
 
@@ -115,11 +104,48 @@ impl<T: AsRef<[u8]> + AsMut<[u8]>> ReplyFrame<T> {
 
     /// The payload, writable (as long as byte 2 declares).
     pub fn payload_mut(&mut self) -> &mut [u8] {
-        let end = self.frame_len();
-        self.buffer
-            .as_mut()
-            .get_mut(field::PAYLOAD..end)
-            .unwrap_or(&mut [])
+        layout::payload_mut(self.buffer.as_mut())
+    }
+}
+
+/// The reply layout (`seq, status, len, payload[len]`) on a slice: what [`ReplyFrame`]
+/// reads and writes, and the part of an event frame from its byte 3 on, laid out the same
+/// ([`crate::EventFrame`]).
+pub(crate) mod layout {
+    use super::field;
+    use crate::{Error, Result, MAX_PAYLOAD, REPLY_HEADER_LEN};
+
+    /// The declared payload length (0 when `b` is too short to declare one).
+    fn payload_len(b: &[u8]) -> usize {
+        usize::from(b.get(field::LEN).copied().unwrap_or(0))
+    }
+
+    /// Checks that the header and the declared payload are in `b`.
+    pub(crate) fn check_len(b: &[u8]) -> Result<()> {
+        let len = usize::from(*b.get(field::LEN).ok_or(Error::Truncated)?);
+        if len > MAX_PAYLOAD {
+            return Err(Error::TooLong);
+        }
+        if b.len() < REPLY_HEADER_LEN + len {
+            return Err(Error::Truncated);
+        }
+        Ok(())
+    }
+
+    /// Header plus declared payload.
+    pub(crate) fn frame_len(b: &[u8]) -> usize {
+        REPLY_HEADER_LEN + payload_len(b)
+    }
+
+    /// The declared payload, as far as `b` holds it.
+    pub(crate) fn payload(b: &[u8]) -> &[u8] {
+        b.get(field::PAYLOAD..frame_len(b)).unwrap_or(&[])
+    }
+
+    /// The declared payload, writable.
+    pub(crate) fn payload_mut(b: &mut [u8]) -> &mut [u8] {
+        let end = frame_len(b);
+        b.get_mut(field::PAYLOAD..end).unwrap_or(&mut [])
     }
 }
 

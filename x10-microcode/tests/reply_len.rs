@@ -2,9 +2,10 @@
 //! operation does not allow is refused, and the PEC byte is never looked for where an
 //! unchecked byte says.
 
+use x10_microcode::test_support::db9;
 use x10_microcode::{
-    pec, Address, Batch, BatchWriter, Edge, Error, EventConfig, Level, Op, Pin, Port, Reply,
-    ReplyLen, Status, MAX_FRAME_LEN,
+    pec, Batch, BatchWriter, Edge, Error, EventConfig, Level, Op, Pin, Port, Reply, ReplyLen,
+    Status, MAX_FRAME_LEN,
 };
 
 fn s1() -> Port {
@@ -13,10 +14,6 @@ fn s1() -> Port {
 
 fn a1() -> Port {
     Port::actuator(1).unwrap()
-}
-
-fn db9() -> Address {
-    Address::external(9).unwrap()
 }
 
 /// Every operation, with the `ok` payload lengths its reply may have.

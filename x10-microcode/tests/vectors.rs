@@ -5,24 +5,17 @@
 //! The expected field values are written out by hand next to each vector, never read back from
 //! the bytes, so a vector and its meaning cannot drift together.
 
+use x10_microcode::test_support::{a, s};
 use x10_microcode::{
     pec, Address, Batch, BatchItem, BatchResults, BatchWriter, BoardKind, Capabilities,
     Diagnostics, Edge, Error, Event, EventConfig, EventFrame, EventKind, Function, Identity, Level,
-    Op, Pin, Port, Reply, ReplyFrame, Request, RequestFrame, ScanResult, Status, MAX_FRAME_LEN,
+    Op, Pin, Reply, ReplyFrame, Request, RequestFrame, ScanResult, Status, MAX_FRAME_LEN,
     MAX_REQUEST_DATA,
 };
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
 // ---------------------------------------------------------------------------------------------
-
-fn s(n: u8) -> Port {
-    Port::sensor(n).unwrap()
-}
-
-fn a(n: u8) -> Port {
-    Port::actuator(n).unwrap()
-}
 
 fn req(db: u8, seq: u8, op: Op<'_>) -> Request<'_> {
     Request {

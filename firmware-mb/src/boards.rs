@@ -1,0 +1,143 @@
+//! What the motherboard knows of each board: PEC negotiated or not, prepared (PEC on,
+//! failsafe set) since its last boot or not, and the failsafe kept alive on it
+//! ([`crate::keepalive`]). Owns [`Boards`], and reads from an operation what it changes there
+//! once the board confirmed it ([`pec_change`], [`failsafe_change`]). Pure bookkeeping, one
+//! entry per 7-bit address; the dispatcher and the internal worker act on it.
+
+use x10_hal::time::Instant;
+use x10_microcode::{Address, Op};
+
+use crate::board_set::{board_index, BoardSet};
+use crate::keepalive::Keepalives;
+
+/// The per-board state.
+pub(crate) struct Boards {
+    /// PEC negotiated.
+    pec: BoardSet,
+    /// Boards the dispatcher has prepared (PEC on, failsafe set) since their last boot.
+    ready: BoardSet,
+    /// The failsafes the motherboard keeps alive.
+    pub(crate) keepalive: Keepalives,
+    /// A failsafe setting changed (the dispatcher must look at the keepalives again).
+    keepalive_changed: bool,
+}
+
+impl Boards {
+    pub(crate) const fn new() -> Boards {
+        Boards {
+            pec: BoardSet::new(),
+            ready: BoardSet::new(),
+            keepalive: Keepalives::new(),
+            keepalive_changed: false,
+        }
+    }
+
+    /// True when PEC is negotiated with `board`.
+    pub(crate) fn pec(&self, board: Address) -> bool {
+        self.pec.contains(board_index(board))
+    }
+
+    pub(crate) fn set_pec(&mut self, board: Address, on: bool) {
+        self.pec.set(board_index(board), on);
+    }
+
+    /// True when the dispatcher has prepared `board` since its last boot.
+    pub(crate) fn ready(&self, board: Address) -> bool {
+        self.ready.contains(board_index(board))
+    }
+
+    pub(crate) fn set_ready(&mut self, board: Address, on: bool) {
+        self.ready.set(board_index(board), on);
+    }
+
+    /// `board` rebooted at `now`: its PEC is off, and a failsafe kept alive must be set
+    /// again, at once (by the dispatcher, or the internal worker for the internal board;
+    /// with the safe defaults the dispatcher prepares the board again, at the latest before
+    /// its next request).
+    pub(crate) fn booted(&mut self, board: Address, now: Instant) {
+        self.set_pec(board, false);
+        self.set_ready(board, false);
+        if self.keepalive.booted(board, now) {
+            self.keepalive_changed = true;
+        }
+    }
+
+    /// The failsafe of `board` was set to `ms` at `now`: keep it alive.
+    pub(crate) fn failsafe_set(&mut self, board: Address, ms: u16, now: Instant) {
+        self.keepalive.set(board, ms, now);
+        self.keepalive_changed = true;
+    }
+
+    /// True (once) when a failsafe setting changed since the last call.
+    pub(crate) fn take_keepalive_changed(&mut self) -> bool {
+        core::mem::take(&mut self.keepalive_changed)
+    }
+}
+
+/// The last `set_pec` of an operation (or of a batch's items).
+pub(crate) fn pec_change(op: &Op<'_>) -> Option<bool> {
+    last_setting(op, |item| match item {
+        Op::SetPec(on) => Some(on),
+        _ => None,
+    })
+}
+
+/// The last `set_failsafe` of an operation (or of a batch's items).
+pub(crate) fn failsafe_change(op: &Op<'_>) -> Option<u16> {
+    last_setting(op, |item| match item {
+        Op::SetFailsafe { timeout_ms } => Some(timeout_ms),
+        _ => None,
+    })
+}
+
+/// What `setting` finds in `op`, or in the last of a batch's items it finds it in.
+fn last_setting<T>(op: &Op<'_>, setting: impl Fn(Op<'_>) -> Option<T>) -> Option<T> {
+    match op {
+        Op::Batch(b) => b.iter().fold(None, |acc, item| setting(item).or(acc)),
+        _ => setting(*op),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn addr(a: u8) -> Address {
+        Address::new(a).unwrap()
+    }
+
+    #[test]
+    fn pec_bits_per_board() {
+        let mut t = Boards::new();
+        for b in [0u8, 8, 31, 32, 63, 64, 0x77] {
+            t.set_pec(addr(b), true);
+        }
+        for b in (0..=127u8).filter(|&b| Address::new(b).is_ok()) {
+            assert_eq!(
+                t.pec(addr(b)),
+                matches!(b, 0 | 8 | 31 | 32 | 63 | 64 | 0x77),
+                "board {b}"
+            );
+        }
+        t.set_pec(addr(32), false);
+        assert!(!t.pec(addr(32)));
+        assert!(t.pec(addr(31)) && t.pec(addr(63)));
+    }
+
+    #[test]
+    fn a_boot_turns_pec_off_and_asks_for_the_failsafe_again() {
+        let mut t = Boards::new();
+        t.set_pec(addr(9), true);
+        t.set_ready(addr(9), true);
+        // No failsafe kept alive: nothing to set again.
+        t.booted(addr(9), Instant(0));
+        assert!(!t.pec(addr(9)) && !t.ready(addr(9)));
+        assert!(!t.take_keepalive_changed());
+        t.failsafe_set(addr(9), 300, Instant(0));
+        assert!(t.take_keepalive_changed());
+        assert!(!t.take_keepalive_changed());
+        t.booted(addr(9), Instant(10));
+        assert!(t.take_keepalive_changed());
+        assert_eq!(t.keepalive.timeout_ms(addr(9)), 300);
+    }
+}

@@ -1,0 +1,374 @@
+//! [`MbCore`]: what robot tasks, the dispatcher and the internal daughterboard's worker share,
+//! naming no board type: the configuration, the table ([`crate::table`]) behind its one
+//! blocking mutex, and the signals that wake the dispatcher, the internal worker and the
+//! callers. Owns those, and the call path of a request: a slot and a sequence number, the
+//! frame, the queue, the wait for its outcome or its deadline. What a finished transfer
+//! means is [`crate::transfer`]'s, where events go [`crate::routing`]'s.
+
+use core::cell::RefCell;
+
+use embassy_futures::select::{select, Either};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
+use embassy_sync::signal::Signal;
+use heapless::Vec;
+use x10_devices::{LinkError, PinEvent};
+use x10_hal::time::Instant;
+use x10_microcode::{Address, Op, Payload, Request, MAX_FRAME_LEN};
+
+use crate::boards::{failsafe_change, pec_change};
+use crate::config::MbConfig;
+use crate::diag::{bump, MbDiagnostics};
+use crate::jobs::{Job, JobMeta};
+use crate::observe::{CallObserver, CallRecord};
+use crate::requests::{Ended, SlotState, Ticket, MAX_PENDING};
+use crate::table::Table;
+use crate::waiters::MAX_EVENT_WAITERS;
+
+/// The raw mutex of every lock and signal of the motherboard: a critical section, so the
+/// shared state can live in a `static` and robot tasks may run on any executor.
+pub(crate) type M = CriticalSectionRawMutex;
+
+/// Now, in µs since boot (embassy-time).
+pub(crate) fn now() -> Instant {
+    Instant(embassy_time::Instant::now().as_micros())
+}
+
+/// Sleeps until `at` (embassy-time).
+pub(crate) async fn sleep_until(at: Instant) {
+    embassy_time::Timer::at(embassy_time::Instant::from_micros(at.as_micros())).await
+}
+
+/// What robot tasks, the dispatcher and the keepalive share: configuration, the pending
+/// table, the request queues and the signals that end requests. It names no board type; a
+/// [`crate::Motherboard`] holds one (and dereferences to it), and [`crate::X10`] is a
+/// reference to it.
+pub struct MbCore {
+    pub(crate) config: MbConfig,
+    /// Signalled when a job for the bus is queued (the dispatcher takes it from the table).
+    job_ready: Signal<M, ()>,
+    /// Signalled when a job for the internal daughterboard is queued.
+    internal_ready: Signal<M, ()>,
+    /// Signalled for the dispatcher when a failsafe kept alive changes (set, stopped, board
+    /// rebooted): its next keepalive may be due sooner.
+    pub(crate) keepalive_changed: Signal<M, ()>,
+    /// The same for the internal daughterboard's worker.
+    pub(crate) internal_keepalive_changed: Signal<M, ()>,
+    table: BlockingMutex<M, RefCell<Table>>,
+    /// Per pending slot: the request's outcome, for its caller.
+    pub(crate) done: [Signal<M, Result<Payload, LinkError>>; MAX_PENDING],
+    /// Per waiter slot: the pin event, for the waiting task.
+    pub(crate) waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
+    pub(crate) observer: Option<&'static dyn CallObserver>,
+}
+
+/// Frees a request's slot when the caller's future is dropped before it ended.
+struct SlotGuard<'a> {
+    mb: &'a MbCore,
+    ticket: Ticket,
+    armed: bool,
+}
+
+impl SlotGuard<'_> {
+    fn release(mut self, ended: Ended) {
+        self.armed = false;
+        self.mb.with(|t| t.release(self.ticket, ended));
+    }
+
+    /// The deadline passed: the request times out, unless it ended just now.
+    fn expire(mut self) -> Result<Payload, LinkError> {
+        self.armed = false;
+        let mb = self.mb;
+        let ticket = self.ticket;
+        mb.with(|t| {
+            let taken = if t.requests.state(ticket) == SlotState::Done {
+                mb.done.get(ticket.index).and_then(Signal::try_take)
+            } else {
+                None
+            };
+            match taken {
+                Some(r) => {
+                    t.release(ticket, Ended::Completed);
+                    r
+                }
+                None => {
+                    bump(&mut t.diag.timeouts);
+                    t.release(ticket, Ended::GaveUp);
+                    Err(LinkError::Timeout)
+                }
+            }
+        })
+    }
+}
+
+impl Drop for SlotGuard<'_> {
+    fn drop(&mut self) {
+        if self.armed {
+            let ticket = self.ticket;
+            self.mb.with(|t| {
+                bump(&mut t.diag.cancelled);
+                t.release(ticket, Ended::GaveUp);
+            });
+        }
+    }
+}
+
+impl MbCore {
+    pub(crate) const fn new(config: MbConfig) -> MbCore {
+        MbCore {
+            config,
+            job_ready: Signal::new(),
+            internal_ready: Signal::new(),
+            keepalive_changed: Signal::new(),
+            internal_keepalive_changed: Signal::new(),
+            table: BlockingMutex::new(RefCell::new(Table::new())),
+            done: [const { Signal::new() }; MAX_PENDING],
+            waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
+            observer: None,
+        }
+    }
+
+    /// Runs `f` on the table, under the lock.
+    pub(crate) fn with<R>(&self, f: impl FnOnce(&mut Table) -> R) -> R {
+        self.table.lock(|t| f(&mut t.borrow_mut()))
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MbConfig {
+        &self.config
+    }
+
+    /// A copy of the counters.
+    pub fn diagnostics(&self) -> MbDiagnostics {
+        self.with(|t| t.diag)
+    }
+
+    /// True when PEC is negotiated with `db` (set by a successful `set_pec`, cleared by the
+    /// board's `boot` event).
+    pub fn pec_enabled(&self, db: Address) -> bool {
+        self.with(|t| t.boards.pec(db))
+    }
+
+    /// The time a request may take: the configured request timeout, plus the pulse-in
+    /// timeout for a deferred operation.
+    pub fn timeout_us(&self, op: &Op<'_>) -> u64 {
+        let extra_ms = match op {
+            Op::PulseIn { timeout_ms, .. } => {
+                u64::from(timeout_ms.unwrap_or(self.config.default_pulse_timeout_ms))
+            }
+            _ => 0,
+        };
+        self.config
+            .request_timeout_us
+            .saturating_add(extra_ms.saturating_mul(1000))
+    }
+
+    /// Sends `op` to board `db` and waits for its outcome, with the default timeout
+    /// ([`MbCore::timeout_us`]). See [`MbCore::call_with_timeout`].
+    ///
+    /// # Errors
+    /// As [`MbCore::call_with_timeout`].
+    pub async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
+        self.call_with_timeout(db, op, self.timeout_us(&op)).await
+    }
+
+    /// Sends `op` to board `db` (0: the internal daughterboard, without the bus) and waits at
+    /// most `timeout_us` for its outcome. Ends exactly once:
+    ///
+    /// * outputs: `Ok` with an empty payload once the board acknowledged the write (a refusal
+    ///   comes later as a `rejected` event, counted in [`MbDiagnostics::rejected`]);
+    /// * reads: `Ok(payload)` for status `ok`;
+    /// * deferred operations (`pending`): `Ok(payload)` of the deferred reply.
+    ///
+    /// Requests to external boards wait for the dispatcher in one queue, oldest first. The
+    /// queue has room for every pending slot, so a caller never waits for room in it; a
+    /// request whose caller times out (or is dropped) while it waits leaves the queue at once
+    /// and never reaches the bus.
+    ///
+    /// Dropping the future gives the request up: its slot is freed and a reply that still
+    /// comes is counted as late and dropped. A deferred request (pulse-in) given up after
+    /// its `pending` answer keeps its slot and sequence number until the board's deadline
+    /// for it (the time of `pending` + [`MbCore::timeout_us`]) has passed, so its late
+    /// deferred reply can never complete another request; while kept, the slot counts
+    /// against [`crate::MAX_PENDING`]. A `set_pec` or `set_failsafe` the board acknowledged
+    /// takes effect on the motherboard's side too, even when its caller gave up meanwhile.
+    ///
+    /// # Errors
+    /// [`LinkError::Invalid`] (nothing sent: the operation does not encode, or `db` is the
+    /// motherboard's own address), [`LinkError::Busy`] (no free slot or sequence
+    /// number), [`LinkError::Timeout`], [`LinkError::Nack`] and
+    /// [`LinkError::ArbitrationLost`] (after every retry), [`LinkError::Bus`],
+    /// [`LinkError::BadReply`] (unparsable, wrong PEC or wrong sequence number),
+    /// [`LinkError::Status`] (the board refused it).
+    pub async fn call_with_timeout(
+        &self,
+        db: Address,
+        op: Op<'_>,
+        timeout_us: u64,
+    ) -> Result<Payload, LinkError> {
+        let Some(observer) = self.observer else {
+            return self.call_inner(db, op, timeout_us).await;
+        };
+        let started = now();
+        let result = self.call_inner(db, op, timeout_us).await;
+        observer.observe(&CallRecord {
+            db,
+            op: &op,
+            result: &result,
+            started,
+            ended: now(),
+        });
+        result
+    }
+
+    async fn call_inner(
+        &self,
+        db: Address,
+        op: Op<'_>,
+        timeout_us: u64,
+    ) -> Result<Payload, LinkError> {
+        op.validate()?;
+        if self.config.pec && !db.is_internal() && pec_change(&op) == Some(false) {
+            // PEC stays on with the safe defaults (MbConfig::pec).
+            return Err(LinkError::Invalid(x10_microcode::Error::BadArgument));
+        }
+        if db == self.config.address {
+            return Err(LinkError::Invalid(x10_microcode::Error::BadAddress(
+                db.get(),
+            )));
+        }
+        let now = now();
+        let deadline = now.plus_us(timeout_us);
+        let (ticket, seq) = self.with(|t| {
+            let (ticket, seq) = t.requests.alloc(db, now, &mut t.diag)?;
+            if let Some(s) = self.done.get(ticket.index) {
+                s.reset();
+            }
+            Ok::<_, LinkError>((ticket, seq))
+        })?;
+        let guard = SlotGuard {
+            mb: self,
+            ticket,
+            armed: true,
+        };
+        let req = Request { db, seq, op };
+        // The frame is encoded in place, into as many bytes as it needs (a request too long
+        // for any board fails in `emit` as it would in a full-size buffer). Its PEC byte is
+        // added when it goes to the board, as the board's PEC state is then.
+        let mut frame: Vec<u8, MAX_FRAME_LEN> = Vec::new();
+        let _ = frame.resize(req.buffer_len().min(MAX_FRAME_LEN), 0);
+        let len = match req.emit(&mut frame) {
+            Ok(n) => n,
+            Err(e) => {
+                guard.release(Ended::GaveUp);
+                return Err(LinkError::Invalid(e));
+            }
+        };
+        frame.truncate(len);
+        let meta = JobMeta {
+            ticket,
+            db,
+            seq,
+            // A set_pec or set_failsafe is read back too: it takes effect on the
+            // motherboard's side only once the board's reply confirms it. So is an
+            // event_enable: a refused one (a corrupted frame, a wrong port) would otherwise
+            // end `Ok` and leave a program waiting for events that never come.
+            read: (op.expects_reply()
+                || pec_change(&op).is_some()
+                || failsafe_change(&op).is_some()
+                || matches!(op, Op::EventEnable(..)))
+            .then(|| op.reply_capacity()),
+            // The board answers a pulse-in no later than acceptance + its pulse timeout
+            // (firmware-db counts it from acceptance), and acceptance is before the `pending`
+            // answer: the request timeout on top leaves room for the event's delivery.
+            deferred: match op {
+                Op::PulseIn { pin, .. } => Some((pin, self.timeout_us(&op))),
+                _ => None,
+            },
+            failsafe_change: failsafe_change(&op),
+        };
+        let internal = db.is_internal();
+        // Never full: every queued job holds one of the MAX_PENDING slots, and a job leaves
+        // the queue when its slot is released. The internal board's worker and the
+        // dispatcher each take the oldest job that is theirs.
+        if self.with(|t| t.jobs.push(Job { meta, frame })).is_err() {
+            self.with(|t| bump(&mut t.diag.busy));
+            guard.release(Ended::GaveUp);
+            return Err(LinkError::Busy);
+        }
+        if internal {
+            self.internal_ready.signal(());
+        } else {
+            self.job_ready.signal(());
+        }
+        let Some(signal) = self.done.get(ticket.index) else {
+            return guard.expire();
+        };
+        match select(signal.wait(), sleep_until(deadline)).await {
+            Either::First(r) => {
+                guard.release(Ended::Completed);
+                r
+            }
+            Either::Second(()) => guard.expire(),
+        }
+    }
+
+    /// The oldest queued job; waits for one. Cancel-safe: a job is taken out only when this
+    /// returns it.
+    pub(crate) async fn next_job(&self) -> Job {
+        loop {
+            if let Some(job) = self.with(|t| t.pop_job(false)) {
+                return job;
+            }
+            self.job_ready.wait().await;
+        }
+    }
+
+    /// The oldest queued job for the internal daughterboard; waits for one. Cancel-safe.
+    pub(crate) async fn next_internal_job(&self) -> Job {
+        loop {
+            if let Some(job) = self.with(|t| t.pop_job(true)) {
+                return job;
+            }
+            self.internal_ready.wait().await;
+        }
+    }
+
+    /// True while the request's caller still waits for it to be sent. When not, a slot the
+    /// request kept while on the bus is freed ([`crate::requests::Requests::transfer_ended`]).
+    pub(crate) fn is_queued(&self, t: Ticket) -> bool {
+        self.with(|tb| {
+            let wanted = tb.requests.wanted(t);
+            if !wanted {
+                tb.requests.transfer_ended(t);
+            }
+            wanted
+        })
+    }
+
+    /// Wakes the dispatcher and the internal worker when a failsafe setting changed: a
+    /// keepalive may be due sooner than they planned.
+    pub(crate) fn notify_keepalive(&self) {
+        if self.with(|t| t.boards.take_keepalive_changed()) {
+            self.keepalive_changed.signal(());
+            self.internal_keepalive_changed.signal(());
+        }
+    }
+
+    /// The failsafe timeout the motherboard keeps alive for `db`, in ms (0: none).
+    pub fn keepalive_ms(&self, db: Address) -> u16 {
+        self.with(|t| t.boards.keepalive.timeout_ms(db))
+    }
+
+    /// The bytes of `job` as they go to its board now: with a PEC byte when PEC is on for
+    /// the board at this moment (whatever it was when the job was queued), and that state.
+    pub(crate) fn frame_to_send(&self, job: &Job) -> (Vec<u8, MAX_FRAME_LEN>, bool) {
+        let db = job.meta.db;
+        let pec = self.with(|t| t.boards.pec(db));
+        let mut frame = job.frame.clone();
+        if pec {
+            let _ = frame.push(x10_microcode::pec::compute(db.addr_byte(false), &job.frame));
+        }
+        (frame, pec)
+    }
+}

@@ -1,0 +1,183 @@
+//! Where events go: a write to the motherboard's address parsed as an event (PEC as the
+//! board has it), then a deferred reply to its waiting request, a pin event to the tasks
+//! waiting for it ([`crate::waiters`]) or the unclaimed queue, the rest to the counters and
+//! the log; and [`MbCore::wait_event`], the waiting side. Bus events and the internal
+//! daughterboard's events go the same way. Owns no state.
+
+use embassy_sync::signal::Signal;
+use x10_devices::{LinkError, PinEvent};
+use x10_microcode::{Address, Event, EventKind, Payload, PinRef, Status};
+
+use crate::diag::bump;
+use crate::mb_core::{now, MbCore};
+use crate::waiters::WaiterTicket;
+
+/// Unregisters an event waiter whose future is dropped; an event already delivered to it goes
+/// back to the front of the unclaimed queue.
+struct WaiterGuard<'a> {
+    mb: &'a MbCore,
+    ticket: WaiterTicket,
+    armed: bool,
+}
+
+impl Drop for WaiterGuard<'_> {
+    fn drop(&mut self) {
+        if !self.armed {
+            return;
+        }
+        let (mb, ticket) = (self.mb, self.ticket);
+        mb.with(|t| {
+            if t.waiters.unwait(ticket) {
+                if let Some(ev) = mb.waiters.get(ticket.index).and_then(Signal::try_take) {
+                    t.waiters.keep_unclaimed(ev, true, &mut t.diag);
+                }
+            }
+        });
+    }
+}
+
+impl MbCore {
+    /// Parses a write to the motherboard's own address as an event and routes it. Anything
+    /// else is counted in `bad_events` and dropped.
+    ///
+    /// From a board with PEC negotiated ([`MbCore::pec_enabled`]) an event must carry a
+    /// valid PEC byte, with one exception: a `boot` event without PEC is accepted (a board
+    /// that just restarted has PEC off) and turns PEC off for that board. From a board with
+    /// PEC off, the frame is parsed without PEC first and, if that fails, with PEC: a board
+    /// that has just executed a `set_pec(true)` the motherboard has not recorded yet sends
+    /// its events with PEC. The two readings never both succeed: the LEN byte fixes the
+    /// frame's length, and the PEC byte makes it exactly one longer.
+    pub(crate) fn route_event_bytes(&self, bytes: &[u8]) {
+        let pec_on = bytes
+            .first()
+            .and_then(|&b| Address::new(b).ok())
+            .is_some_and(|source| self.with(|t| t.boards.pec(source)));
+        let with_pec = || Event::parse_with_pec(self.config.address, bytes);
+        let parsed = if pec_on {
+            with_pec().or_else(|e| match Event::parse(bytes) {
+                Ok(ev) if ev.kind == EventKind::Boot => Ok(ev),
+                _ => Err(e),
+            })
+        } else {
+            Event::parse(bytes).or_else(|_| with_pec())
+        };
+        match parsed {
+            Ok(ev) if !ev.source.is_internal() => self.route_event(&ev),
+            _ => {
+                warn!("bad event ({} bytes)", bytes.len());
+                self.with(|t| bump(&mut t.diag.bad_events));
+            }
+        }
+    }
+
+    /// Routes one event: a deferred reply to its waiting request, a pin event to its waiters
+    /// (or the unclaimed queue), the rest to the counters and the log.
+    pub(crate) fn route_event(&self, ev: &Event<'_>) {
+        self.with(|t| {
+            bump(&mut t.diag.events);
+            t.events_in.received(ev, &mut t.diag);
+        });
+        match ev.kind {
+            EventKind::DeferredReply => self.with(|t| {
+                // Matched by board, sequence number and pin; a reply for a request that gave
+                // up is counted as late (see `Requests::take_deferred`).
+                let Some(ticket) = t
+                    .requests
+                    .take_deferred(ev.source, ev.seq, ev.pin, &mut t.diag)
+                else {
+                    return;
+                };
+                let r = match ev.status {
+                    Status::Ok => Payload::from_slice(ev.payload).map_err(|_| LinkError::BadReply),
+                    s => Err(LinkError::Status(s)),
+                };
+                if t.requests.complete(ticket, &r, &mut t.diag) {
+                    if let Some(s) = self.done.get(ticket.index) {
+                        s.signal(r);
+                    }
+                }
+            }),
+            EventKind::PinChange | EventKind::AnalogThreshold => {
+                let Ok(value) = Payload::from_slice(ev.payload) else {
+                    return;
+                };
+                let pe = PinEvent {
+                    source: ev.source,
+                    kind: ev.kind,
+                    pin: ev.pin,
+                    value,
+                };
+                self.with(|t| {
+                    t.waiters.deliver(&pe, &mut t.diag, |i| {
+                        if let Some(s) = self.waiters.get(i) {
+                            s.signal(pe.clone());
+                        }
+                    })
+                });
+            }
+            EventKind::Rejected => {
+                warn!(
+                    "board {} rejected request {}: {}",
+                    ev.source.get(),
+                    ev.seq,
+                    ev.status.name()
+                );
+                self.with(|t| bump(&mut t.diag.rejected));
+            }
+            EventKind::FailsafeTripped => {
+                warn!("board {} failsafe tripped", ev.source.get());
+                self.with(|t| bump(&mut t.diag.failsafe_trips));
+            }
+            EventKind::Overflow => {
+                warn!("board {} dropped events", ev.source.get());
+                self.with(|t| bump(&mut t.diag.overflows));
+            }
+            EventKind::Boot => {
+                info!("board {} booted", ev.source.get());
+                self.with(|t| {
+                    bump(&mut t.diag.boots);
+                    t.boards.booted(ev.source, now());
+                });
+            }
+            EventKind::Unknown(_) => self.with(|t| bump(&mut t.diag.bad_events)),
+        }
+        self.notify_keepalive();
+    }
+
+    /// Waits for the next pin-change or analog-threshold event from `pin` on board `db`. An
+    /// event that arrived while no task waited for it is kept (up to
+    /// [`crate::UNCLAIMED_EVENTS`], oldest dropped first and counted) and returned at once.
+    /// Every task waiting for the same pin gets the event.
+    ///
+    /// # Errors
+    /// [`LinkError::Busy`] when [`crate::MAX_EVENT_WAITERS`] tasks already wait.
+    pub async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
+        // The task's waker identifies it: its next wait for the same pin takes the same slot.
+        let task = core::future::poll_fn(|cx| core::task::Poll::Ready(cx.waker().clone())).await;
+        let registered = self.with(|t| {
+            let r = t.waiters.wait_for(db, pin, &task, &mut t.diag);
+            if let Ok(Err(ticket)) = r {
+                if let Some(s) = self.waiters.get(ticket.index) {
+                    s.reset();
+                }
+            }
+            r
+        })?;
+        let ticket = match registered {
+            Ok(ev) => return Ok(ev),
+            Err(ticket) => ticket,
+        };
+        let Some(signal) = self.waiters.get(ticket.index) else {
+            return Err(LinkError::Busy);
+        };
+        let mut guard = WaiterGuard {
+            mb: self,
+            ticket,
+            armed: true,
+        };
+        let ev = signal.wait().await;
+        guard.armed = false;
+        self.with(|t| t.waiters.took(ticket));
+        Ok(ev)
+    }
+}

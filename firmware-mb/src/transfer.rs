@@ -1,0 +1,200 @@
+//! What a finished transfer means for its request: the reply read checked against the
+//! operation (sequence number, status, PEC in either mode), the request ended or deferred,
+//! the board's PEC state and keepalive updated from what the transfer proved. Shared by the
+//! dispatcher and the internal worker; owns no state (it acts on [`crate::table`]'s parts).
+
+use x10_devices::LinkError;
+use x10_hal::bus::BusError;
+use x10_microcode::{Address, Op, Payload, Reply, Status};
+
+use crate::boards::pec_change;
+use crate::diag::bump;
+use crate::jobs::{Job, JobMeta};
+use crate::mb_core::{now, MbCore};
+
+/// The error a request ends in after a bus error (its last attempt's).
+pub(crate) fn link_error(e: BusError) -> LinkError {
+    match e {
+        BusError::Nack => LinkError::Nack,
+        BusError::ArbitrationLost => LinkError::ArbitrationLost,
+        BusError::Timeout => LinkError::Timeout,
+        BusError::Bus | BusError::Overrun => LinkError::Bus,
+    }
+}
+
+/// The operation of a request frame (PEC byte excluded).
+pub(crate) fn request_op(frame: &[u8]) -> Option<Op<'_>> {
+    let f = x10_microcode::RequestFrame::new_checked(frame).ok()?;
+    let (fn_op, port) = (f.fn_op(), f.port_byte());
+    let data = frame.get(x10_microcode::REQUEST_HEADER_LEN..)?;
+    Op::parse(fn_op, port, data).ok()
+}
+
+/// What a finished transfer means for its request.
+pub(crate) enum Outcome {
+    Complete(Result<Payload, LinkError>),
+    Defer,
+}
+
+impl MbCore {
+    /// Ends a transfer sent with PEC `pec`: `Ok(None)` a write acknowledged,
+    /// `Ok(Some(bytes))` the bytes read, or the bus error after every retry.
+    pub(crate) fn finish_transfer(&self, job: &Job, pec: bool, r: Result<Option<&[u8]>, BusError>) {
+        let meta = &job.meta;
+        let replied = matches!(r, Ok(Some(_)));
+        // The board saw a transaction: that keeps its failsafe alive (recorded below).
+        let acked = r.is_ok();
+        let outcome = match r {
+            Ok(None) => Outcome::Complete(Ok(Payload::new())),
+            Ok(Some(read)) => match request_op(&job.frame) {
+                Some(op) => {
+                    let (outcome, state) = self.interpret(meta, pec, &op, read);
+                    self.board_pec_is(meta.db, state);
+                    outcome
+                }
+                None => Outcome::Complete(Err(LinkError::BadReply)),
+            },
+            Err(e) => Outcome::Complete(Err(link_error(e))),
+        };
+        self.end_job(meta, outcome, acked, replied);
+    }
+
+    /// Ends request `meta` with `outcome` (`acked`: the board saw the transaction;
+    /// `replied`: a reply was read).
+    pub(crate) fn end_job(&self, meta: &JobMeta, outcome: Outcome, acked: bool, replied: bool) {
+        self.with(|t| {
+            // The clock is read only for a board whose failsafe is kept alive.
+            if acked && t.boards.keepalive.tracks(meta.db) {
+                t.boards.keepalive.sent(meta.db, now());
+            }
+            match outcome {
+                Outcome::Defer => {
+                    if !t.requests.defer(meta.ticket, meta.deferred, now()) {
+                        bump(&mut t.diag.late_replies);
+                    }
+                }
+                Outcome::Complete(r) => {
+                    // A `set_failsafe` the board applied is kept alive, whether or not the
+                    // caller still waits (a `set_pec`: `board_pec_is`).
+                    if let (Ok(_), Some(ms)) = (&r, meta.failsafe_change) {
+                        t.boards.failsafe_set(meta.db, ms, now());
+                    }
+                    if t.requests.complete(meta.ticket, &r, &mut t.diag) {
+                        if let Some(s) = self.done.get(meta.ticket.index) {
+                            s.signal(r);
+                        }
+                    } else {
+                        if replied {
+                            // The caller gave up while the transfer was on the bus.
+                            bump(&mut t.diag.late_replies);
+                        }
+                        t.requests.transfer_ended(meta.ticket);
+                    }
+                }
+            }
+        });
+        self.notify_keepalive();
+    }
+
+    /// What the bytes read for request `meta` (operation `op`, sent with PEC `pec`) mean, and
+    /// the PEC state of the board when the reply proves it.
+    ///
+    /// The reply must fit the operation ([`Reply::parse_read_for`]: an `ok` of a length the
+    /// operation allows, anything else empty; the PEC byte located without trusting an
+    /// unchecked byte). A `set_pec` is answered in its new mode: its reply is parsed that way
+    /// first, and only a reply checked in the new mode (for `set_pec(1)`: with its PEC)
+    /// confirms the switch. A `pec_mismatch` answer to a frame sent without PEC counts only
+    /// with a valid PEC byte (only a board with PEC on sends it, and a flipped status bit
+    /// must not turn it into `ok`): it proves the board has PEC on.
+    pub(crate) fn interpret(
+        &self,
+        meta: &JobMeta,
+        pec: bool,
+        op: &Op<'_>,
+        read: &[u8],
+    ) -> (Outcome, Option<bool>) {
+        let db = meta.db;
+        let switch = pec_change(op);
+        let mode = switch.unwrap_or(pec);
+        // A board that refused the switch answers in the old mode.
+        let parsed = match Reply::parse_read_for(db, mode, read, op) {
+            Ok(r) => Some((r, mode)),
+            Err(_) if mode != pec => Reply::parse_read_for(db, pec, read, op)
+                .ok()
+                .map(|r| (r, pec)),
+            Err(_) => None,
+        };
+        let Some((reply, answered_in)) = parsed else {
+            let state = self.pec_off_sign(meta, pec, op, read);
+            return (Outcome::Complete(Err(LinkError::BadReply)), state);
+        };
+        if reply.seq != meta.seq {
+            warn!(
+                "reply from {} has seq {} for request {}",
+                db.get(),
+                reply.seq,
+                meta.seq
+            );
+            self.with(|t| t.requests.stray(db, reply.seq, &mut t.diag));
+            return (Outcome::Complete(Err(LinkError::BadReply)), None);
+        }
+        match reply.status {
+            // A switch is confirmed only by an `ok` in its new mode.
+            Status::Ok if switch.is_some() && answered_in != mode => {
+                (Outcome::Complete(Err(LinkError::BadReply)), None)
+            }
+            Status::Ok => match Payload::from_slice(reply.payload) {
+                Ok(p) => (Outcome::Complete(Ok(p)), switch),
+                Err(_) => (Outcome::Complete(Err(LinkError::BadReply)), None),
+            },
+            Status::Pending if meta.deferred.is_some() => (Outcome::Defer, None),
+            Status::Pending => (Outcome::Complete(Err(LinkError::BadReply)), None),
+            Status::PecMismatch if !pec => {
+                // Only a board that checks PEC answers this, with its PEC byte: check it.
+                match Reply::parse_read_for(db, true, read, op) {
+                    Ok(r) if r.seq == meta.seq && r.status == Status::PecMismatch => {
+                        warn!("board {} checks PEC: PEC on", db.get());
+                        self.with(|t| bump(&mut t.diag.pec_resyncs));
+                        (
+                            Outcome::Complete(Err(LinkError::Status(Status::PecMismatch))),
+                            Some(true),
+                        )
+                    }
+                    _ => (Outcome::Complete(Err(LinkError::BadReply)), None),
+                }
+            }
+            s => (Outcome::Complete(Err(LinkError::Status(s))), None),
+        }
+    }
+
+    /// Records the PEC state a reply proved for `db`. With the safe defaults a board found
+    /// with PEC off is prepared again before its next request.
+    pub(crate) fn board_pec_is(&self, db: Address, state: Option<bool>) {
+        let Some(on) = state else { return };
+        let manages = self.config.pec;
+        self.with(|t| {
+            t.boards.set_pec(db, on);
+            if !on && manages {
+                t.boards.set_ready(db, false);
+            }
+        });
+    }
+
+    /// A reply that failed its PEC check but reads, without PEC, as `bad_length`: the board
+    /// took our PEC byte for data, so it has PEC off (it restarted and its boot event was
+    /// lost). `Some(false)` then (unchecked, so it only ever leads to switching PEC on
+    /// again, never to accepting a value).
+    fn pec_off_sign(&self, meta: &JobMeta, pec: bool, op: &Op<'_>, read: &[u8]) -> Option<bool> {
+        if !pec {
+            return None;
+        }
+        match Reply::parse_read_for(meta.db, false, read, op) {
+            Ok(reply) if reply.seq == meta.seq && reply.status == Status::BadLength => {
+                warn!("board {} has PEC off", meta.db.get());
+                self.with(|t| bump(&mut t.diag.pec_resyncs));
+                Some(false)
+            }
+            _ => None,
+        }
+    }
+}

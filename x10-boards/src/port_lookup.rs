@@ -1,0 +1,87 @@
+//! Where the port or pin of a request leads among a board's sensor ports and actuator ports,
+//! and which error answers a port or pin the board lacks or a port of the wrong kind. The
+//! same on every chip: the chip modules (`pico`, `stm32`) hold the ports and ask here. Owns
+//! no state; tested on the host.
+
+use x10_hal::ports::PortError;
+use x10_microcode::{PinRef, Port, PortKind};
+
+/// The sensor port `port` names.
+///
+/// # Errors
+/// [`PortError::Unsupported`] for an actuator port, [`PortError::NoSuchPin`] past the last
+/// sensor port.
+pub fn sensor<S>(sensors: &[S], port: Port) -> Result<&S, PortError> {
+    match port.kind() {
+        PortKind::Sensor => sensors
+            .get(usize::from(port.index()))
+            .ok_or(PortError::NoSuchPin),
+        PortKind::Actuator => Err(PortError::Unsupported),
+    }
+}
+
+/// The actuator port `port` names.
+///
+/// # Errors
+/// [`PortError::Unsupported`] for a sensor port, [`PortError::NoSuchPin`] past the last
+/// actuator port.
+pub fn actuator<A>(actuators: &[A], port: Port) -> Result<&A, PortError> {
+    match port.kind() {
+        PortKind::Actuator => actuators
+            .get(usize::from(port.index()))
+            .ok_or(PortError::NoSuchPin),
+        PortKind::Sensor => Err(PortError::Unsupported),
+    }
+}
+
+/// The digital pin `pin` names, on a sensor port (its pins: `sensor_pins`) or an actuator
+/// port (`actuator_pins`).
+///
+/// # Errors
+/// [`PortError::NoSuchPin`] past the last port of its kind.
+pub fn digital<'a, S, A, P>(
+    sensors: &'a [S],
+    actuators: &'a [A],
+    pin: PinRef,
+    sensor_pins: impl FnOnce(&'a S) -> &'a [P; 2],
+    actuator_pins: impl FnOnce(&'a A) -> &'a [P; 2],
+) -> Result<&'a P, PortError> {
+    let i = usize::from(pin.port.index());
+    let pins = match pin.port.kind() {
+        PortKind::Sensor => sensor_pins(sensors.get(i).ok_or(PortError::NoSuchPin)?),
+        PortKind::Actuator => actuator_pins(actuators.get(i).ok_or(PortError::NoSuchPin)?),
+    };
+    pins.get(pin.pin.index()).ok_or(PortError::NoSuchPin)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use x10_microcode::test_support::{a, s};
+    use x10_microcode::Pin;
+
+    const SENSORS: [[u8; 2]; 2] = [[10, 11], [20, 21]];
+    const ACTUATORS: [[u8; 2]; 1] = [[30, 31]];
+
+    #[test]
+    fn ports_of_the_wrong_kind_are_unsupported_and_missing_ones_no_such_pin() {
+        assert_eq!(sensor(&SENSORS, s(2)), Ok(&[20, 21]));
+        assert_eq!(sensor(&SENSORS, s(3)), Err(PortError::NoSuchPin));
+        assert_eq!(sensor(&SENSORS, a(1)), Err(PortError::Unsupported));
+        assert_eq!(sensor(&SENSORS, a(9)), Err(PortError::Unsupported));
+        assert_eq!(actuator(&ACTUATORS, a(1)), Ok(&[30, 31]));
+        assert_eq!(actuator(&ACTUATORS, a(2)), Err(PortError::NoSuchPin));
+        assert_eq!(actuator(&ACTUATORS, s(1)), Err(PortError::Unsupported));
+        assert_eq!(actuator(&ACTUATORS, s(9)), Err(PortError::Unsupported));
+    }
+
+    #[test]
+    fn digital_pins_on_both_kinds_of_port() {
+        let pin = |p: Port, b: Pin| digital(&SENSORS, &ACTUATORS, p.pin(b), |s| s, |a| a);
+        assert_eq!(pin(s(1), Pin::A), Ok(&10));
+        assert_eq!(pin(s(2), Pin::B), Ok(&21));
+        assert_eq!(pin(a(1), Pin::B), Ok(&31));
+        assert_eq!(pin(s(3), Pin::A), Err(PortError::NoSuchPin));
+        assert_eq!(pin(a(2), Pin::A), Err(PortError::NoSuchPin));
+    }
+}
