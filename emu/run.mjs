@@ -83,9 +83,27 @@ function pec(bytes) {
   return c;
 }
 
+/** CRC-16/IBM-3740 (polynomial 0x1021, initial 0xFFFF): the check of frames over 13 bytes. */
+function crc16(bytes) {
+  let c = 0xffff;
+  for (const b of bytes) {
+    c ^= b << 8;
+    for (let i = 0; i < 8; i++) c = c & 0x8000 ? ((c << 1) ^ 0x1021) & 0xffff : (c << 1) & 0xffff;
+  }
+  return c;
+}
+
+/** True when `bytes` end in the check of the rest (x10-microcode's pec::strip rule). */
+function checked(addrByte, bytes) {
+  const n = bytes.length;
+  if (n >= 2 && n <= 14) return pec([addrByte, ...bytes.slice(0, -1)]) === bytes[n - 1];
+  if (n >= 16) return crc16([addrByte, ...bytes.slice(0, -2)]) === (bytes[n - 2] | (bytes[n - 1] << 8));
+  return false;
+}
+
 /**
- * The transfers' frames in words, by `x10 decode`. A frame whose last byte is the PEC of the
- * rest (covering the DB's address for requests and replies, the MB's for events, as
+ * The transfers' frames in words, by `x10 decode`. A frame that ends in the check of the rest
+ * (its PEC byte, or its CRC-16 when it is longer than 13 bytes) (covering the DB's address for requests and replies, the MB's for events, as
  * docs/protocol.md says) is decoded with `--pec`: frames are grouped by the PEC address they
  * need, one `x10 decode` run per group (a reply is decoded with its request's operation when
  * both are in the same group), and the lines put back in bus order.
@@ -100,7 +118,7 @@ function decodeFrames(transfers) {
       // The address byte as on the wire: the DB's (write) for requests, (read) for replies;
       // the MB's (write) for events.
       const addrByte = (p.addr << 1) | (p.dir === 'r' ? 1 : 0);
-      const withPec = p.bytes.length > 1 && pec([addrByte, ...p.bytes.slice(0, -1)]) === p.bytes[p.bytes.length - 1];
+      const withPec = checked(addrByte, p.bytes);
       frames.push({ line: `${kind}:${hex(p.bytes)}`, group: withPec ? String(p.addr) : '' });
     }
   }

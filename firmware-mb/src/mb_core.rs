@@ -360,15 +360,20 @@ impl MbCore {
         self.with(|t| t.boards.keepalive.timeout_ms(db))
     }
 
-    /// The bytes of `job` as they go to its board now: with a PEC byte when PEC is on for
-    /// the board at this moment (whatever it was when the job was queued), and that state.
+    /// The bytes of `job` as they go to its board now: with its check (a PEC byte, or a CRC-16
+    /// after a frame of more than 13 bytes) when PEC is on for the board at this moment
+    /// (whatever it was when the job was queued), and that state.
     pub(crate) fn frame_to_send(&self, job: &Job) -> (Vec<u8, MAX_FRAME_LEN>, bool) {
+        use x10_microcode::pec;
         let db = job.meta.db;
-        let pec = self.with(|t| t.boards.pec(db));
+        let on = self.with(|t| t.boards.pec(db));
         let mut frame = job.frame.clone();
-        if pec {
-            let _ = frame.push(x10_microcode::pec::compute(db.addr_byte(false), &job.frame));
+        if on {
+            let check = pec::check(db.addr_byte(false), &job.frame).to_le_bytes();
+            let n = pec::check_len(job.frame.len());
+            // Fits: MAX_FRAME_LEN has room for the longest frame's check.
+            let _ = frame.extend_from_slice(check.get(..n).unwrap_or(&[]));
         }
-        (frame, pec)
+        (frame, on)
     }
 }

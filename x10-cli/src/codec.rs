@@ -9,7 +9,8 @@
 //! `status`, `payload`), with [`Identity`], [`Diagnostics`], [`ScanResult`] and
 //! [`EventConfig`] as they derive. What the tool adds, here:
 //!
-//! * `kind`, and with PEC `pec_addr` (the address the PEC covers) and `pec` (the PEC byte);
+//! * `kind`, and with PEC `pec_addr` (the address the check covers), `pec` (the check: the PEC
+//!   byte, or the CRC-16 of a frame over 13 bytes) and, for a CRC-16, `"check": "crc16"`;
 //! * the decoded value of a reply, when it is known which request the reply answers
 //!   (`answers`: [`Answers`]; `ReplyValue`), and of an event's payload (`EventValue`);
 //! * encoding: [`encode`] is the exact inverse of [`decode`]. It accepts what `decode` prints,
@@ -483,7 +484,13 @@ pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Value> {
         Some(addr) => {
             let read = opts.kind == FrameKind::Reply;
             let frame = pec::strip(addr.addr_byte(read), bytes).map_err(invalid)?;
-            (frame, bytes.last().copied())
+            // The check after the frame: one PEC byte, or a CRC-16 (little-endian).
+            let check = match bytes.get(frame.len()..) {
+                Some(&[b]) => Some((u16::from(b), false)),
+                Some(&[lo, hi]) => Some((u16::from_le_bytes([lo, hi]), true)),
+                _ => None,
+            };
+            (frame, check)
         }
         None => (bytes, None),
     };
@@ -508,9 +515,12 @@ pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Value> {
         }
     };
     m.insert("kind".into(), opts.kind.name().into());
-    if let (Some(addr), Some(p)) = (opts.pec, pec_byte) {
+    if let (Some(addr), Some((p, crc16))) = (opts.pec, pec_byte) {
         m.insert("pec_addr".into(), addr.get().into());
         m.insert("pec".into(), p.into());
+        if crc16 {
+            m.insert("check".into(), "crc16".into());
+        }
     }
     Ok(Value::Object(m))
 }
@@ -829,12 +839,14 @@ fn emitted(
     Ok(buf.get(..n).unwrap_or(&[]).to_vec())
 }
 
-/// `pec_addr`, the address the PEC covers, and `pec`, the PEC byte (checked against the
-/// frame).
+/// `pec_addr`, the address the check covers, `pec`, the check (a PEC byte, or a CRC-16 on a
+/// frame over 13 bytes), and `check` (`crc16` for a CRC-16); the last two are checked against
+/// the frame.
 #[derive(Serialize, Deserialize, Default)]
 struct PecJson {
     pec_addr: Option<Address>,
     pec: Option<Value>,
+    check: Option<Value>,
 }
 
 /// Appends the PEC when `pec_addr` is given, then decodes what was built and checks every
@@ -851,7 +863,9 @@ fn finish(
     let p: PecJson = o.parse()?;
     if let Some(addr) = p.pec_addr {
         let read = kind == FrameKind::Reply;
-        bytes.push(pec::compute(addr.addr_byte(read), &bytes));
+        let n = bytes.len();
+        bytes.resize(n + pec::check_len(n), 0);
+        pec::append(addr.addr_byte(read), &mut bytes, n).map_err(|e| CodecError::frame(kind, e))?;
         opts.pec = Some(addr);
     } else if p.pec.is_some() {
         return Err(CodecError::new(
@@ -954,6 +968,7 @@ const NAME_KEYS: &[&str] = &[
     "port_kind",
     "pin",
     "answers",
+    "check",
 ];
 
 /// Integers may be written as `"0x…"` strings (docs/protocol.md): they become numbers, except

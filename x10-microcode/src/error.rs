@@ -39,13 +39,16 @@ pub enum Error {
     /// The payload is longer than [`crate::MAX_PAYLOAD`] or data longer than
     /// [`crate::MAX_REQUEST_DATA`].
     TooLong,
-    /// The PEC byte does not match the frame.
+    /// The PEC byte (the check of a frame of up to 13 bytes) does not match the frame.
     PecMismatch {
         /// PEC byte received.
         received: u8,
         /// PEC computed over the frame.
         computed: u8,
     },
+    /// The CRC-16 (the check of a frame of more than 13 bytes) does not match the frame. Its
+    /// values are not kept, so that `Error` stays three bytes (every parse returns it).
+    CrcMismatch,
 }
 
 impl Error {
@@ -61,7 +64,7 @@ impl Error {
             Error::BadPort(_) => Status::PortOutOfRange,
             Error::WrongPortKind => Status::WrongPortKind,
             Error::BadArgument | Error::NestedBatch => Status::BadArgument,
-            Error::PecMismatch { .. } => Status::PecMismatch,
+            Error::PecMismatch { .. } | Error::CrcMismatch => Status::PecMismatch,
         }
     }
 }
@@ -88,6 +91,7 @@ impl fmt::Display for Error {
                     "PEC mismatch: received {received:#04x}, computed {computed:#04x}"
                 )
             }
+            Error::CrcMismatch => f.write_str("CRC-16 mismatch"),
         }
     }
 }

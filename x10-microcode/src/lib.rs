@@ -94,5 +94,6 @@ pub const MAX_PAYLOAD: usize = 28;
 pub const MAX_REPLY_LEN: usize = REPLY_HEADER_LEN + MAX_PAYLOAD;
 /// Largest event frame, PEC byte excluded.
 pub const MAX_EVENT_LEN: usize = EVENT_HEADER_LEN + MAX_PAYLOAD;
-/// Largest frame of any kind with its PEC byte: the size of every transfer buffer.
-pub const MAX_FRAME_LEN: usize = MAX_EVENT_LEN + 1;
+/// Largest frame of any kind with its check (a CRC-16 on every frame over 13 bytes,
+/// [`pec::check_len`]): the size of every transfer buffer.
+pub const MAX_FRAME_LEN: usize = MAX_EVENT_LEN + pec::MAX_CHECK_LEN;

@@ -1,20 +1,47 @@
-//! SMBus Packet Error Code: CRC-8, polynomial 0x07, initial value 0, over the I2C address byte
-//! (7-bit address shifted left, R/W bit in bit 0) followed by every byte of the frame.
+//! The frame check: SMBus Packet Error Code (CRC-8, polynomial 0x07, initial value 0) on frames
+//! of up to [`CRC8_MAX_FRAME`] (13) bytes, CRC-16 (CRC-16/IBM-3740, polynomial 0x1021, initial value
+//! 0xFFFF, little-endian on the wire) on longer ones; both over the I2C address byte (7-bit
+//! address shifted left, R/W bit in bit 0) followed by every byte of the frame.
 //!
-//! PEC is negotiated per board with the `set_pec` system request. With PEC off a request is
-//! exactly the thesis bytes; with PEC on one byte is appended to every request, reply and event.
+//! CRC-8/SMBUS detects every error of up to 3 bits in a codeword (address byte, frame, check)
+//! of up to 127 bits, so with a frame of up to 13 bytes, not beyond (two bits 127 apart pass);
+//! CRC-16/IBM-3740 does so up to 32 767 bits, so on every frame of the protocol
+//! (docs/protocol.md, "The check: CRC-8 on short frames, CRC-16 on long ones").
+//!
+//! The check is negotiated per board with the `set_pec` system request. With it off a request is
+//! exactly the thesis bytes; with it on every request, reply and event carries its check: one
+//! byte when the frame has up to 13 bytes, two when it is longer. A receiver tells which from
+//! the length alone ([`check_len`]): a frame with its check of up to 14 bytes ends in a CRC-8,
+//! one of 16 or more in a CRC-16, and 15 bytes is never a valid length.
 //! Which address byte is covered:
 //! * request: the DB's address, write (`db << 1`);
 //! * reply: the DB's address, read (`db << 1 | 1`);
 //! * event: the MB's address, write (`mb << 1`).
 
-use crc::{Crc, CRC_8_SMBUS};
+use crc::{Crc, NoTable, CRC_16_IBM_3740, CRC_8_SMBUS};
 
 use crate::{Error, Result};
 
 const SMBUS: Crc<u8> = Crc::<u8>::new(&CRC_8_SMBUS);
+/// Bitwise, without the 512-byte table: long frames are rare and at most 37 bytes, and the
+/// daughterboard images count every byte of flash.
+const CRC16: Crc<u16, NoTable> = Crc::<u16, NoTable>::new(&CRC_16_IBM_3740);
 
-/// PEC over `addr_byte` followed by `frame`.
+/// The longest frame that carries a one-byte CRC-8; longer frames carry a CRC-16.
+pub const CRC8_MAX_FRAME: usize = 13;
+/// The most bytes a check adds to a frame.
+pub const MAX_CHECK_LEN: usize = 2;
+
+/// How many check bytes follow a frame of `frame_len` bytes: 1 up to [`CRC8_MAX_FRAME`], else 2.
+pub const fn check_len(frame_len: usize) -> usize {
+    if frame_len <= CRC8_MAX_FRAME {
+        1
+    } else {
+        2
+    }
+}
+
+/// The SMBus PEC (CRC-8) over `addr_byte` followed by `frame`.
 pub fn compute(addr_byte: u8, frame: &[u8]) -> u8 {
     let mut d = SMBUS.digest();
     d.update(&[addr_byte]);
@@ -22,29 +49,74 @@ pub fn compute(addr_byte: u8, frame: &[u8]) -> u8 {
     d.finalize()
 }
 
-/// Splits the trailing PEC byte off `frame_with_pec` and checks it.
-///
-/// # Errors
-/// [`Error::Truncated`] for an empty input, [`Error::PecMismatch`] when the byte is wrong.
-pub fn strip(addr_byte: u8, frame_with_pec: &[u8]) -> Result<&[u8]> {
-    let (&received, frame) = frame_with_pec.split_last().ok_or(Error::Truncated)?;
-    let computed = compute(addr_byte, frame);
-    if received == computed {
-        Ok(frame)
+/// The CRC-16/IBM-3740 over `addr_byte` followed by `frame`.
+pub fn compute16(addr_byte: u8, frame: &[u8]) -> u16 {
+    let mut d = CRC16.digest();
+    d.update(&[addr_byte]);
+    d.update(frame);
+    d.finalize()
+}
+
+/// The check of `frame` as sent: its CRC-8, or its CRC-16 for a frame longer than
+/// [`CRC8_MAX_FRAME`], as a number.
+pub fn check(addr_byte: u8, frame: &[u8]) -> u16 {
+    if check_len(frame.len()) == 1 {
+        u16::from(compute(addr_byte, frame))
     } else {
-        Err(Error::PecMismatch { received, computed })
+        compute16(addr_byte, frame)
     }
 }
 
-/// Writes the PEC of `buf[..len]` into `buf[len]` and returns `len + 1`.
+/// Splits the trailing check off `frame_with_check` and verifies it: one CRC-8 byte when the
+/// input has up to `CRC8_MAX_FRAME + 1` bytes, two CRC-16 bytes (little-endian) when it has
+/// `CRC8_MAX_FRAME + 3` or more.
 ///
 /// # Errors
-/// [`Error::BufferTooShort`] when `buf` has no room after `len` bytes.
+/// [`Error::Truncated`] for an empty input, [`Error::BadLength`] for `CRC8_MAX_FRAME + 2`
+/// bytes (no frame has that length with its check), [`Error::PecMismatch`] for a wrong PEC
+/// byte, [`Error::CrcMismatch`] for a wrong CRC-16.
+pub fn strip(addr_byte: u8, frame_with_check: &[u8]) -> Result<&[u8]> {
+    let n = frame_with_check.len();
+    if n == 0 {
+        return Err(Error::Truncated);
+    }
+    let frame_len = if n <= CRC8_MAX_FRAME + 1 {
+        n - 1
+    } else if n >= CRC8_MAX_FRAME + 3 {
+        n - 2
+    } else {
+        return Err(Error::BadLength);
+    };
+    let (frame, tail) = frame_with_check.split_at(frame_len);
+    match *tail {
+        [received] => {
+            let computed = compute(addr_byte, frame);
+            if received == computed {
+                Ok(frame)
+            } else {
+                Err(Error::PecMismatch { received, computed })
+            }
+        }
+        [lo, hi] if u16::from_le_bytes([lo, hi]) == compute16(addr_byte, frame) => Ok(frame),
+        [_, _] => Err(Error::CrcMismatch),
+        _ => Err(Error::BadLength),
+    }
+}
+
+/// Writes the check of `buf[..len]` after it ([`check_len`]`(len)` bytes) and returns the
+/// total length.
+///
+/// # Errors
+/// [`Error::BufferTooShort`] when `buf` has no room for the check after `len` bytes.
 pub fn append(addr_byte: u8, buf: &mut [u8], len: usize) -> Result<usize> {
     let (frame, rest) = buf.split_at_mut_checked(len).ok_or(Error::BufferTooShort)?;
-    let slot = rest.first_mut().ok_or(Error::BufferTooShort)?;
-    *slot = compute(addr_byte, frame);
-    Ok(len + 1)
+    let n = check_len(len);
+    let slot = rest.get_mut(..n).ok_or(Error::BufferTooShort)?;
+    let c = check(addr_byte, frame).to_le_bytes();
+    for (s, b) in slot.iter_mut().zip(c) {
+        *s = b;
+    }
+    Ok(len + n)
 }
 
 #[cfg(test)]
@@ -55,6 +127,55 @@ mod tests {
     fn check_value_of_crc8_smbus() {
         // The catalogue check value of CRC-8/SMBUS over "123456789" is 0xF4.
         assert_eq!(SMBUS.checksum(b"123456789"), 0xF4);
+    }
+
+    #[test]
+    fn check_value_of_crc16_ibm_3740() {
+        // The catalogue check value of CRC-16/IBM-3740 over "123456789" is 0x29B1.
+        assert_eq!(CRC16.checksum(b"123456789"), 0x29B1);
+    }
+
+    #[test]
+    fn frames_up_to_14_bytes_get_crc8_longer_ones_crc16() {
+        assert_eq!(check_len(0), 1);
+        assert_eq!(check_len(13), 1);
+        assert_eq!(check_len(14), 2);
+        assert_eq!(check_len(36), 2);
+        for len in 1..=40usize {
+            let mut buf = [0u8; 48];
+            for (i, b) in buf.iter_mut().take(len).enumerate() {
+                *b = (i as u8).wrapping_mul(37).wrapping_add(5);
+            }
+            let n = append(0x13, &mut buf, len).unwrap();
+            assert_eq!(n, len + check_len(len));
+            assert_ne!(n, CRC8_MAX_FRAME + 2, "no frame is 15 bytes with its check");
+            assert_eq!(strip(0x13, &buf[..n]), Ok(&buf[..len]));
+            if len > CRC8_MAX_FRAME {
+                assert_eq!(
+                    u16::from_le_bytes([buf[len], buf[len + 1]]),
+                    compute16(0x13, &buf[..len])
+                );
+            }
+        }
+        assert_eq!(strip(0x13, &[0u8; 15]), Err(Error::BadLength));
+    }
+
+    #[test]
+    fn two_bit_errors_127_bits_apart_pass_crc8_but_not_crc16() {
+        // CRC-8/SMBUS's polynomial divides x^127 + 1: flipping bits 127 apart is invisible to
+        // it. A 20-byte frame (with its address byte 168 covered bits) has such pairs.
+        let frame: [u8; 20] = core::array::from_fn(|i| (i as u8) ^ 0x5A);
+        let flip = |f: &mut [u8; 20], bit: usize| f[bit / 8] ^= 0x80 >> (bit % 8);
+        let mut bad = frame;
+        flip(&mut bad, 8);
+        flip(&mut bad, 8 + 127);
+        assert_eq!(compute(0x13, &frame), compute(0x13, &bad));
+        assert_ne!(compute16(0x13, &frame), compute16(0x13, &bad));
+        let mut buf = [0u8; 22];
+        buf[..20].copy_from_slice(&bad);
+        let good = compute16(0x13, &frame).to_le_bytes();
+        buf[20..].copy_from_slice(&good);
+        assert_eq!(strip(0x13, &buf), Err(Error::CrcMismatch));
     }
 
     #[test]

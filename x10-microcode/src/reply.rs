@@ -193,8 +193,9 @@ impl<'a> Reply<'a> {
         Self::parse_frame(&frame)
     }
 
-    /// Parses the reply at the start of a fixed-size read from `db`: with `pec`, the byte after
-    /// the frame is its PEC (covering `db << 1 | 1`). Bytes after that are padding.
+    /// Parses the reply at the start of a fixed-size read from `db`: with `pec`, the frame's
+    /// check follows it (covering `db << 1 | 1`: one PEC byte, or a CRC-16 after a frame of
+    /// more than 13 bytes, [`pec::check_len`]). Bytes after that are padding.
     ///
     /// # Errors
     /// As [`ReplyFrame::check_len`], [`Error::Truncated`] for a missing PEC byte,
@@ -203,7 +204,9 @@ impl<'a> Reply<'a> {
         let frame = ReplyFrame::new_checked(read)?;
         let len = frame.frame_len();
         let bytes = if pec_on {
-            let with = read.get(..len + 1).ok_or(Error::Truncated)?;
+            let with = read
+                .get(..len + pec::check_len(len))
+                .ok_or(Error::Truncated)?;
             pec::strip(db.addr_byte(true), with)?
         } else {
             read.get(..len).ok_or(Error::Truncated)?
@@ -236,8 +239,9 @@ impl<'a> Reply<'a> {
         let reply = match ok_len {
             crate::ReplyLen::Exact(n) if pec_on => {
                 let at = |payload: usize| -> Result<Reply<'a>> {
+                    let len = REPLY_HEADER_LEN + payload;
                     let with = read
-                        .get(..REPLY_HEADER_LEN + payload + 1)
+                        .get(..len + pec::check_len(len))
                         .ok_or(Error::Truncated)?;
                     Self::parse(pec::strip(db.addr_byte(true), with)?)
                 };

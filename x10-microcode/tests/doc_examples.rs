@@ -361,10 +361,12 @@ fn decode(ex: &Example) -> Result<Flat, &'static str> {
             let r = Reply::parse_read(db, ex.pec.is_some(), &ex.bytes)
                 .map_err(|e| e.status().name())?;
             // A reply example is exactly one frame: no padding after it.
-            assert_eq!(
-                r.buffer_len() + usize::from(ex.pec.is_some()),
-                ex.bytes.len()
-            );
+            let check = if ex.pec.is_some() {
+                x10_microcode::pec::check_len(r.buffer_len())
+            } else {
+                0
+            };
+            assert_eq!(r.buffer_len() + check, ex.bytes.len());
             let n = match ex.pec {
                 Some(db) => r.emit_with_pec(db, &mut out),
                 None => r.emit(&mut out),
@@ -391,7 +393,16 @@ fn decode(ex: &Example) -> Result<Flat, &'static str> {
     };
     if let Some(addr) = ex.pec {
         put(&mut m, "pec_addr", Val::Int(addr.get().into()));
-        put(&mut m, "pec", Val::Int((*ex.bytes.last().unwrap()).into()));
+        // The check after the frame: a PEC byte, or a CRC-16 (low byte first) after a frame
+        // of more than 13 bytes.
+        let n = ex.bytes.len();
+        let check = if n <= x10_microcode::pec::CRC8_MAX_FRAME + 1 {
+            u64::from(ex.bytes[n - 1])
+        } else {
+            put(&mut m, "check", Val::Str("crc16".into()));
+            u64::from(u16::from_le_bytes([ex.bytes[n - 2], ex.bytes[n - 1]]))
+        };
+        put(&mut m, "pec", Val::Int(check));
     }
     Ok(m)
 }

@@ -670,13 +670,34 @@ static PEC_REQUESTS: &[(&[u8], u8)] = &[
     (&[0x30, 0x09, 0x80, 0x04], 0xcf),
     (&[0x20, 0x09, 0x01, 0x03, 0x80], 0xd3),
     (&[0x07, 0x09, 0x00, 0x08, 0x01], 0xec),
-    (
-        &[
-            0x50, 0x09, 0x00, 0x12, 0x12, 0x01, 0x00, 0x20, 0x00, 0x01, 0xc8, 0x30, 0x80, 0x00,
-        ],
-        0xcd,
-    ),
 ];
+
+/// A 14-byte request (a batch) ends in a CRC-16/IBM-3740 over its address byte and frame, low
+/// byte first (0x96ad, computed independently by `emu/run.mjs`'s bitwise CRC); its CRC-8 would
+/// have been 0xcd.
+#[test]
+fn a_request_over_13_bytes_ends_in_a_crc16() {
+    let db = Address::new(0x09).unwrap();
+    let frame = [
+        0x50, 0x09, 0x00, 0x12, 0x12, 0x01, 0x00, 0x20, 0x00, 0x01, 0xc8, 0x30, 0x80, 0x00,
+    ];
+    assert_eq!(pec::compute(0x12, &frame), 0xcd);
+    assert_eq!(pec::compute16(0x12, &frame), 0x96ad);
+    let r = Request::parse(&frame).unwrap();
+    let mut buf = [0xffu8; MAX_FRAME_LEN];
+    let n = r.emit_with_pec(&mut buf).unwrap();
+    assert_eq!(n, frame.len() + 2);
+    assert_eq!(&buf[..frame.len()], &frame);
+    assert_eq!(&buf[frame.len()..n], &[0xad, 0x96]);
+    assert_eq!(Request::parse_with_pec(db, &buf[..n]), Ok(r));
+    // The frame with a CRC-8 byte instead is refused: 15 bytes is no valid length.
+    let mut old = frame.to_vec();
+    old.push(0xcd);
+    assert_eq!(Request::parse_with_pec(db, &old), Err(Error::BadLength));
+    // No room for the second byte.
+    let mut short = vec![0u8; frame.len() + 1];
+    assert_eq!(r.emit_with_pec(&mut short), Err(Error::BufferTooShort));
+}
 
 #[test]
 fn request_pec_bytes() {
@@ -710,8 +731,8 @@ fn request_pec_every_vector_and_prefix() {
         let n = r.emit_with_pec(&mut buf).unwrap();
         let framed = &buf[..n];
         assert_eq!(
-            framed[n - 1],
-            pec::compute(v.db << 1, v.bytes),
+            &framed[v.bytes.len()..],
+            &check_bytes(v.db << 1, v.bytes)[..],
             "{}",
             v.name
         );
@@ -727,7 +748,7 @@ fn request_pec_every_vector_and_prefix() {
             assert!(
                 matches!(
                     Request::parse_with_pec(r.db, &bad),
-                    Err(Error::PecMismatch { .. })
+                    Err(Error::PecMismatch { .. } | Error::CrcMismatch)
                 ),
                 "{}: flipped byte {i}",
                 v.name
@@ -1055,7 +1076,12 @@ fn reply_pec() {
         let r = reply_repr(&v);
         let mut buf = [0u8; MAX_FRAME_LEN];
         let n = r.emit_with_pec(db, &mut buf).unwrap();
-        assert_eq!(buf[n - 1], pec::compute(0x13, v.bytes), "{}", v.name);
+        assert_eq!(
+            &buf[v.bytes.len()..n],
+            &check_bytes(0x13, v.bytes)[..],
+            "{}",
+            v.name
+        );
         assert_eq!(Reply::parse_read(db, true, &buf[..n]), Ok(r), "{}", v.name);
         for k in 0..n {
             assert!(
@@ -1066,12 +1092,17 @@ fn reply_pec() {
         }
         let mut bad = buf;
         bad[n - 1] ^= 1;
+        let want = if pec::check_len(v.bytes.len()) == 1 {
+            Error::PecMismatch {
+                received: buf[n - 1] ^ 1,
+                computed: buf[n - 1],
+            }
+        } else {
+            Error::CrcMismatch
+        };
         assert_eq!(
             Reply::parse_read(db, true, &bad[..n]),
-            Err(Error::PecMismatch {
-                received: buf[n - 1] ^ 1,
-                computed: buf[n - 1]
-            }),
+            Err(want),
             "{}",
             v.name
         );
@@ -1333,7 +1364,12 @@ fn event_pec() {
         let e = event_repr(&v);
         let mut buf = [0u8; MAX_FRAME_LEN];
         let n = e.emit_with_pec(mb, &mut buf).unwrap();
-        assert_eq!(buf[n - 1], pec::compute(0x20, v.bytes), "{}", v.name);
+        assert_eq!(
+            &buf[v.bytes.len()..n],
+            &check_bytes(0x20, v.bytes)[..],
+            "{}",
+            v.name
+        );
         assert_eq!(Event::parse_with_pec(mb, &buf[..n]), Ok(e), "{}", v.name);
         for k in 0..n {
             assert!(
@@ -1346,7 +1382,7 @@ fn event_pec() {
         let other = Address::new(0x11).unwrap();
         assert!(matches!(
             Event::parse_with_pec(other, &buf[..n]),
-            Err(Error::PecMismatch { .. })
+            Err(Error::PecMismatch { .. } | Error::CrcMismatch)
         ));
     }
 }
@@ -1615,4 +1651,11 @@ fn scan_payload() {
     assert_eq!(empty.emit(&mut buf), Ok(3));
     assert_eq!(buf, [0, 0, 0]);
     assert_eq!(ScanResult::parse(&[0, 0, 0]), Ok(empty));
+}
+
+/// The check bytes after `frame` on the wire: its PEC byte, or its CRC-16 (little-endian) when
+/// the frame is longer than 13 bytes.
+fn check_bytes(addr_byte: u8, frame: &[u8]) -> Vec<u8> {
+    let c = pec::check(addr_byte, frame).to_le_bytes();
+    c[..pec::check_len(frame.len())].to_vec()
 }

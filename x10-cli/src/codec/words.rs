@@ -179,7 +179,11 @@ pub fn describe(v: &Value) -> String {
         o.get("pec").and_then(Value::as_u64),
         o.get("pec_addr").and_then(Value::as_u64),
     ) {
-        s.push_str(&format!(" [PEC {p:#04x} ok, address {a:#04x}]"));
+        if o.get("check").and_then(Value::as_str) == Some("crc16") {
+            s.push_str(&format!(" [CRC-16 {p:#06x} ok, address {a:#04x}]"));
+        } else {
+            s.push_str(&format!(" [PEC {p:#04x} ok, address {a:#04x}]"));
+        }
     }
     s
 }
