@@ -454,6 +454,36 @@ struct State {
     latched: Vec<(PinRef, Nanos)>,
 }
 
+impl State {
+    /// `sensors` sensor and `actuators` actuator ports as after power-up: every output
+    /// undriven, PWM off, nothing busy or latched.
+    fn new(sensors: usize, actuators: usize) -> State {
+        State {
+            sensor_out: vec![[None, None]; sensors],
+            actuators: vec![ActuatorState::default(); actuators],
+            busy: Vec::new(),
+            latched: Vec::new(),
+        }
+    }
+
+    /// The driven level of `pin` (`None` undriven), or `None` when there is no such pin.
+    fn out(&mut self, pin: PinRef) -> Option<&mut Option<Level>> {
+        let i = usize::from(pin.port.index());
+        let out = match pin.port.kind() {
+            PortKind::Sensor => self.sensor_out.get_mut(i),
+            PortKind::Actuator => self.actuators.get_mut(i).map(|a| &mut a.out),
+        };
+        out.and_then(|o| o.get_mut(pin.pin.index()))
+    }
+}
+
+/// Sets `slot` to `value`; whether that changed it.
+fn replace<T: PartialEq>(slot: &mut T, value: T) -> bool {
+    let changed = *slot != value;
+    *slot = value;
+    changed
+}
+
 /// One board's simulated ports.
 pub struct SimPorts {
     board: String,
@@ -488,12 +518,7 @@ impl SimPorts {
             sensors: vec![SensorScript::default(); s],
             actuator_inputs: vec![[Digital::Const(false), Digital::Const(false)]; a],
             safe: vec![SafeState::ALL_LOW; a],
-            state: RefCell::new(State {
-                sensor_out: vec![[None, None]; s],
-                actuators: vec![ActuatorState::default(); a],
-                busy: Vec::new(),
-                latched: Vec::new(),
-            }),
+            state: RefCell::new(State::new(s, a)),
             log,
         }
     }
@@ -537,12 +562,7 @@ impl SimPorts {
             sensors: self.sensors.clone(),
             actuator_inputs: self.actuator_inputs.clone(),
             safe: self.safe.clone(),
-            state: RefCell::new(State {
-                sensor_out: vec![[None, None]; self.sensors.len()],
-                actuators: vec![ActuatorState::default(); self.actuator_inputs.len()],
-                busy: Vec::new(),
-                latched: Vec::new(),
-            }),
+            state: RefCell::new(State::new(self.sensors.len(), self.actuator_inputs.len())),
             log: self.log.clone(),
         }
     }
@@ -679,6 +699,33 @@ impl SimPorts {
             self.clock.sleep_ns(ns).await;
         }
     }
+
+    /// A PWM setting of actuator `pin`'s port: `set` changes its state (saying whether
+    /// anything changed) or refuses; then the setting takes its time, and `change` is
+    /// recorded for `pin` if anything changed.
+    async fn set_pwm(
+        &self,
+        pin: PinRef,
+        change: Change,
+        set: impl FnOnce(&mut ActuatorState) -> Result<bool, PortError>,
+    ) -> Result<(), PortError> {
+        if pin.port.kind() != PortKind::Actuator {
+            return Err(PortError::Unsupported);
+        }
+        let changed = {
+            let mut st = self.state.borrow_mut();
+            let a = st
+                .actuators
+                .get_mut(usize::from(pin.port.index()))
+                .ok_or(PortError::NoSuchPin)?;
+            set(a)?
+        };
+        self.take(self.timing.pwm_ns).await;
+        if changed {
+            self.record(pin, change);
+        }
+        Ok(())
+    }
 }
 
 impl Ports for SimPorts {
@@ -697,17 +744,9 @@ impl Ports for SimPorts {
     async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
         self.check_not_busy(pin)?;
         let level = self.input(pin)?.level_at(self.clock.now_ns());
-        {
-            // Reading makes the pin an input.
-            let mut st = self.state.borrow_mut();
-            let i = usize::from(pin.port.index());
-            let out = match pin.port.kind() {
-                PortKind::Sensor => st.sensor_out.get_mut(i),
-                PortKind::Actuator => st.actuators.get_mut(i).map(|a| &mut a.out),
-            };
-            if let Some(slot) = out.and_then(|o| o.get_mut(pin.pin.index())) {
-                *slot = None;
-            }
+        // Reading makes the pin an input.
+        if let Some(slot) = self.state.borrow_mut().out(pin) {
+            *slot = None;
         }
         self.take(self.timing.gpio_ns).await;
         Ok(Level::from_bool(level))
@@ -717,17 +756,8 @@ impl Ports for SimPorts {
         self.check_not_busy(pin)?;
         let changed = {
             let mut st = self.state.borrow_mut();
-            let i = usize::from(pin.port.index());
-            let out = match pin.port.kind() {
-                PortKind::Sensor => st.sensor_out.get_mut(i),
-                PortKind::Actuator => st.actuators.get_mut(i).map(|a| &mut a.out),
-            };
-            let slot = out
-                .and_then(|o| o.get_mut(pin.pin.index()))
-                .ok_or(PortError::NoSuchPin)?;
-            let changed = *slot != Some(level);
-            *slot = Some(level);
-            changed
+            let slot = st.out(pin).ok_or(PortError::NoSuchPin)?;
+            replace(slot, Some(level))
         };
         self.take(self.timing.gpio_ns).await;
         if changed {
@@ -737,61 +767,28 @@ impl Ports for SimPorts {
     }
 
     async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
-        if pin.port.kind() != PortKind::Actuator {
-            return Err(PortError::Unsupported);
-        }
-        let changed = {
-            let mut st = self.state.borrow_mut();
-            let a = st
-                .actuators
-                .get_mut(usize::from(pin.port.index()))
-                .ok_or(PortError::NoSuchPin)?;
+        self.set_pwm(pin, Change::Duty(duty), |a| {
             let slot = a
                 .duty
                 .get_mut(pin.pin.index())
                 .ok_or(PortError::NoSuchPin)?;
-            let changed = *slot != duty;
-            *slot = duty;
-            changed
-        };
-        self.take(self.timing.pwm_ns).await;
-        if changed {
-            self.record(pin, Change::Duty(duty));
-        }
-        Ok(())
+            Ok(replace(slot, duty))
+        })
+        .await
     }
 
     async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
-        if port.kind() != PortKind::Actuator || hz == 0 {
+        if hz == 0 {
             return Err(PortError::Unsupported);
         }
-        let changed = {
-            let mut st = self.state.borrow_mut();
-            let a = st
-                .actuators
-                .get_mut(usize::from(port.index()))
-                .ok_or(PortError::NoSuchPin)?;
-            let changed = a.freq != Some(hz);
-            a.freq = Some(hz);
-            changed
-        };
-        self.take(self.timing.pwm_ns).await;
-        if changed {
-            self.record(port.into(), Change::Frequency(hz));
-        }
-        Ok(())
+        self.set_pwm(port.into(), Change::Frequency(hz), |a| {
+            Ok(replace(&mut a.freq, Some(hz)))
+        })
+        .await
     }
 
     async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
-        if pin.port.kind() != PortKind::Actuator {
-            return Err(PortError::Unsupported);
-        }
-        let changed = {
-            let mut st = self.state.borrow_mut();
-            let a = st
-                .actuators
-                .get_mut(usize::from(pin.port.index()))
-                .ok_or(PortError::NoSuchPin)?;
+        self.set_pwm(pin, Change::PulseWidth(us), |a| {
             // The period of the current frequency (50 Hz servo default).
             let period_us = 1_000_000 / u32::from(a.freq.unwrap_or(50).max(1));
             if u32::from(us) > period_us {
@@ -801,15 +798,9 @@ impl Ports for SimPorts {
                 .width
                 .get_mut(pin.pin.index())
                 .ok_or(PortError::NoSuchPin)?;
-            let changed = *slot != Some(us);
-            *slot = Some(us);
-            changed
-        };
-        self.take(self.timing.pwm_ns).await;
-        if changed {
-            self.record(pin, Change::PulseWidth(us));
-        }
-        Ok(())
+            Ok(replace(slot, Some(us)))
+        })
+        .await
     }
 
     async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
