@@ -953,6 +953,26 @@ impl SimBus {
         end
     }
 
+    /// Ends a transaction that failed with `outcome`, a NACK or a timeout: STOP at
+    /// `stop_at`, the winner `win_id` and the losers still `racing` it get that error, the
+    /// record is stored. Returns the end of STOP.
+    fn fail(
+        &self,
+        mut rec: BusRecord,
+        stop_at: Nanos,
+        outcome: Outcome,
+        win_id: u64,
+        racing: &[(u64, usize)],
+    ) -> Nanos {
+        let error = if matches!(outcome, Outcome::Timeout) {
+            BusError::Timeout
+        } else {
+            BusError::Nack
+        };
+        rec.outcome = outcome;
+        self.close(rec, stop_at, (win_id, Err(error)), racing, error)
+    }
+
     fn deliver(&self, node: NodeId, txn: u64, kind: DeliveryKind, bytes: Vec<u8>, ready_at: Nanos) {
         let mut b = self.inner.borrow_mut();
         if let Some(n) = b.nodes.get_mut(node) {
@@ -1232,14 +1252,7 @@ impl SimBus {
         }
         let (Some(target), false) = (target, refused || injected_nack == Some(0)) else {
             push_bit(&mut rec.wire, &mut cursor, true, t);
-            rec.outcome = Outcome::Nack { byte: 0 };
-            self.close(
-                rec,
-                cursor,
-                (win_id, Err(BusError::Nack)),
-                &racing,
-                BusError::Nack,
-            );
+            self.fail(rec, cursor, Outcome::Nack { byte: 0 }, win_id, &racing);
             return;
         };
         push_bit(&mut rec.wire, &mut cursor, false, t);
@@ -1268,14 +1281,7 @@ impl SimBus {
             n.addressed = false;
         }
         if !armed {
-            rec.outcome = Outcome::Timeout;
-            self.close(
-                rec,
-                cursor,
-                (win_id, Err(BusError::Timeout)),
-                &racing,
-                BusError::Timeout,
-            );
+            self.fail(rec, cursor, Outcome::Timeout, win_id, &racing);
             return;
         }
         let (cap, gone) = {
@@ -1369,14 +1375,7 @@ impl SimBus {
                 }
                 DeliveryKind::Write
             };
-            rec.outcome = Outcome::Nack { byte: k + 1 };
-            let end = self.close(
-                rec,
-                cursor,
-                (win_id, Err(BusError::Nack)),
-                &racing,
-                BusError::Nack,
-            );
+            let end = self.fail(rec, cursor, Outcome::Nack { byte: k + 1 }, win_id, &racing);
             if !gone {
                 self.deliver(target, txn, kind, received, end);
             }
@@ -1408,16 +1407,10 @@ impl SimBus {
                     }
                 }
                 push_bit(&mut rec.wire, &mut cursor, true, t);
-                rec.outcome = Outcome::Nack {
+                let outcome = Outcome::Nack {
                     byte: write.len() + 1,
                 };
-                self.close(
-                    rec,
-                    cursor,
-                    (win_id, Err(BusError::Nack)),
-                    &racing,
-                    BusError::Nack,
-                );
+                self.fail(rec, cursor, outcome, win_id, &racing);
                 return;
             }
             push_bit(&mut rec.wire, &mut cursor, false, t);
@@ -1472,14 +1465,7 @@ impl SimBus {
             }
         };
         let Some(reply) = reply else {
-            rec.outcome = Outcome::Timeout;
-            self.close(
-                rec,
-                cursor,
-                (win_id, Err(BusError::Timeout)),
-                &racing,
-                BusError::Timeout,
-            );
+            self.fail(rec, cursor, Outcome::Timeout, win_id, &racing);
             return;
         };
         let mut read = Vec::with_capacity(read_len);
