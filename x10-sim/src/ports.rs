@@ -410,29 +410,36 @@ impl ActuatorLog {
 
     /// The level a pin was driven to at `t_ns` (`None`: never driven by then).
     pub fn level_at(&self, board: &str, pin: PinRef, t_ns: Nanos) -> Option<Level> {
-        self.changes
-            .borrow()
-            .iter()
-            .rev()
-            .filter(|c| c.board == board && c.pin == pin && c.t_ns <= t_ns)
-            .find_map(|c| match c.change {
-                Change::Digital(l) => Some(l),
-                _ => None,
-            })
+        self.last_at(board, pin, t_ns, |c| match c {
+            Change::Digital(l) => Some(l),
+            _ => None,
+        })
     }
 
     /// The PWM duty of a pin at `t_ns` (0 if never set).
     pub fn duty_at(&self, board: &str, pin: PinRef, t_ns: Nanos) -> u8 {
+        self.last_at(board, pin, t_ns, |c| match c {
+            Change::Duty(d) => Some(d),
+            _ => None,
+        })
+        .unwrap_or(0)
+    }
+
+    /// The value `pick` finds in the last change of a pin at or before `t_ns` in which it
+    /// finds one.
+    fn last_at<T>(
+        &self,
+        board: &str,
+        pin: PinRef,
+        t_ns: Nanos,
+        pick: impl Fn(Change) -> Option<T>,
+    ) -> Option<T> {
         self.changes
             .borrow()
             .iter()
             .rev()
             .filter(|c| c.board == board && c.pin == pin && c.t_ns <= t_ns)
-            .find_map(|c| match c.change {
-                Change::Duty(d) => Some(d),
-                _ => None,
-            })
-            .unwrap_or(0)
+            .find_map(|c| pick(c.change))
     }
 }
 
