@@ -24,6 +24,18 @@
 use x10_microcode::{Pin, PinRef, Port};
 use x10_sim::exec::Nanos;
 use x10_sim::ports::{ActuatorLog, Change};
+use x10_sim::sim::SimConfig;
+
+/// Settings for a test of a mechanism on the thesis's exact frames, `duration_ms` long: the
+/// motherboard sets no PEC and no failsafe by itself (the safe defaults have their own
+/// tests); the rest as [`SimConfig::default`].
+pub fn thesis_frames(duration_ms: u64) -> SimConfig {
+    SimConfig {
+        mb_safe_defaults: false,
+        duration_ms,
+        ..SimConfig::default()
+    }
+}
 
 /// `ms` milliseconds in ns.
 pub const fn ms(ms: u64) -> Nanos {

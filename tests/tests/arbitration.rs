@@ -9,7 +9,7 @@ use x10_microcode::{Address, EventConfig, EventKind, Op, Pin};
 use x10_sim::bus::Role;
 use x10_sim::ports::{Analog, Digital, SensorScript};
 use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};
-use x10_tests::{ms, sens};
+use x10_tests::{ms, sens, thesis_frames};
 
 /// Edges on db09 S1.A: high for 25 ms every 50 ms from 5 ms on.
 fn square() -> Digital {
@@ -30,12 +30,8 @@ fn run(mb_role: Role) -> Run {
     let events = Rc::new(RefCell::new(Vec::new()));
     let reads = Rc::new(RefCell::new(Vec::new()));
     let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 1_000,
         mb_role,
-        ..SimConfig::default()
+        ..thesis_frames(1_000)
     };
     let sim = Sim::new(config);
     let ports = sim.ports("db09", 2, 2).with_sensor(
@@ -213,13 +209,7 @@ fn events_survive_back_to_back_polling_of_the_same_board() {
     // request and retries right after it, without counting that attempt, and its event to
     // the MB's lower address wins against the MB's next request.
     let events = Rc::new(RefCell::new(Vec::new()));
-    let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 1_000,
-        ..SimConfig::default()
-    };
+    let config = thesis_frames(1_000);
     let sim = Sim::new(config);
     let ports = sim.ports("db09", 2, 2).with_sensor(
         1,

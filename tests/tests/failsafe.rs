@@ -5,9 +5,9 @@
 
 use x10_microcode::{Address, Level, Op, Pin};
 use x10_sim::bus::Outcome;
-use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};
+use x10_sim::sim::{task, Sim, SimOutcome};
 use x10_sim::timing::Speed;
-use x10_tests::{act, duties, levels, ms};
+use x10_tests::{act, duties, levels, ms, thesis_frames};
 
 /// When the MB stops in the silent case.
 const MB_STOP_MS: u64 = 300;
@@ -15,13 +15,7 @@ const MB_STOP_MS: u64 = 300;
 /// Sets a 200 ms failsafe on db09, drives its motor (A1.A high, PWM 200), then, when
 /// `heartbeat` is set, sends a heartbeat every 100 ms; otherwise the MB stops at 300 ms.
 fn run(heartbeat: bool) -> SimOutcome {
-    let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 1_000,
-        ..SimConfig::default()
-    };
+    let config = thesis_frames(1_000);
     let sim = Sim::new(config);
     let ports = sim.ports("db09", 1, 1);
     let db = Address::external(9).unwrap();

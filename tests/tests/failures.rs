@@ -11,7 +11,7 @@ use x10_sim::bus::{NodeConfig, Outcome};
 use x10_sim::ports::{Analog, Digital, SensorScript};
 use x10_sim::sim::{task, Sim, SimConfig};
 use x10_sim::timing::Speed;
-use x10_tests::{act, levels, ms, sens};
+use x10_tests::{act, levels, ms, sens, thesis_frames};
 
 type Results = Rc<RefCell<Vec<(u64, u64, Result<Vec<u8>, LinkError>)>>>;
 
@@ -20,12 +20,8 @@ fn a_board_that_never_answers_times_out_and_an_absent_one_is_nacked() {
     let results: Results = Rc::new(RefCell::new(Vec::new()));
     let r = results.clone();
     let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 1_000,
         stop_when_tasks_done: true,
-        ..SimConfig::default()
+        ..thesis_frames(1_000)
     };
     let o = Sim::new(config)
         // 0x20 acknowledges its address and takes writes, but never answers a read.
@@ -94,12 +90,8 @@ fn a_reply_that_comes_after_the_caller_gave_up_is_dropped_and_counted() {
     let results: Results = Rc::new(RefCell::new(Vec::new()));
     let r = results.clone();
     let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 1_000,
         stop_when_tasks_done: true,
-        ..SimConfig::default()
+        ..thesis_frames(1_000)
     };
     let sim = Sim::new(config);
     // The echo comes at 50 ms: the pulse-in's deferred reply leaves the DB at about 51 ms.
@@ -168,13 +160,7 @@ fn a_reply_that_comes_after_the_caller_gave_up_is_dropped_and_counted() {
 fn a_board_that_resets_mid_run_fails_calls_while_down_then_serves_again() {
     let results: Results = Rc::new(RefCell::new(Vec::new()));
     let r = results.clone();
-    let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 1_000,
-        ..SimConfig::default()
-    };
+    let config = thesis_frames(1_000);
     let sim = Sim::new(config);
     let ports = sim.ports("db09", 1, 1).with_sensor(
         1,
@@ -256,13 +242,7 @@ fn a_board_that_resets_mid_run_fails_calls_while_down_then_serves_again() {
 #[test]
 fn a_motor_on_a_board_that_reset_is_driven_again() {
     use x10_robots::{PERIOD, REFRESH_STEPS};
-    let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 5_000,
-        ..SimConfig::default()
-    };
+    let config = thesis_frames(5_000);
     let o = x10_sim::examples::sim("fig4_4", config)
         .expect("an example")
         .reset_at("db09", 2_503, 2)

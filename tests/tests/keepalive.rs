@@ -9,9 +9,9 @@
 
 use x10_microcode::{Address, Level, Op, Pin};
 use x10_sim::bus::{BusRecord, Outcome};
-use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};
+use x10_sim::sim::{task, Sim, SimOutcome};
 use x10_sim::timing::Speed;
-use x10_tests::{act, duties, levels, ms};
+use x10_tests::{act, duties, levels, ms, thesis_frames};
 
 /// The failsafe timeout the program sets, and the keepalive interval (a third of it, in ns,
 /// on the runtimes' whole-µs clock).
@@ -22,13 +22,7 @@ const INTERVAL_NS: u64 = 66_666_000;
 /// sends nothing, except the failsafe set to 0 at `stop_ms` if given. db09 restarts at
 /// `reset_ms` if given. Runs 2.1 s.
 fn run(stop_ms: Option<u64>, reset_ms: Option<u64>) -> SimOutcome {
-    let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 2_100,
-        ..SimConfig::default()
-    };
+    let config = thesis_frames(2_100);
     let sim = Sim::new(config);
     let ports = sim.ports("db09", 1, 1);
     let db = Address::external(9).unwrap();

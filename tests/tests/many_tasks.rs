@@ -8,6 +8,7 @@ use x10_devices::{LinkError, SELF};
 use x10_microcode::{Address, Op, Port};
 use x10_sim::ports::{Analog, SensorScript};
 use x10_sim::sim::{task, Sim, SimConfig, SimOutcome};
+use x10_tests::thesis_frames;
 
 /// The value sensor port `port` of board `addr` reads: unique per (board, port), within 10 bits.
 fn value(addr: u8, port: u8) -> u16 {
@@ -23,12 +24,8 @@ type Log = Rc<RefCell<Calls>>;
 fn run(targets: &[(u8, u8)], rounds: usize) -> (SimOutcome, Calls) {
     let log: Log = Rc::new(RefCell::new(Vec::new()));
     let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 5_000,
         stop_when_tasks_done: true,
-        ..SimConfig::default()
+        ..thesis_frames(5_000)
     };
     let mut sim = Sim::new(config);
     let sensors = |sim: &Sim, name: &str, addr: u8| {

@@ -7,19 +7,15 @@ use std::rc::Rc;
 use x10_microcode::{Address, Edge, Op, Pin, Request};
 use x10_sim::ports::{Analog, Digital, SensorScript};
 use x10_sim::sim::{task, Sim, SimConfig};
-use x10_tests::{ms, sens};
+use x10_tests::{ms, sens, thesis_frames};
 
 #[test]
 fn sequence_numbers_wrap_twice_around_a_pending_pulse_in() {
     let pulse = Rc::new(RefCell::new(None));
     let reads = Rc::new(RefCell::new(Vec::new()));
     let config = SimConfig {
-        // The mechanism under test, on the thesis's exact frames (no PEC, no failsafe the
-        // motherboard sets by itself); the safe defaults have their own tests.
-        mb_safe_defaults: false,
-        duration_ms: 1_000,
         stop_when_tasks_done: true,
-        ..SimConfig::default()
+        ..thesis_frames(1_000)
     };
     let sim = Sim::new(config);
     // S1.A: an ultrasonic echo, first pulse at 150 ms, 1160 µs wide (20 cm).
