@@ -106,16 +106,7 @@ const FAST_BUSES: [u32; 2] = [400_000, 1_000_000];
 /// Builds `image` for a bus of `hz` (`X10_BUS_HZ`), or for the default bus (the variable
 /// removed, whatever the caller's environment holds).
 fn build_at(cargo: &str, image: &crate::Image, hz: Option<u32>) -> Result<(), Error> {
-    let mut c = Command::new(cargo);
-    c.args([
-        "build",
-        "--release",
-        "-p",
-        image.package,
-        "--target",
-        image.target,
-    ])
-    .args(["--features", image.features, "--bin", image.bin]);
+    let mut c = crate::build_command(cargo, image);
     match hz {
         Some(hz) => c.env("X10_BUS_HZ", hz.to_string()),
         None => c.env_remove("X10_BUS_HZ"),

@@ -294,22 +294,29 @@ fn flash_overflow(stderr: &str) -> Option<u64> {
         .max()
 }
 
+/// `cargo build --release -p PACKAGE --target TARGET --features FEATURES --bin NAME` for
+/// `image`: the one build of an image, for `size`, `emu` and the checks.
+fn build_command(cargo: &str, image: &Image) -> Command {
+    let mut c = Command::new(cargo);
+    c.args([
+        "build",
+        "--release",
+        "-p",
+        image.package,
+        "--target",
+        image.target,
+    ])
+    .args(["--features", image.features, "--bin", image.bin]);
+    c
+}
+
 /// Builds one image in release. The compiler's messages are shown as they come; an image
 /// that compiles but does not fit its chip's flash is [`Built::Overflow`], not an error.
 ///
 /// # Errors
 /// [`Error::Build`] when cargo fails otherwise.
 fn build(cargo: &str, image: &Image) -> Result<Built, Error> {
-    let out = Command::new(cargo)
-        .args([
-            "build",
-            "--release",
-            "-p",
-            image.package,
-            "--target",
-            image.target,
-        ])
-        .args(["--features", image.features, "--bin", image.bin])
+    let out = build_command(cargo, image)
         .stderr(std::process::Stdio::piped())
         .output()
         .map_err(|_| Error::Build(image.bin))?;
