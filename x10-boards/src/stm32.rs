@@ -18,6 +18,7 @@
 //!   (12 bits), pulse-in samples its pin (see [`crate::pulse`] and `docs/boards.md` for its
 //!   resolution).
 
+use core::cell::Cell;
 use core::task::Poll;
 
 use embassy_stm32::adc::{self, AnyAdcChannel};
@@ -26,15 +27,17 @@ use embassy_stm32::i2c::{self, I2c, SlaveCommandKind};
 use embassy_stm32::mode::Async;
 use embassy_stm32::{pac, peripherals, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
 use embassy_sync::mutex::{Mutex, MutexGuard};
 use embassy_time::{Duration, Instant};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
-use x10_hal::ports::{PortError, Ports};
+use x10_hal::ports::{EdgeCount, PortError, Ports};
 use x10_microcode::{Edge, Level, Pin, PinRef, Port, MAX_FRAME_LEN};
 
 use crate::i2c_v2::{self, After, Lines, Outcome};
 use crate::pulse::PulseIn;
 use crate::pwm::{stm32_compare, stm32_frequency_ok, Output, Timebase, DEFAULT_HZ};
+use crate::stm32_latch::{self, Pending};
 use crate::{port_lookup, RX_LEN};
 
 /// An async mutex (pins and timers are shared by the runtime's tasks).
@@ -115,10 +118,12 @@ macro_rules! stm32_build {
                 let i2c = I2c::new(p.$i2c, p.$scl, p.$sda, p.$tx, p.$rx, Irqs, cfg)
                     .into_slave_multimaster(SlaveAddrConfig::basic(bus.own_address));
                 let sensors = [ $( SensorPort {
+                    gpio: [(p.$sa.port(), p.$sa.pin()), (p.$sb.port(), p.$sb.pin())],
                     pins: [Lock::new(input(p.$sa.into())), Lock::new(input(p.$sb.into()))],
                     analog: Lock::new(embassy_stm32::adc::AdcChannel::degrade_adc(p.$san)),
                 } ),* ];
                 let actuators = [ $( ActuatorPort {
+                    gpio: [(p.$da.port(), p.$da.pin()), (p.$db.port(), p.$db.pin())],
                     pins: [Lock::new(output_low(p.$da.into())), Lock::new(output_low(p.$db.into()))],
                     pwm: Lock::new((PwmUnit::$tim(SimplePwm::new(
                         p.$tim,
@@ -542,6 +547,8 @@ impl MultiMaster for Stm32Bus {
 
 /// One sensor port's pins.
 pub struct SensorPort {
+    /// Digital pins A and B: (GPIO port, pin number), A = 0, for the edge latches.
+    pub gpio: [(u8, u8); 2],
     /// Digital pins A and B.
     pub pins: [Lock<Flex<'static>>; 2],
     /// The analog input.
@@ -550,6 +557,8 @@ pub struct SensorPort {
 
 /// One actuator port's pins and timer.
 pub struct ActuatorPort<U> {
+    /// Digital pins A and B: (GPIO port, pin number), A = 0, for the edge latches.
+    pub gpio: [(u8, u8); 2],
     /// Digital pins A and B.
     pub pins: [Lock<Flex<'static>>; 2],
     /// The timer, and what each PWM pin was last told.
@@ -565,6 +574,69 @@ pub struct Stm32Ports<U, const S: usize, const A: usize> {
     adc_bits: u8,
     sensors: [SensorPort; S],
     actuators: [ActuatorPort<U>; A],
+    latches: BlockingMutex<CriticalSectionRawMutex, Cell<Latches>>,
+}
+
+/// Per EXTI line: the GPIO port of the pin latching on it and that pin's level at its last
+/// take ([`crate::stm32_latch`]).
+type Latches = [Option<(u8, bool)>; 16];
+
+/// How often `wait_edge` looks at the latched lines, in µs.
+const EDGE_POLL_US: u64 = 200;
+
+/// The level of pin `line` of GPIO port `port` (`GPIOx_IDR`), read without its pin driver.
+fn gpio_level(port: u8, line: usize) -> bool {
+    let gpio = match port {
+        0 => pac::GPIOA,
+        1 => pac::GPIOB,
+        2 => pac::GPIOC,
+        #[cfg(feature = "stm32c011")]
+        5 => pac::GPIOF,
+        _ => return false,
+    };
+    gpio.idr().read().idr(line) == pac::gpio::vals::Idr::HIGH
+}
+
+/// Routes EXTI line `line` to GPIO port `port`, both edges, interrupt masked, pending cleared.
+fn exti_latch(port: u8, line: usize) {
+    cortex_m::interrupt::free(|_| {
+        #[cfg(feature = "stm32g431")]
+        pac::SYSCFG
+            .exticr(line / 4)
+            .modify(|w| w.set_exti(line % 4, port));
+        #[cfg(feature = "stm32c011")]
+        pac::EXTI
+            .exticr(line / 4)
+            .modify(|w| w.set_exti(line % 4, port));
+        pac::EXTI.imr(0).modify(|w| w.set_line(line, false));
+        pac::EXTI.rtsr(0).modify(|w| w.set_line(line, true));
+        pac::EXTI.ftsr(0).modify(|w| w.set_line(line, true));
+    });
+    exti_pending(line, true);
+}
+
+/// The pending bits of EXTI line `line`, cleared with `clear`.
+fn exti_pending(line: usize, clear: bool) -> Pending {
+    #[cfg(feature = "stm32g431")]
+    {
+        let p = pac::EXTI.pr(0).read().line(line);
+        if clear && p {
+            pac::EXTI.pr(0).write(|w| w.set_line(line, true));
+        }
+        Pending::Either(p)
+    }
+    #[cfg(not(feature = "stm32g431"))]
+    {
+        let rising = pac::EXTI.rpr(0).read().line(line);
+        let falling = pac::EXTI.fpr(0).read().line(line);
+        if clear && rising {
+            pac::EXTI.rpr(0).write(|w| w.set_line(line, true));
+        }
+        if clear && falling {
+            pac::EXTI.fpr(0).write(|w| w.set_line(line, true));
+        }
+        Pending::Split { rising, falling }
+    }
 }
 
 fn compare<U: PwmTimer>(unit: &U, out: Output) -> Option<u32> {
@@ -586,7 +658,20 @@ impl<U: PwmTimer, const S: usize, const A: usize> Stm32Ports<U, S, A> {
             adc_bits,
             sensors,
             actuators,
+            latches: BlockingMutex::new(Cell::new([None; 16])),
         }
+    }
+
+    /// The (GPIO port, pin number) of a digital pin.
+    fn gpio(&self, pin: PinRef) -> Result<(u8, u8), PortError> {
+        let i = usize::from(pin.port.index());
+        let gpio = match pin.port.kind() {
+            x10_microcode::PortKind::Sensor => self.sensors.get(i).map(|s| &s.gpio),
+            x10_microcode::PortKind::Actuator => self.actuators.get(i).map(|a| &a.gpio),
+        };
+        gpio.and_then(|g| g.get(pin.pin.index()))
+            .copied()
+            .ok_or(PortError::NoSuchPin)
     }
 
     /// The digital pin `pin`, unless a pulse-in holds it ([`PortError::Busy`]).
@@ -696,6 +781,64 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
                 return r;
             }
             embassy_futures::yield_now().await;
+        }
+    }
+
+    /// Latches on the pin's EXTI line (both edges, interrupt masked) when no pin of another
+    /// GPIO port holds that line; see [`crate::stm32_latch`] for what is and is not known.
+    ///
+    /// # Errors
+    /// [`PortError::NoSuchPin`]; [`PortError::Unsupported`] when the line is taken (the
+    /// runtime samples the pin instead).
+    fn latch_edges(&self, pin: PinRef) -> Result<(), PortError> {
+        let (port, line) = self.gpio(pin)?;
+        let l = usize::from(line);
+        self.latches.lock(|c| {
+            let mut v = c.get();
+            let slot = v.get_mut(l).ok_or(PortError::NoSuchPin)?;
+            stm32_latch::claim(slot.map(|(p, _)| p), port)?;
+            exti_latch(port, l);
+            *slot = Some((port, gpio_level(port, l)));
+            c.set(v);
+            Ok(())
+        })
+    }
+
+    fn take_edges(&self, pin: PinRef) -> Result<EdgeCount, PortError> {
+        let (port, line) = self.gpio(pin)?;
+        let l = usize::from(line);
+        self.latches.lock(|c| {
+            let mut v = c.get();
+            let slot = v.get_mut(l).ok_or(PortError::Unsupported)?;
+            let Some((holder, before)) = *slot else {
+                return Err(PortError::Unsupported);
+            };
+            if holder != port {
+                return Err(PortError::Unsupported);
+            }
+            // The bits first, then the level: an edge between the two is in the level now
+            // and in the bits next time (counted twice at worst, never lost).
+            let pending = exti_pending(l, true);
+            let now = gpio_level(port, l);
+            *slot = Some((port, now));
+            c.set(v);
+            Ok(stm32_latch::edges(pending, before, now))
+        })
+    }
+
+    async fn wait_edge(&self) {
+        loop {
+            let waiting = self.latches.lock(|c| {
+                c.get().iter().enumerate().any(|(l, slot)| {
+                    slot.is_some_and(|(port, before)| {
+                        stm32_latch::waiting(exti_pending(l, false), before, gpio_level(port, l))
+                    })
+                })
+            });
+            if waiting {
+                return;
+            }
+            embassy_time::Timer::after_micros(EDGE_POLL_US).await;
         }
     }
 }

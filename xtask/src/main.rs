@@ -147,18 +147,18 @@ const IMAGES: &[Image] = &[
 /// motherboards'; the Pico's after its bus-adapter fixes of issues 11 and 16, 1.3 KiB each, and
 /// its edge latches and pulse-in fixes, 1.2 KiB each; the images' shared `mb_image!` macro, which
 /// logs the task names as arguments, 52 B on the G431; the CRC-16 on frames over 13 bytes,
-/// issue 10, 0.1 to 0.6 KiB each),
+/// issue 10, 0.1 to 0.6 KiB each; the STM32 edge latches, 1.1 to 1.4 KiB each),
 /// rounded up to 256 B. CI fails when an image grows past its budget; lower them as the
 /// images shrink.
 const DB_PICO_FLASH: u64 = 44_032;
 /// See [`DB_PICO_FLASH`].
-const DB_G431_FLASH: u64 = 47_872;
+const DB_G431_FLASH: u64 = 49_152;
 /// See [`DB_PICO_FLASH`]. The C011 image does not link yet (its chip has 32 KiB).
-const DB_C011_FLASH: u64 = 45_312;
+const DB_C011_FLASH: u64 = 46_592;
 /// See [`DB_PICO_FLASH`].
 const MB_PICO_FLASH: u64 = 72_704;
 /// See [`DB_PICO_FLASH`].
-const MB_G431_FLASH: u64 = 76_800;
+const MB_G431_FLASH: u64 = 78_080;
 
 /// RAM starts here on both chips (SRAM at 0x2000_0000).
 const RAM_START: u64 = 0x2000_0000;
@@ -756,8 +756,8 @@ mod tests {
         let (ok, budget, goal) = row(c011, DB_C011_FLASH + 1, None);
         assert!(!ok);
         assert!(budget.ends_with("EXCEEDED"), "{budget}");
-        // 45 313 B against 32 768 B: 12 545 B over.
-        assert!(goal.starts_with("flash 12.3 KiB over, RAM ?"), "{goal}");
+        // 46 593 B against 32 768 B: 13 825 B over.
+        assert!(goal.starts_with("flash 13.5 KiB over, RAM ?"), "{goal}");
         let (ok, _, goal) = row(c011, 32_000, Some(6_000));
         assert!(ok);
         assert_eq!(goal, "flash ok, RAM ok");
