@@ -31,7 +31,7 @@ use embassy_sync::mutex::{Mutex, MutexGuard};
 use embassy_time::{block_for, with_deadline, with_timeout, Duration, Instant, Timer};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{EdgeCount, PortError, Ports};
-use x10_microcode::{Edge, Level, PinRef, Port, PortKind};
+use x10_microcode::{Edge, Level, PinRef, Port};
 
 use crate::pico_rules::{
     self, Activity, AfterRead, Controller, ControllerEnd, Recovery, ReplyEnd, Switch, Target,
@@ -738,16 +738,7 @@ fn take_latched(gpio: u8) -> EdgeCount {
 impl PicoPorts {
     /// The GPIO number of a digital pin, from the pin table.
     fn gpio(pin: PinRef) -> Result<u8, PortError> {
-        let i = usize::from(pin.port.index());
-        let ports = match pin.port.kind() {
-            PortKind::Sensor => &SENSOR_GPIOS[..],
-            PortKind::Actuator => &ACTUATOR_GPIOS[..],
-        };
-        ports
-            .get(i)
-            .and_then(|p| p.get(pin.pin.index()))
-            .copied()
-            .ok_or(PortError::NoSuchPin)
+        port_lookup::digital(&SENSOR_GPIOS, &ACTUATOR_GPIOS, pin, |s| s, |a| a).copied()
     }
 
     /// Moves the edges latched on `gpio` into the kept counts (before a pulse-in's edge

@@ -664,14 +664,14 @@ impl<U: PwmTimer, const S: usize, const A: usize> Stm32Ports<U, S, A> {
 
     /// The (GPIO port, pin number) of a digital pin.
     fn gpio(&self, pin: PinRef) -> Result<(u8, u8), PortError> {
-        let i = usize::from(pin.port.index());
-        let gpio = match pin.port.kind() {
-            x10_microcode::PortKind::Sensor => self.sensors.get(i).map(|s| &s.gpio),
-            x10_microcode::PortKind::Actuator => self.actuators.get(i).map(|a| &a.gpio),
-        };
-        gpio.and_then(|g| g.get(pin.pin.index()))
-            .copied()
-            .ok_or(PortError::NoSuchPin)
+        port_lookup::digital(
+            &self.sensors,
+            &self.actuators,
+            pin,
+            |s| &s.gpio,
+            |a| &a.gpio,
+        )
+        .copied()
     }
 
     /// The digital pin `pin`, unless a pulse-in holds it ([`PortError::Busy`]).

@@ -71,19 +71,8 @@ pub fn sim_main(args: SimArgs) -> ExitCode {
         );
         return ExitCode::from(2);
     };
-    let (world, source) = match &args.run.world {
-        Some(path) => (World::load(path), path.display().to_string()),
-        None => (
-            example.world(),
-            format!("robots/worlds/{}.toml", example.name),
-        ),
-    };
-    let world = match world {
-        Ok(w) => w,
-        Err(e) => {
-            eprintln!("x10 sim: {source}: {e}");
-            return ExitCode::FAILURE;
-        }
+    let Some((world, source)) = load_world("sim", args.run.world.as_deref(), Some(example)) else {
+        return ExitCode::FAILURE;
     };
     let title = format!(
         "x10 sim {} against {source}: {}",
@@ -99,6 +88,30 @@ pub fn report_main(args: ReportArgs) -> ExitCode {
         Err(e) => {
             eprintln!("x10 report: {e}");
             ExitCode::FAILURE
+        }
+    }
+}
+
+/// The world at `path`, else `example`'s, with the name to show for it; `None` (said on
+/// standard error, as `x10 COMMAND: FILE: error`) when there is neither or it cannot be read.
+fn load_world(
+    command: &str,
+    path: Option<&std::path::Path>,
+    example: Option<&Example>,
+) -> Option<(World, String)> {
+    let (world, source) = match (path, example) {
+        (Some(path), _) => (World::load(path), path.display().to_string()),
+        (None, Some(e)) => (e.world(), format!("robots/worlds/{}.toml", e.name)),
+        (None, None) => {
+            eprintln!("x10 {command}: name an example or give --world");
+            return None;
+        }
+    };
+    match world {
+        Ok(w) => Some((w, source)),
+        Err(e) => {
+            eprintln!("x10 {command}: {source}: {e}");
+            None
         }
     }
 }
@@ -127,20 +140,8 @@ pub struct SignalsArgs {
 /// of them changes (`{"t_ms", "board", "port", "a", "b", "analog"}`, in time order). The
 /// values are the simulator's own (`World::sensor_script`): what its ports read.
 pub fn signals_main(args: SignalsArgs) -> ExitCode {
-    let (world, source) = match (&args.world, args.program) {
-        (Some(path), _) => (World::load(path), path.display().to_string()),
-        (None, Some(e)) => (e.world(), format!("robots/worlds/{}.toml", e.name)),
-        (None, None) => {
-            eprintln!("x10 signals: name an example or give --world");
-            return ExitCode::from(2);
-        }
-    };
-    let world = match world {
-        Ok(w) => w,
-        Err(e) => {
-            eprintln!("x10 signals: {source}: {e}");
-            return ExitCode::FAILURE;
-        }
+    let Some((world, _)) = load_world("signals", args.world.as_deref(), args.program) else {
+        return ExitCode::FAILURE;
     };
     let mut out = Vec::new();
     for d in world.devices() {
