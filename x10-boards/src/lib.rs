@@ -34,6 +34,10 @@
 #[macro_use]
 pub mod pins;
 pub mod address;
+// Raw-pointer loops behind the images' memcpy/memset (see the module): the one place of
+// this crate that needs `unsafe`.
+#[allow(unsafe_code)]
+pub mod mem;
 pub mod i2c_v2;
 pub mod pico_rules;
 pub mod port_lookup;

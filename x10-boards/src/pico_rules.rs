@@ -65,7 +65,8 @@ pub enum Switch {
 /// Time of one byte with its ACK (9 SCL periods) at `frequency_hz`, in µs, rounded up.
 #[must_use]
 pub fn byte_us(frequency_hz: u32) -> u64 {
-    9_000_000u64.div_ceil(u64::from(frequency_hz.max(1)))
+    // In 32 bits: no 64-bit division in the image (issue 12).
+    u64::from(9_000_000u32.div_ceil(frequency_hz.max(1)))
 }
 
 /// How long `SLV_ACTIVITY` with nothing received and no read request means a transfer that

@@ -42,20 +42,53 @@ pub fn rp2040_slice(sys_hz: u32, hz: u16) -> Option<SliceTiming> {
     if hz == 0 {
         return None;
     }
-    // Period in 1/16 clock cycles.
-    let period16 = u64::from(sys_hz) * 16 / u64::from(hz);
+    // Period in 1/16 clock cycles, floor(sys_hz · 16 / hz), in 32 bits (no 64-bit division
+    // on the Cortex-M0+: issue 12). None above a 268 MHz clock.
+    let hz = u32::from(hz);
+    let period16 = (sys_hz / hz)
+        .checked_mul(16)?
+        .checked_add((sys_hz % hz) * 16 / hz)?;
     let div16 = period16.div_ceil(65_536).max(16);
     if div16 > 4_095 {
         return None;
     }
-    let counts = (period16 + div16 / 2) / div16;
-    if counts < u64::from(MIN_COUNTS) || counts > 65_536 {
+    let counts = period16.checked_add(div16 / 2)? / div16;
+    if counts < MIN_COUNTS || counts > 65_536 {
         return None;
     }
     Some(SliceTiming {
         div16: div16 as u16,
         top: (counts - 1) as u16,
     })
+}
+
+/// `round(n / d)` (halves up) by shift and subtract: the images need it only when a PWM
+/// setting changes, and it spares them compiler-builtins' 64-bit division (0.9 KiB of flash on
+/// the Cortex-M0+, issue 12). `d` must not be 0 (0 gives `u64::MAX`).
+pub fn div_round(n: u64, d: u32) -> u64 {
+    if d == 0 {
+        return u64::MAX;
+    }
+    let d = u64::from(d);
+    let mut q = 0u64;
+    let mut r = 0u64;
+    let mut bit = 64;
+    while bit > 0 {
+        bit -= 1;
+        // r < d <= 2^32, so the shift cannot overflow.
+        r = (r << 1) | ((n >> bit) & 1);
+        q <<= 1;
+        if r >= d {
+            r -= d;
+            q |= 1;
+        }
+    }
+    // Halves up: the remainder is at least half the divisor.
+    if r >= d - r {
+        q + 1
+    } else {
+        q
+    }
 }
 
 /// Whether an STM32 timer clocked at `timer_hz` can run at `hz` with at least [`MIN_COUNTS`]
@@ -105,8 +138,8 @@ pub struct Timebase {
     pub counts: u32,
     /// Tick rate numerator (counts per second × `tick_den`).
     pub tick_num: u64,
-    /// Tick rate denominator (not 0).
-    pub tick_den: u64,
+    /// Tick rate denominator (not 0; at most 4 294, so that `tick_den · 10^6` fits 32 bits).
+    pub tick_den: u32,
 }
 
 impl Timebase {
@@ -115,7 +148,7 @@ impl Timebase {
         Timebase {
             counts: u32::from(t.top) + 1,
             tick_num: u64::from(sys_hz) * 16,
-            tick_den: u64::from(t.div16.max(1)),
+            tick_den: u32::from(t.div16.max(1)),
         }
     }
 
@@ -131,16 +164,16 @@ impl Timebase {
 
     /// The compare value for `out`: duty `d` gives `round(d · counts / 255)`; a pulse of
     /// `us` µs gives `round(us · tick rate / 10^6)`. `None` when the pulse is longer than a
-    /// period.
+    /// period (or the time base is out of its documented range).
     pub fn compare(&self, out: Output) -> Option<u32> {
         match out {
             Output::Duty(d) => {
-                let c = (u64::from(d) * u64::from(self.counts) + 127) / 255;
-                Some(c as u32)
+                let c = div_round(u64::from(d) * u64::from(self.counts), 255);
+                u32::try_from(c).ok()
             }
             Output::PulseUs(us) => {
-                let den = self.tick_den.max(1) * 1_000_000;
-                let c = (u64::from(us) * self.tick_num + den / 2) / den;
+                let den = self.tick_den.max(1).checked_mul(1_000_000)?;
+                let c = div_round(u64::from(us).checked_mul(self.tick_num)?, den);
                 u32::try_from(c).ok().filter(|&c| c <= self.counts)
             }
         }
@@ -268,7 +301,88 @@ mod tests {
         }
     }
 
+    /// The 64-bit arithmetic the functions above had before they avoided 64-bit division.
+    fn reference_slice(sys_hz: u32, hz: u16) -> Option<SliceTiming> {
+        if hz == 0 {
+            return None;
+        }
+        let period16 = u64::from(sys_hz) * 16 / u64::from(hz);
+        let div16 = period16.div_ceil(65_536).max(16);
+        if div16 > 4_095 {
+            return None;
+        }
+        let counts = (period16 + div16 / 2) / div16;
+        if counts < u64::from(MIN_COUNTS) || counts > 65_536 {
+            return None;
+        }
+        Some(SliceTiming {
+            div16: div16 as u16,
+            top: (counts - 1) as u16,
+        })
+    }
+
+    fn reference_compare(tb: &Timebase, out: Output) -> Option<u32> {
+        match out {
+            Output::Duty(d) => Some(((u64::from(d) * u64::from(tb.counts) + 127) / 255) as u32),
+            Output::PulseUs(us) => {
+                let den = u64::from(tb.tick_den.max(1)) * 1_000_000;
+                let c = (u64::from(us) * tb.tick_num + den / 2) / den;
+                u32::try_from(c).ok().filter(|&c| c <= tb.counts)
+            }
+        }
+    }
+
+    #[test]
+    fn div_round_edges() {
+        assert_eq!(div_round(0, 7), 0);
+        assert_eq!(div_round(7, 2), 4);
+        assert_eq!(div_round(5, 2), 3);
+        assert_eq!(div_round(4, 3), 1);
+        assert_eq!(div_round(5, 3), 2);
+        assert_eq!(div_round(u64::MAX, 1), u64::MAX);
+        assert_eq!(div_round(u64::MAX, u32::MAX), 4_294_967_297);
+        assert_eq!(div_round(1, 0), u64::MAX);
+    }
+
+    /// Every frequency on the RP2040's clocks: the same slice setup as 64-bit division gives.
+    #[test]
+    fn rp2040_slice_matches_64_bit_division_at_every_frequency() {
+        for sys_hz in [125_000_000, 133_000_000, 48_000_000, 10_000_000] {
+            for hz in 0..=u16::MAX {
+                assert_eq!(rp2040_slice(sys_hz, hz), reference_slice(sys_hz, hz), "{sys_hz} {hz}");
+            }
+        }
+    }
+
     proptest::proptest! {
+        #[test]
+        fn div_round_is_rounded_division(n in proptest::num::u64::ANY, d in 1..=u32::MAX) {
+            let d64 = u64::from(d);
+            let (q, r) = (n / d64, n % d64);
+            let expected = if r >= d64 - r { q + 1 } else { q };
+            proptest::prop_assert_eq!(div_round(n, d), expected);
+        }
+
+        /// Duties and pulse widths on RP2040 slices at any frequency: as 64-bit division.
+        #[test]
+        fn rp2040_compares_match_64_bit_division(hz in 8..=u16::MAX, us in 0..=u16::MAX, d in 0..=255u8) {
+            let t = rp2040_slice(125_000_000, hz).unwrap();
+            let tb = Timebase::rp2040(125_000_000, t);
+            proptest::prop_assert_eq!(tb.compare(Output::Duty(d)), reference_compare(&tb, Output::Duty(d)));
+            proptest::prop_assert_eq!(tb.compare(Output::PulseUs(us)), reference_compare(&tb, Output::PulseUs(us)));
+        }
+
+        /// The same on STM32 timers (170 and 48 MHz).
+        #[test]
+        fn stm32_compares_match_64_bit_division(hz in 1..=u16::MAX, us in 0..=u16::MAX, d in 0..=255u8, fast in proptest::bool::ANY) {
+            let timer_hz = if fast { 170_000_000 } else { 48_000_000 };
+            proptest::prop_assume!(stm32_frequency_ok(timer_hz, hz));
+            let (psc, arr) = stm32_psc_arr(timer_hz, hz).unwrap();
+            let tb = Timebase::from_frequency(timer_hz / arr / (psc + 1), arr + 1);
+            proptest::prop_assert_eq!(tb.compare(Output::Duty(d)), reference_compare(&tb, Output::Duty(d)));
+            proptest::prop_assert_eq!(tb.compare(Output::PulseUs(us)), reference_compare(&tb, Output::PulseUs(us)));
+        }
+
         /// Pulse widths, at any accepted frequency: a pulse that fits gives a compare value the
         /// HAL accepts.
         #[test]

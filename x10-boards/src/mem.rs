@@ -1,0 +1,210 @@
+//! Small memory routines for the images: `memcpy`, `memmove`, `memset` and their ARM EABI
+//! forms (`__aeabi_memcpy`, `__aeabi_memclr4`, …), byte at a time.
+//!
+//! Why: the images must fit the 32 KiB of an STM32C011 (issue 12), and the word-at-a-time
+//! versions compiler-builtins links in take 2.3 KiB (Cortex-M0+) to 3.3 KiB (Cortex-M4) of
+//! flash; these take about 100 bytes. They are slower on long copies (about 6 cycles a byte),
+//! and the images copy little: frames of at most 36 bytes, reply buffers, and a task's state
+//! once when it is spawned.
+//!
+//! compiler-builtins defines its versions as weak symbols; the strong ones exported here (with
+//! the `small-mem` feature, on a bare-metal target only) win at link time. The loops use
+//! volatile accesses so that LLVM cannot turn them back into a call to `memcpy` itself.
+//!
+//! The loops themselves ([`copy_forward`], [`copy_backward`], [`fill`]) are plain functions,
+//! tested on the host.
+
+use core::ptr::{read_volatile, write_volatile};
+
+/// Copies `n` bytes from `src` to `dst`, lowest address first (right for `dst <= src` even
+/// when the two overlap).
+///
+/// # Safety
+/// `src` must be valid for `n` reads and `dst` for `n` writes.
+pub unsafe fn copy_forward(dst: *mut u8, src: *const u8, n: usize) {
+    let mut i = 0;
+    while i < n {
+        // SAFETY: i < n, within both ranges (the caller's contract).
+        unsafe { write_volatile(dst.add(i), read_volatile(src.add(i))) };
+        i += 1;
+    }
+}
+
+/// Copies `n` bytes from `src` to `dst`, highest address first (right for `dst > src` even
+/// when the two overlap).
+///
+/// # Safety
+/// As [`copy_forward`].
+pub unsafe fn copy_backward(dst: *mut u8, src: *const u8, n: usize) {
+    let mut i = n;
+    while i > 0 {
+        i -= 1;
+        // SAFETY: i < n, within both ranges (the caller's contract).
+        unsafe { write_volatile(dst.add(i), read_volatile(src.add(i))) };
+    }
+}
+
+/// `memmove`: copies in the direction that is right for overlapping ranges.
+///
+/// # Safety
+/// As [`copy_forward`].
+pub unsafe fn copy(dst: *mut u8, src: *const u8, n: usize) {
+    // SAFETY: passed on.
+    unsafe {
+        if (dst as usize) <= (src as usize) {
+            copy_forward(dst, src, n);
+        } else {
+            copy_backward(dst, src, n);
+        }
+    }
+}
+
+/// Sets `n` bytes at `dst` to `byte`.
+///
+/// # Safety
+/// `dst` must be valid for `n` writes.
+pub unsafe fn fill(dst: *mut u8, n: usize, byte: u8) {
+    let mut i = 0;
+    while i < n {
+        // SAFETY: i < n, within the range (the caller's contract).
+        unsafe { write_volatile(dst.add(i), byte) };
+        i += 1;
+    }
+}
+
+/// The exported symbols. The ARM run-time ABI's `__aeabi_memset` takes the length before the
+/// value (the C `memset` the other way round); the 4- and 8-suffixed forms only promise an
+/// aligned destination, which a byte loop does not need.
+#[cfg(all(feature = "small-mem", target_os = "none"))]
+#[allow(unsafe_code, missing_docs, clippy::missing_safety_doc)]
+mod exported {
+    use super::{copy, copy_forward, fill};
+
+    // SAFETY (all): the compiler calls these with valid ranges, as for the C functions.
+    #[no_mangle]
+    pub unsafe extern "C" fn memcpy(dst: *mut u8, src: *const u8, n: usize) -> *mut u8 {
+        unsafe { copy_forward(dst, src, n) };
+        dst
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn memmove(dst: *mut u8, src: *const u8, n: usize) -> *mut u8 {
+        unsafe { copy(dst, src, n) };
+        dst
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn memset(dst: *mut u8, c: i32, n: usize) -> *mut u8 {
+        unsafe { fill(dst, n, c as u8) };
+        dst
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memcpy(dst: *mut u8, src: *const u8, n: usize) {
+        unsafe { copy_forward(dst, src, n) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memcpy4(dst: *mut u8, src: *const u8, n: usize) {
+        unsafe { copy_forward(dst, src, n) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memcpy8(dst: *mut u8, src: *const u8, n: usize) {
+        unsafe { copy_forward(dst, src, n) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memmove(dst: *mut u8, src: *const u8, n: usize) {
+        unsafe { copy(dst, src, n) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memmove4(dst: *mut u8, src: *const u8, n: usize) {
+        unsafe { copy(dst, src, n) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memmove8(dst: *mut u8, src: *const u8, n: usize) {
+        unsafe { copy(dst, src, n) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memset(dst: *mut u8, n: usize, c: i32) {
+        unsafe { fill(dst, n, c as u8) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memset4(dst: *mut u8, n: usize, c: i32) {
+        unsafe { fill(dst, n, c as u8) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memset8(dst: *mut u8, n: usize, c: i32) {
+        unsafe { fill(dst, n, c as u8) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memclr(dst: *mut u8, n: usize) {
+        unsafe { fill(dst, n, 0) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memclr4(dst: *mut u8, n: usize) {
+        unsafe { fill(dst, n, 0) }
+    }
+    #[no_mangle]
+    pub unsafe extern "C" fn __aeabi_memclr8(dst: *mut u8, n: usize) {
+        unsafe { fill(dst, n, 0) }
+    }
+}
+
+#[cfg(test)]
+#[allow(unsafe_code)]
+mod tests {
+    use super::*;
+
+    fn pattern() -> [u8; 40] {
+        core::array::from_fn(|i| i as u8 + 1)
+    }
+
+    #[test]
+    fn copies_disjoint_ranges() {
+        let src = pattern();
+        let mut dst = [0u8; 40];
+        // SAFETY: both arrays hold 40 bytes.
+        unsafe { copy(dst.as_mut_ptr(), src.as_ptr(), 40) };
+        assert_eq!(dst, src);
+        let mut dst = [0u8; 40];
+        // SAFETY: within both arrays.
+        unsafe { copy_forward(dst.as_mut_ptr().add(3), src.as_ptr(), 5) };
+        assert_eq!(dst[..9], [0, 0, 0, 1, 2, 3, 4, 5, 0]);
+    }
+
+    #[test]
+    fn moves_overlapping_ranges_both_ways() {
+        for shift in 1..8usize {
+            let mut up = pattern();
+            let mut expected = pattern();
+            expected.copy_within(0..30, shift);
+            // SAFETY: 0..30 and shift..30+shift lie in the 40-byte array.
+            unsafe { copy(up.as_mut_ptr().add(shift), up.as_ptr(), 30) };
+            assert_eq!(up, expected, "up by {shift}");
+
+            let mut down = pattern();
+            let mut expected = pattern();
+            expected.copy_within(shift..shift + 30, 0);
+            // SAFETY: as above.
+            unsafe { copy(down.as_mut_ptr(), down.as_ptr().add(shift), 30) };
+            assert_eq!(down, expected, "down by {shift}");
+        }
+    }
+
+    #[test]
+    fn zero_length_touches_nothing() {
+        let mut dst = pattern();
+        // SAFETY: no byte is accessed.
+        unsafe {
+            copy(dst.as_mut_ptr(), [9u8; 1].as_ptr(), 0);
+            fill(dst.as_mut_ptr(), 0, 0);
+        }
+        assert_eq!(dst, pattern());
+    }
+
+    #[test]
+    fn fills() {
+        let mut dst = pattern();
+        // SAFETY: 2..12 lies in the array.
+        unsafe { fill(dst.as_mut_ptr().add(2), 10, 0xA5) };
+        let mut expected = pattern();
+        expected[2..12].fill(0xA5);
+        assert_eq!(dst, expected);
+    }
+}
