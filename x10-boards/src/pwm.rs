@@ -53,7 +53,7 @@ pub fn rp2040_slice(sys_hz: u32, hz: u16) -> Option<SliceTiming> {
         return None;
     }
     let counts = period16.checked_add(div16 / 2)? / div16;
-    if counts < MIN_COUNTS || counts > 65_536 {
+    if !(MIN_COUNTS..=65_536).contains(&counts) {
         return None;
     }
     Some(SliceTiming {
