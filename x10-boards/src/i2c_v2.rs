@@ -13,20 +13,36 @@
 //!   controller call (957-968): a stale BERR becomes `Error::Bus`.
 //!
 //! So the adapter clears the stale flags at the two moments where every flag set is known to be
-//! stale ([`before_controller`], [`before_target`]), waits for the STOP that ends its own
-//! transfers ([`after_controller`], [`stop_wait_us`]) and recovers a stuck bus
-//! ([`recover_bus`], UM10204 §3.1.16).
+//! stale ([`before_controller`], [`before_target`]) and recovers a stuck bus ([`recover_bus`],
+//! UM10204 §3.1.16).
+//!
+//! The controller side is the adapter's own, on the registers (issue 11 item 8): the driver's
+//! `write` spins synchronously on BUSY before its START (207-210, up to its 20 ms timeout when
+//! a master starts in the window after the adapter's BUSY check), waits synchronously for TC
+//! after a DMA write (1017), and its reads return before their STOP (1128-1131). The adapter
+//! instead polls ISR with a yield between polls and decides each move with
+//! [`controller_step`]; a transfer ends on its own STOP (AUTOEND), and what a failure leaves to
+//! do is [`after_controller`]. The register sequence is the driver's own blocking one
+//! (`master_write`, `write_internal`, `read_internal`, 151-227 and 450-572) without its spins.
 
 use x10_hal::bus::BusError;
 
 /// ISR bits (RM0440 §37.7.7, RM0490 §23.7.7: the same on the G4 and the C0).
 pub mod isr {
+    /// Transmit data register empty.
+    pub const TXE: u32 = 1 << 0;
+    /// Transmit interrupt status: TXDR wants the next byte.
+    pub const TXIS: u32 = 1 << 1;
+    /// Receive data register not empty.
+    pub const RXNE: u32 = 1 << 2;
     /// Address matched (target).
     pub const ADDR: u32 = 1 << 3;
     /// NACK received.
     pub const NACKF: u32 = 1 << 4;
     /// STOP detected.
     pub const STOPF: u32 = 1 << 5;
+    /// Transfer complete (controller, NBYTES done with AUTOEND and RELOAD off).
+    pub const TC: u32 = 1 << 6;
     /// Bus error (misplaced START or STOP).
     pub const BERR: u32 = 1 << 8;
     /// Arbitration lost.
@@ -58,9 +74,10 @@ pub const STALE: u32 = icr::STOPCF | icr::NACKCF | icr::BERRCF | icr::ARLOCF | i
 /// Before a controller call: the ICR bits to write, or why not to start.
 ///
 /// With the bus idle (no BUSY) and this node not addressed (no ADDR), no transfer is under way,
-/// so every flag set belongs to an earlier one and is cleared. Otherwise the call must not
-/// start: embassy-stm32 would spin synchronously on BUSY (`v2.rs` 207-210), so the adapter
-/// answers [`BusError::ArbitrationLost`] and the runtime retries after its backoff.
+/// so every flag set belongs to an earlier one and is cleared. Otherwise the transfer does not
+/// start: the bus belongs to another master, or this node must first answer its own address
+/// match (ADDR holds SCL), so the adapter answers [`BusError::ArbitrationLost`] and the
+/// runtime listens and retries after its backoff.
 ///
 /// # Errors
 /// [`BusError::ArbitrationLost`] while the bus is busy or this node is addressed.
@@ -83,46 +100,154 @@ pub fn before_target(isr: u32) -> u32 {
     }
 }
 
-/// What a controller call's outcome, as embassy-stm32 reports it, leaves to do.
+/// What a controller transfer's outcome leaves to do.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum After {
-    /// A STOP is on its way (set by the driver, by AUTOEND, or by the block after a NACK):
-    /// wait for STOPF and clear it, then report the result.
+    /// A STOP is on its way (the block sends it by itself after a NACK, RM0440 §37.4.9): wait
+    /// for STOPF and clear it, then report the result.
     WaitStop,
-    /// Nothing: the driver reset the block (PE toggled after ARLO or BERR, `v2.rs` 945-949,
-    /// 1067-1071), which clears every flag.
+    /// Nothing: the transfer ended with its STOP (seen and cleared), or arbitration was lost
+    /// (the block is a target again and the bus belongs to the winner; ARLO cleared and TXDR
+    /// flushed).
     Done,
-    /// The driver gave up in the middle (its timeout dropped the transfer, leaving the block
-    /// as controller, maybe holding SCL): send STOP, wait for it, and recover the bus when it
-    /// does not come.
+    /// Reset the block (PE off and on): a bus error (misplaced START or STOP) leaves its state
+    /// machine where it struck.
+    Reset,
+    /// The transfer did not end in time (a target stretching SCL for ever, or a flag that never
+    /// came): send STOP, wait for it, and recover the bus when it does not come.
     Abort,
 }
 
-/// The outcome of a controller call, as far as the adapter needs it.
+/// The outcome of a controller transfer, or of a target-side call of the driver.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Outcome {
     /// Done.
     Ok,
-    /// Address or data byte not acknowledged (`Error::Nack`, either phase: `v2.rs` 957-959
-    /// reads NACKF without telling them apart).
+    /// Address or data byte not acknowledged (NACKF, either phase).
     Nack,
     /// Arbitration lost.
     Arbitration,
     /// Bus error.
     Bus,
-    /// The driver's timeout.
+    /// Timeout.
     Timeout,
-    /// Overrun, CRC or zero-length: errors of the driver's own bookkeeping.
+    /// Overrun, CRC or zero-length: errors of the driver's own bookkeeping (target side).
     Other,
 }
 
-/// What to do after a controller call ended with `outcome`.
-pub fn after_controller(outcome: Outcome) -> After {
+/// What to do after a controller transfer ended with `outcome`, and the ICR bits to write
+/// first (the flag that ended it).
+pub fn after_controller(outcome: Outcome) -> (u32, After) {
     match outcome {
-        Outcome::Ok | Outcome::Nack | Outcome::Other => After::WaitStop,
-        Outcome::Arbitration | Outcome::Bus => After::Done,
-        Outcome::Timeout => After::Abort,
+        // STOPF was cleared when it ended the transfer.
+        Outcome::Ok => (0, After::Done),
+        Outcome::Nack => (icr::NACKCF, After::WaitStop),
+        Outcome::Arbitration => (icr::ARLOCF, After::Done),
+        Outcome::Bus | Outcome::Other => (icr::BERRCF, After::Reset),
+        Outcome::Timeout => (0, After::Abort),
     }
+}
+
+/// How far a controller transfer has come: `write` bytes out, then (when `read` > 0) a
+/// repeated START and `read` bytes in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Progress {
+    /// Bytes to write.
+    pub write: usize,
+    /// Bytes written to TXDR so far.
+    pub sent: usize,
+    /// Bytes to read after the repeated START (0: a plain write).
+    pub read: usize,
+    /// Bytes taken from RXDR so far.
+    pub received: usize,
+    /// The read phase has been started.
+    pub restarted: bool,
+}
+
+impl Progress {
+    /// A write of `write` bytes followed by a read of `read` bytes (0: none).
+    pub fn new(write: usize, read: usize) -> Progress {
+        Progress {
+            write,
+            read,
+            ..Progress::default()
+        }
+    }
+
+    /// Everything written and read.
+    pub fn complete(&self) -> bool {
+        self.sent == self.write && self.received == self.read
+    }
+}
+
+/// The next move of a controller transfer, decided from ISR (see [`controller_step`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Step {
+    /// Nothing to do yet: poll again (after a yield).
+    Wait,
+    /// Write the next byte to TXDR.
+    Send,
+    /// Take the next byte from RXDR.
+    Receive,
+    /// The write phase is complete (TC): start the read phase with a repeated START.
+    Restart,
+    /// STOPF after every byte: clear it; the transfer succeeded.
+    Finished,
+    /// The transfer failed; see [`after_controller`].
+    Failed(Outcome),
+}
+
+/// The CR2 value that starts a phase of a controller transfer (RM0440 §37.7.2): 7-bit address
+/// `addr` in SADD[7:1], `len` bytes (NBYTES), reading or writing (RD_WRN), START, and AUTOEND
+/// when the phase ends the transfer (the block then sends STOP after the last byte by itself).
+/// `None` for a phase longer than NBYTES holds (255; X10 frames are at most 36 bytes).
+pub fn cr2_start(addr: u8, len: usize, read: bool, autoend: bool) -> Option<u32> {
+    let n = u8::try_from(len).ok()?;
+    let mut v = (u32::from(addr & 0x7F) << 1) | (u32::from(n) << 16) | (1 << 13);
+    if read {
+        v |= 1 << 10;
+    }
+    if autoend {
+        v |= 1 << 25;
+    }
+    Some(v)
+}
+
+/// Decides a controller transfer's next move from ISR.
+///
+/// Errors first (ARLO, then BERR, then NACKF: after a lost arbitration nothing else of this
+/// transfer counts), then data (RXNE before STOPF: the last byte read and the STOP can show
+/// together), then TC of the write phase of a write-read, then STOPF. A STOP before every byte
+/// moved (another master's STOP, or ours cut short) is a bus error. The transfer's own
+/// address match (ADDR, another master addressing this node after winning arbitration) comes
+/// with ARLO.
+pub fn controller_step(isr: u32, p: &Progress) -> Step {
+    if isr & isr::ARLO != 0 {
+        return Step::Failed(Outcome::Arbitration);
+    }
+    if isr & isr::BERR != 0 {
+        return Step::Failed(Outcome::Bus);
+    }
+    if isr & isr::NACKF != 0 {
+        return Step::Failed(Outcome::Nack);
+    }
+    if isr & isr::RXNE != 0 && p.restarted && p.received < p.read {
+        return Step::Receive;
+    }
+    if isr & isr::TXIS != 0 && p.sent < p.write {
+        return Step::Send;
+    }
+    if isr & isr::TC != 0 && p.sent == p.write && p.read > 0 && !p.restarted {
+        return Step::Restart;
+    }
+    if isr & isr::STOPF != 0 {
+        return if p.complete() {
+            Step::Finished
+        } else {
+            Step::Failed(Outcome::Bus)
+        };
+    }
+    Step::Wait
 }
 
 /// The error the runtimes see for a controller outcome. A NACK is [`BusError::Nack`] in the
@@ -236,11 +361,11 @@ mod tests {
     #[test]
     fn outcomes() {
         use Outcome::*;
-        assert_eq!(after_controller(Ok), After::WaitStop);
-        assert_eq!(after_controller(Nack), After::WaitStop);
-        assert_eq!(after_controller(Arbitration), After::Done);
-        assert_eq!(after_controller(Bus), After::Done);
-        assert_eq!(after_controller(Timeout), After::Abort);
+        assert_eq!(after_controller(Ok), (0, After::Done));
+        assert_eq!(after_controller(Nack), (icr::NACKCF, After::WaitStop));
+        assert_eq!(after_controller(Arbitration), (icr::ARLOCF, After::Done));
+        assert_eq!(after_controller(Bus), (icr::BERRCF, After::Reset));
+        assert_eq!(after_controller(Timeout), (0, After::Abort));
         assert_eq!(controller_error(Nack), Err(BusError::Nack));
         assert_eq!(
             controller_error(Arbitration),
@@ -254,6 +379,112 @@ mod tests {
         assert!(target_needs_reset(Other));
         assert!(!target_needs_reset(Nack));
         assert!(!target_needs_reset(Ok));
+    }
+
+    #[test]
+    fn cr2_starts_a_phase() {
+        // 0x08, 5 bytes, write, AUTOEND: SADD 0x10, NBYTES 5, START, AUTOEND.
+        assert_eq!(cr2_start(0x08, 5, false, true), Some(0x0205_2010));
+        // Write phase of a write-read: no AUTOEND (TC then holds SCL for the restart).
+        assert_eq!(cr2_start(0x11, 36, false, false), Some(0x0024_2022));
+        // Read phase: RD_WRN.
+        assert_eq!(cr2_start(0x11, 4, true, true), Some(0x0204_2422));
+        assert_eq!(cr2_start(0x77, 255, true, true), Some(0x02FF_24EE));
+        assert_eq!(cr2_start(0x08, 256, false, true), None);
+    }
+
+    /// Runs a transfer against a list of ISR readings, applying each step to the progress as
+    /// the adapter does; returns the steps taken.
+    fn run(mut p: Progress, readings: &[u32]) -> (Vec<Step>, Progress) {
+        let mut steps = Vec::new();
+        for &r in readings {
+            let step = controller_step(r, &p);
+            match step {
+                Step::Send => p.sent += 1,
+                Step::Receive => p.received += 1,
+                Step::Restart => p.restarted = true,
+                _ => {}
+            }
+            steps.push(step);
+        }
+        (steps, p)
+    }
+
+    #[test]
+    fn a_write_sends_every_byte_and_ends_on_its_stop() {
+        use isr::*;
+        let (steps, p) = run(
+            Progress::new(3, 0),
+            &[BUSY, BUSY | TXIS, BUSY, BUSY | TXIS, BUSY | TXIS, BUSY, STOPF],
+        );
+        use Step::*;
+        assert_eq!(steps, [Wait, Send, Wait, Send, Send, Wait, Finished]);
+        assert!(p.complete());
+    }
+
+    #[test]
+    fn a_write_read_restarts_on_tc_and_reads_the_last_byte_before_its_stop() {
+        use isr::*;
+        let (steps, p) = run(
+            Progress::new(2, 2),
+            &[
+                BUSY | TXIS,
+                BUSY | TXIS,
+                BUSY | TC,
+                BUSY,
+                BUSY | RXNE,
+                // The last byte and the STOP together: the byte first.
+                RXNE | STOPF,
+                STOPF,
+            ],
+        );
+        use Step::*;
+        assert_eq!(steps, [Send, Send, Restart, Wait, Receive, Receive, Finished]);
+        assert!(p.complete());
+    }
+
+    #[test]
+    fn tc_of_a_plain_write_and_stray_data_flags_are_not_acted_on() {
+        use isr::*;
+        let mut p = Progress::new(1, 0);
+        p.sent = 1;
+        assert_eq!(controller_step(BUSY | TC | TXIS, &p), Step::Wait);
+        // RXNE before the read phase started (a target-side byte): not ours.
+        let p = Progress::new(1, 2);
+        assert_eq!(controller_step(BUSY | RXNE, &p), Step::Wait);
+    }
+
+    #[test]
+    fn failures_come_first_arbitration_before_everything() {
+        use isr::*;
+        let p = Progress::new(4, 0);
+        assert_eq!(
+            controller_step(ARLO | ADDR | TXIS | NACKF | BERR, &p),
+            Step::Failed(Outcome::Arbitration)
+        );
+        assert_eq!(
+            controller_step(BERR | NACKF | TXIS, &p),
+            Step::Failed(Outcome::Bus)
+        );
+        // The address refused: NACKF (the block sends STOP itself).
+        assert_eq!(controller_step(NACKF | TXIS, &p), Step::Failed(Outcome::Nack));
+        assert_eq!(
+            controller_step(NACKF | STOPF, &p),
+            Step::Failed(Outcome::Nack)
+        );
+    }
+
+    #[test]
+    fn a_stop_before_every_byte_moved_is_a_bus_error() {
+        use isr::*;
+        let mut p = Progress::new(4, 0);
+        p.sent = 2;
+        assert_eq!(controller_step(STOPF, &p), Step::Failed(Outcome::Bus));
+        let mut p = Progress::new(1, 3);
+        p.sent = 1;
+        p.restarted = true;
+        p.received = 1;
+        assert_eq!(controller_step(STOPF, &p), Step::Failed(Outcome::Bus));
     }
 
     #[test]

@@ -3,14 +3,15 @@
 //! gives only what differs: its clocks, its interrupt bindings, its ADC set-up and its pin
 //! table, which it expands with `stm32_build!`.
 //!
-//! * [`Stm32Bus`]: one I2C v2 handle in `MultiMaster` mode is controller and target at once,
-//!   so the adapter forwards calls, and around each it does what embassy-stm32 leaves undone
-//!   (decisions in [`crate::i2c_v2`], tested on the host): it clears the flags earlier
-//!   transfers left set before each call, refuses to start a controller call while the bus is
-//!   BUSY or this node is addressed ([`BusError::ArbitrationLost`], the runtime retries: the
-//!   driver would spin synchronously on BUSY), waits (polling with yields) for the STOP that
-//!   ends its own transfers, and after a timeout sends STOP, resets the block (PE off and on)
-//!   and clocks a stuck SDA free (UM10204 §3.1.16) before giving up with [`BusError::Bus`].
+//! * [`Stm32Bus`]: one I2C v2 block is controller and target at once. The target side is
+//!   embassy-stm32's `MultiMaster` handle; the controller side is the adapter's own, on the
+//!   registers (the driver's would spin synchronously on BUSY and on TC, issue 11 item 8):
+//!   it polls ISR with a yield between polls. Decisions in [`crate::i2c_v2`], tested on the
+//!   host: the adapter clears the flags earlier transfers left set before each call, refuses
+//!   to start a controller transfer while the bus is BUSY or this node is addressed
+//!   ([`BusError::ArbitrationLost`], the runtime retries), ends each transfer on its own STOP
+//!   (AUTOEND), and after a timeout sends STOP, resets the block (PE off and on) and clocks a
+//!   stuck SDA free (UM10204 §3.1.16) before giving up with [`BusError::Bus`].
 //!   Target side: `addressed` is the driver's `listen` (ADDR seen, left set, SCL stretched,
 //!   cancel-safe), kept for the adapter's `listen`, which receives the transfer.
 //! * [`Stm32Ports`]: digital pins are `Flex` pins (input with pull-down, or push-pull output),
@@ -34,7 +35,7 @@ use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{EdgeCount, PortError, Ports};
 use x10_microcode::{Edge, Level, Pin, PinRef, Port, MAX_FRAME_LEN};
 
-use crate::i2c_v2::{self, After, Lines, Outcome};
+use crate::i2c_v2::{self, After, Lines, Outcome, Progress, Step};
 use crate::pulse::PulseIn;
 use crate::pwm::{stm32_compare, stm32_frequency_ok, Output, Timebase, DEFAULT_HZ};
 use crate::stm32_latch::{self, Pending};
@@ -136,7 +137,7 @@ macro_rules! stm32_build {
                     )).started(), [$crate::pwm::Output::OFF; 2])),
                 } ),* ];
                 $crate::stm32::Board {
-                    bus: $crate::stm32::Stm32Bus::new(i2c, embassy_stm32::pac::$i2c, lines, bus.frequency_hz),
+                    bus: $crate::stm32::Stm32Bus::new(i2c, embassy_stm32::pac::$i2c, lines, bus.frequency_hz, bus.timeout_us),
                     ports: $crate::stm32::Stm32Ports::new(new_adc(p.ADC1), ADC_BITS, sensors, actuators),
                     jumpers,
                 }
@@ -231,6 +232,8 @@ pub struct Stm32Bus {
     /// SCL and SDA as (GPIO port, pin number), for the bus recovery.
     lines: [(u8, u8); 2],
     frequency_hz: u32,
+    /// Longest controller transfer, clock stretching included (`BusConfig::timeout_us`).
+    timeout_us: u32,
     /// The address match [`MultiMaster::addressed`] saw (ADDR still set, SCL stretched),
     /// for the following `listen`.
     matched: Option<SlaveCommandKind>,
@@ -305,18 +308,21 @@ impl Lines for GpioLines {
 
 impl Stm32Bus {
     /// The adapter on a `MultiMaster` handle of block `regs`, whose SCL and SDA are
-    /// `lines` (GPIO port, pin number), running at `frequency_hz`.
+    /// `lines` (GPIO port, pin number), running at `frequency_hz`; a controller transfer
+    /// gives up after `timeout_us`.
     pub fn new(
         i2c: I2c<'static, Async, i2c::MultiMaster>,
         regs: pac::i2c::I2c,
         lines: [(u8, u8); 2],
         frequency_hz: u32,
+        timeout_us: u32,
     ) -> Stm32Bus {
         Stm32Bus {
             i2c,
             regs,
             lines,
             frequency_hz,
+            timeout_us,
             matched: None,
         }
     }
@@ -420,25 +426,91 @@ impl Stm32Bus {
         }
     }
 
-    /// After a controller call: waits for its STOP or recovers the bus, and maps the result.
-    async fn finish_controller(&mut self, r: Result<(), i2c::Error>) -> Result<(), BusError> {
-        let o = outcome(r);
-        // The driver spins on BUSY before its START (`v2.rs` 207-210); a master that began
-        // between `start_controller` and that spin and addresses this node holds BUSY (ADDR
-        // stretches SCL) until the driver's timeout: that is this node being addressed, not a
-        // dead bus. The runtime serves the transaction and retries.
-        if o == Outcome::Timeout && self.isr() & i2c_v2::isr::ADDR != 0 {
-            return Err(BusError::ArbitrationLost);
+    /// One controller transfer: `write` out, then, when `read` is not empty, a repeated START
+    /// and `read` in. Ends on its own STOP; after a failure does what
+    /// [`i2c_v2::after_controller`] says and maps the outcome.
+    ///
+    /// # Errors
+    /// [`BusError::ArbitrationLost`] when the bus is taken or arbitration was lost; `Nack`,
+    /// `Timeout`; [`BusError::Bus`] for a bus error or when SDA stays stuck after a recovery.
+    async fn transfer(&mut self, addr: u8, write: &[u8], read: &mut [u8]) -> Result<(), BusError> {
+        self.start_controller()?;
+        let o = self.run_transfer(addr, write, read).await;
+        let (icr, after) = i2c_v2::after_controller(o);
+        self.clear(icr);
+        if o != Outcome::Ok {
+            // A byte left in TXDR would go out in this node's next answer as a target.
+            self.regs.isr().write(|w| w.set_txe(true));
         }
-        let free = match i2c_v2::after_controller(o) {
+        let free = match after {
             After::Done => true,
             After::WaitStop => self.wait_stop().await,
+            After::Reset => {
+                self.reset_block();
+                true
+            }
             After::Abort => false,
         };
         if !free {
             self.recover().await?;
         }
         i2c_v2::controller_error(o)
+    }
+
+    /// The register sequence of a transfer (RM0440 §37.4.9; embassy-stm32's blocking
+    /// `write_internal`/`read_internal` without their spins): CR2 starts the write phase
+    /// (AUTOEND when no read follows), each TXIS takes a byte, TC starts the read phase with
+    /// a repeated START and AUTOEND, each RXNE gives a byte, STOPF ends it. Between polls the
+    /// task yields; no wait is synchronous.
+    async fn run_transfer(&mut self, addr: u8, write: &[u8], read: &mut [u8]) -> Outcome {
+        let Some(first) = i2c_v2::cr2_start(addr, write.len(), false, read.is_empty()) else {
+            return Outcome::Other;
+        };
+        // No DMA requests during the adapter's own transfer (the driver's target calls set
+        // their enable bits again each time).
+        self.regs.cr1().modify(|w| {
+            w.set_txdmaen(false);
+            w.set_rxdmaen(false);
+        });
+        self.regs.cr2().write_value(pac::i2c::regs::Cr2(first));
+        let deadline = Instant::now() + Duration::from_micros(u64::from(self.timeout_us));
+        let mut p = Progress::new(write.len(), read.len());
+        loop {
+            match i2c_v2::controller_step(self.isr(), &p) {
+                Step::Send => {
+                    let byte = write.get(p.sent).copied().unwrap_or(0);
+                    self.regs.txdr().write(|w| w.set_txdata(byte));
+                    p.sent += 1;
+                    continue;
+                }
+                Step::Receive => {
+                    let byte = self.regs.rxdr().read().rxdata();
+                    if let Some(slot) = read.get_mut(p.received) {
+                        *slot = byte;
+                    }
+                    p.received += 1;
+                    continue;
+                }
+                Step::Restart => {
+                    let Some(v) = i2c_v2::cr2_start(addr, read.len(), true, true) else {
+                        return Outcome::Other;
+                    };
+                    self.regs.cr2().write_value(pac::i2c::regs::Cr2(v));
+                    p.restarted = true;
+                    continue;
+                }
+                Step::Finished => {
+                    self.clear(i2c_v2::icr::STOPCF);
+                    return Outcome::Ok;
+                }
+                Step::Failed(o) => return o,
+                Step::Wait => {}
+            }
+            if Instant::now() >= deadline {
+                return Outcome::Timeout;
+            }
+            embassy_futures::yield_now().await;
+        }
     }
 
     /// After a target-side call of the driver failed: its timeout may have left SCL stretched
@@ -456,12 +528,10 @@ impl Stm32Bus {
 impl MultiMaster for Stm32Bus {
     /// # Errors
     /// As the trait; [`BusError::ArbitrationLost`] at once when the bus is taken (see the
-    /// module doc), or when the driver's BUSY wait timed out while this node was being
-    /// addressed; [`BusError::Bus`] when SDA stays stuck after a recovery.
+    /// module doc) or when arbitration is lost; [`BusError::Bus`] when SDA stays stuck after
+    /// a recovery.
     async fn write(&mut self, addr: u8, bytes: &[u8]) -> Result<(), BusError> {
-        self.start_controller()?;
-        let r = self.i2c.write(addr, bytes).await;
-        self.finish_controller(r).await
+        self.transfer(addr, bytes, &mut []).await
     }
 
     /// # Errors
@@ -472,9 +542,7 @@ impl MultiMaster for Stm32Bus {
         bytes: &[u8],
         read: &mut [u8],
     ) -> Result<(), BusError> {
-        self.start_controller()?;
-        let r = self.i2c.write_read(addr, bytes, read).await;
-        self.finish_controller(r).await
+        self.transfer(addr, bytes, read).await
     }
 
     /// embassy-stm32's `listen`: waits for ADDR and leaves it set (SCL stays stretched), so
