@@ -215,14 +215,15 @@ pub fn cr2_start(addr: u8, len: usize, read: bool, autoend: bool) -> Option<u32>
 
 /// Decides a controller transfer's next move from ISR.
 ///
-/// Errors first (ARLO, then BERR, then NACKF: after a lost arbitration nothing else of this
-/// transfer counts), then data (RXNE before STOPF: the last byte read and the STOP can show
-/// together), then TC of the write phase of a write-read, then STOPF. A STOP before every byte
-/// moved (another master's STOP, or ours cut short) is a bus error. The transfer's own
-/// address match (ADDR, another master addressing this node after winning arbitration) comes
-/// with ARLO.
+/// Errors first (ARLO or ADDR, then BERR, then NACKF: after a lost arbitration nothing else of
+/// this transfer counts), then data (RXNE before STOPF: the last byte read and the STOP can
+/// show together), then TC of the write phase of a write-read, then STOPF. A STOP before every
+/// byte moved (another master's STOP, or ours cut short) is a bus error. ADDR means another
+/// master won the bus (it started first, or won arbitration) and addresses this node, which is
+/// a target now: arbitration lost too; ADDR is left set for the target side, whose answer
+/// (ADDRCF) also clears a START still pending (RM0440 §37.7.2, START).
 pub fn controller_step(isr: u32, p: &Progress) -> Step {
-    if isr & isr::ARLO != 0 {
+    if isr & (isr::ARLO | isr::ADDR) != 0 {
         return Step::Failed(Outcome::Arbitration);
     }
     if isr & isr::BERR != 0 {
@@ -465,6 +466,11 @@ mod tests {
         assert_eq!(
             controller_step(BERR | NACKF | TXIS, &p),
             Step::Failed(Outcome::Bus)
+        );
+        // Addressed by the master that took the bus before our START went out.
+        assert_eq!(
+            controller_step(ADDR | BUSY, &Progress::new(4, 0)),
+            Step::Failed(Outcome::Arbitration)
         );
         // The address refused: NACKF (the block sends STOP itself).
         assert_eq!(controller_step(NACKF | TXIS, &p), Step::Failed(Outcome::Nack));
