@@ -416,7 +416,15 @@ mod tests {
         use isr::*;
         let (steps, p) = run(
             Progress::new(3, 0),
-            &[BUSY, BUSY | TXIS, BUSY, BUSY | TXIS, BUSY | TXIS, BUSY, STOPF],
+            &[
+                BUSY,
+                BUSY | TXIS,
+                BUSY,
+                BUSY | TXIS,
+                BUSY | TXIS,
+                BUSY,
+                STOPF,
+            ],
         );
         use Step::*;
         assert_eq!(steps, [Wait, Send, Wait, Send, Send, Wait, Finished]);
@@ -440,7 +448,10 @@ mod tests {
             ],
         );
         use Step::*;
-        assert_eq!(steps, [Send, Send, Restart, Wait, Receive, Receive, Finished]);
+        assert_eq!(
+            steps,
+            [Send, Send, Restart, Wait, Receive, Receive, Finished]
+        );
         assert!(p.complete());
     }
 
@@ -473,7 +484,10 @@ mod tests {
             Step::Failed(Outcome::Arbitration)
         );
         // The address refused: NACKF (the block sends STOP itself).
-        assert_eq!(controller_step(NACKF | TXIS, &p), Step::Failed(Outcome::Nack));
+        assert_eq!(
+            controller_step(NACKF | TXIS, &p),
+            Step::Failed(Outcome::Nack)
+        );
         assert_eq!(
             controller_step(NACKF | STOPF, &p),
             Step::Failed(Outcome::Nack)

@@ -36,9 +36,9 @@ pub mod pins;
 pub mod address;
 // Raw-pointer loops behind the images' memcpy/memset (see the module): the one place of
 // this crate that needs `unsafe`.
+pub mod i2c_v2;
 #[allow(unsafe_code)]
 pub mod mem;
-pub mod i2c_v2;
 pub mod pico_rules;
 pub mod port_lookup;
 pub mod pulse;

@@ -349,7 +349,11 @@ mod tests {
     fn rp2040_slice_matches_64_bit_division_at_every_frequency() {
         for sys_hz in [125_000_000, 133_000_000, 48_000_000, 10_000_000] {
             for hz in 0..=u16::MAX {
-                assert_eq!(rp2040_slice(sys_hz, hz), reference_slice(sys_hz, hz), "{sys_hz} {hz}");
+                assert_eq!(
+                    rp2040_slice(sys_hz, hz),
+                    reference_slice(sys_hz, hz),
+                    "{sys_hz} {hz}"
+                );
             }
         }
     }
