@@ -281,22 +281,24 @@ async fn serve<M: RawMutex, P: Ports, B: MultiMaster>(
     rx: &[u8],
     tx: &mut [u8],
 ) -> bool {
-    match incoming {
-        Ok(Incoming::Write(n)) => db.handle_write(rx.get(..n).unwrap_or(rx), false).await,
-        Ok(Incoming::WriteRead(n)) => {
-            db.handle_write(rx.get(..n).unwrap_or(rx), true).await;
-            let len = db.take_reply(tx);
-            let _ = bus.respond(tx.get(..len).unwrap_or(&[])).await;
-        }
-        Ok(Incoming::Read) => {
-            let len = db.take_reply(tx);
-            let _ = bus.respond(tx.get(..len).unwrap_or(&[])).await;
-        }
+    // One await of each (each await point of an async fn costs code and state: issue 12).
+    let (write, read) = match incoming {
+        Ok(Incoming::Write(n)) => (Some(n), false),
+        Ok(Incoming::WriteRead(n)) => (Some(n), true),
+        Ok(Incoming::Read) => (None, true),
         Err(BusError::Overrun) => {
             db.with(|s| bump(&mut s.diag.bad_length));
             db.heard.signal(());
+            return true;
         }
         Err(_) => return false,
+    };
+    if let Some(n) = write {
+        db.handle_write(rx.get(..n).unwrap_or(rx), read).await;
+    }
+    if read {
+        let len = db.take_reply(tx);
+        let _ = bus.respond(tx.get(..len).unwrap_or(&[])).await;
     }
     true
 }
@@ -333,46 +335,50 @@ async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
             }
             Err(e) => e,
         };
-        if e == BusError::ArbitrationLost {
+        // What to wait for before the next attempt; one await of `listen_until` for all
+        // three cases (each await point costs code and state: issue 12).
+        let mut counted = backoff.clone();
+        let mut delay = None;
+        let mut nack_yield = false;
+        let (wait, stop_when_addressed) = if e == BusError::ArbitrationLost {
             // Never counted: someone else has the bus.
             db.with(|s| {
                 bump(&mut s.diag.arbitration_lost);
                 bump(&mut s.diag.event_retries);
             });
             lost = lost.saturating_add(1);
-            let wait = jitter.contention(&config.retry, lost);
-            let until = clock.now().plus_us(u64::from(wait));
-            listen_until(db, bus, clock, until, rx, tx, true).await;
-            continue;
-        }
-        lost = 0;
-        // The attempt counts only if nobody addresses us while we wait: decide on a copy.
-        let mut counted = backoff.clone();
-        let delay = counted.next_delay_us();
-        if e == BusError::Nack && yields < MAX_EVENT_YIELDS {
-            let wait = delay.unwrap_or(config.retry.base_us);
-            let until = clock.now().plus_us(u64::from(wait));
-            if listen_until(db, bus, clock, until, rx, tx, true).await {
-                yields += 1;
+            (jitter.contention(&config.retry, lost), true)
+        } else {
+            lost = 0;
+            // The attempt counts only if nobody addresses us while we wait: decide on a copy.
+            delay = counted.next_delay_us();
+            if e == BusError::Nack && yields < MAX_EVENT_YIELDS {
+                nack_yield = true;
+                (delay.unwrap_or(config.retry.base_us), true)
+            } else {
+                backoff = counted.clone();
+                // The last counted failure is no retry: the slow tries while the MB is taken
+                // for gone count their own.
+                let Some(d) = delay else {
+                    return false;
+                };
                 db.with(|s| bump(&mut s.diag.event_retries));
-                continue;
+                (d, false)
             }
-            backoff = counted;
-            if delay.is_none() {
-                return false;
+        };
+        let until = clock.now().plus_us(u64::from(wait));
+        let served = listen_until(db, bus, clock, until, rx, tx, stop_when_addressed).await;
+        if nack_yield {
+            if served {
+                yields += 1;
+            } else {
+                backoff = counted;
+                if delay.is_none() {
+                    return false;
+                }
             }
             db.with(|s| bump(&mut s.diag.event_retries));
-            continue;
         }
-        backoff = counted;
-        // The last counted failure is no retry: the slow tries while the MB is taken for gone
-        // count their own.
-        let Some(delay) = delay else {
-            return false;
-        };
-        db.with(|s| bump(&mut s.diag.event_retries));
-        let until = clock.now().plus_us(u64::from(delay));
-        listen_until(db, bus, clock, until, rx, tx, false).await;
     }
 }
 
