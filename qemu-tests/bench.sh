@@ -3,7 +3,8 @@
 # interpreter, motherboard call to its internal daughterboard) on both instruction sets:
 #   thumbv6m-none-eabi    → qemu-system-arm -machine microbit   (Cortex-M0)
 #   thumbv7em-none-eabihf → qemu-system-arm -machine mps2-an386 (Cortex-M4)
-# Runs benches/instructions.rs (release profile: opt-level s, fat LTO) under QEMU with
+# Runs benches/instructions.rs (release profile: opt-level s, fat LTO; the inliner threshold
+# 35 of every firmware build, from the workspace root's .cargo/config.toml) under QEMU with
 # -icount shift=0,sleep=off (qemu-run.sh), where one instruction is one nanosecond of virtual
 # time, and prints one markdown table on stdout; the same bytes on every run. Build messages
 # and progress go to stderr. Fails if a run fails (including its calibration check).
@@ -46,7 +47,7 @@ fi
 
 rustc_version=$(rustc --version | cut -d' ' -f1-2)
 qemu_version=$(qemu-system-arm --version | sed -n '1s/.*version \([0-9.]*\).*/\1/p')
-echo "Instructions per operation, $rustc_version (opt-level s, fat LTO), QEMU $qemu_version -icount shift=0;"
+echo "Instructions per operation, $rustc_version (opt-level s, inline threshold 35, fat LTO), QEMU $qemu_version -icount shift=0;"
 echo "mean of 10000 repetitions, empty loop subtracted. µs columns: the count at one instruction"
 echo "per cycle (RP2040, Cortex-M0+, 125 MHz: M0 count; STM32G431, Cortex-M4, 170 MHz: M4 count)."
 echo
