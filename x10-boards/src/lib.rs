@@ -8,9 +8,12 @@
 //! * the bus: [`x10_hal::bus::MultiMaster`] for the RP2040 (`pico::PicoBus`, switching the I2C
 //!   block between controller and target only while its own target side is idle: it cannot
 //!   see another master's transfer to another node, see `docs/boards.md`) and for the STM32G431
-//!   (`g431::G431Bus`, one I2C v2 `MultiMaster` handle);
+//!   and STM32C011 (`stm32::Stm32Bus`, as `g431::G431Bus` and `c011::C011Bus`: one I2C v2
+//!   block, embassy-stm32's `MultiMaster` driver as target, the adapter's own register-level
+//!   controller);
 //! * the ports: [`x10_hal::ports::Ports`] for each board (`pico::PicoPorts`,
-//!   `g431::G431Ports`), used by a DB image and by the internal daughterboard of an MB image;
+//!   `g431::G431Ports`, `c011::C011Ports`), used by a DB image and by the internal
+//!   daughterboard of an MB image;
 //! * the clock: [`EmbassyClock`], [`x10_hal::time::Clock`] on embassy-time;
 //! * the DB address: a build-time base plus jumpers read at boot ([`address`]).
 //!
@@ -25,10 +28,12 @@
 //! robot tasks, defmt-rtt, panic-probe) are the bins of x10-robots (motherboard, the example
 //! programs), firmware-db (daughterboard) and of a user's own robot crate.
 //!
-//! Features: `rp2040`, `stm32g431` (one per build: each brings its HAL and critical section),
-//! `time` (only [`EmbassyClock`]). Without any, only the portable parts compile:
-//! the pin tables, PWM arithmetic ([`pwm`]), pulse-in edge logic ([`pulse`]), where a
-//! request's port or pin leads ([`port_lookup`]) and addresses, all tested on the host.
+//! Features: `rp2040`, `stm32g431`, `stm32c011` (one per build: each brings its HAL and
+//! critical section), `time` (only [`EmbassyClock`]), `small-mem` (the images' small
+//! `memcpy`/`memset`, [`mem`]; on with `motherboard` and `daughterboard`). Without any, only
+//! the portable parts compile: the pin tables, PWM arithmetic ([`pwm`]), pulse-in edge logic
+//! ([`pulse`]), where a request's port or pin leads ([`port_lookup`]), the STM32 and RP2040
+//! bus decisions ([`i2c_v2`], [`pico_rules`]) and addresses, all tested on the host.
 #![no_std]
 
 #[macro_use]
