@@ -29,8 +29,6 @@ use x10_hal::bus::BusError;
 
 /// ISR bits (RM0440 §37.7.7, RM0490 §23.7.7: the same on the G4 and the C0).
 pub mod isr {
-    /// Transmit data register empty.
-    pub const TXE: u32 = 1 << 0;
     /// Transmit interrupt status: TXDR wants the next byte.
     pub const TXIS: u32 = 1 << 1;
     /// Receive data register not empty.
@@ -177,6 +175,17 @@ impl Progress {
     /// Everything written and read.
     pub fn complete(&self) -> bool {
         self.sent == self.write && self.received == self.read
+    }
+
+    /// Counts a step once the adapter has carried it out (a byte written or read, the read
+    /// phase started).
+    pub fn advance(&mut self, step: Step) {
+        match step {
+            Step::Send => self.sent += 1,
+            Step::Receive => self.received += 1,
+            Step::Restart => self.restarted = true,
+            Step::Wait | Step::Finished | Step::Failed(_) => {}
+        }
     }
 }
 
@@ -394,18 +403,13 @@ mod tests {
         assert_eq!(cr2_start(0x08, 256, false, true), None);
     }
 
-    /// Runs a transfer against a list of ISR readings, applying each step to the progress as
-    /// the adapter does; returns the steps taken.
+    /// Runs a transfer against a list of ISR readings, advancing the progress by each step
+    /// as the adapter does; returns the steps taken.
     fn run(mut p: Progress, readings: &[u32]) -> (Vec<Step>, Progress) {
         let mut steps = Vec::new();
         for &r in readings {
             let step = controller_step(r, &p);
-            match step {
-                Step::Send => p.sent += 1,
-                Step::Receive => p.received += 1,
-                Step::Restart => p.restarted = true,
-                _ => {}
-            }
+            p.advance(step);
             steps.push(step);
         }
         (steps, p)

@@ -476,40 +476,39 @@ impl Stm32Bus {
         let deadline = Instant::now() + Duration::from_micros(u64::from(self.timeout_us));
         let mut p = Progress::new(write.len(), read.len());
         loop {
-            match i2c_v2::controller_step(self.isr(), &p) {
+            let step = i2c_v2::controller_step(self.isr(), &p);
+            match step {
                 Step::Send => {
                     let byte = write.get(p.sent).copied().unwrap_or(0);
                     self.regs.txdr().write(|w| w.set_txdata(byte));
-                    p.sent += 1;
-                    continue;
                 }
                 Step::Receive => {
                     let byte = self.regs.rxdr().read().rxdata();
                     if let Some(slot) = read.get_mut(p.received) {
                         *slot = byte;
                     }
-                    p.received += 1;
-                    continue;
                 }
                 Step::Restart => {
                     let Some(v) = i2c_v2::cr2_start(addr, read.len(), true, true) else {
                         return Outcome::Other;
                     };
                     self.regs.cr2().write_value(pac::i2c::regs::Cr2(v));
-                    p.restarted = true;
-                    continue;
                 }
                 Step::Finished => {
                     self.clear(i2c_v2::icr::STOPCF);
                     return Outcome::Ok;
                 }
                 Step::Failed(o) => return o,
-                Step::Wait => {}
+                Step::Wait => {
+                    if Instant::now() >= deadline {
+                        return Outcome::Timeout;
+                    }
+                    embassy_futures::yield_now().await;
+                    continue;
+                }
             }
-            if Instant::now() >= deadline {
-                return Outcome::Timeout;
-            }
-            embassy_futures::yield_now().await;
+            // A move was made: count it and look again at once.
+            p.advance(step);
         }
     }
 
