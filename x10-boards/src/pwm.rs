@@ -112,21 +112,23 @@ pub fn stm32_compare(c: u32, max_duty: u32) -> u32 {
     c.min(max_duty).min(STM32_MAX_COMPARE)
 }
 
-/// The prescaler and ARR embassy-stm32 0.6 programs for `hz` on a timer clocked at
-/// `timer_hz` (`SimplePwm::set_frequency`, `timer/simple_pwm.rs` 361-371, and
-/// `calculate_psc_arr` with 16 ARR bits, rounding to the slower frequency,
-/// `timer/low_level.rs` 309-364), for the tests that check every frequency. `None` where the
-/// driver would panic (a prescaler over 16 bits).
-pub fn stm32_psc_arr(timer_hz: u32, hz: u16) -> Option<(u32, u32)> {
+/// The prescaler (PSC) and auto-reload value (ARR) of an STM32 timer clocked at `timer_hz`
+/// running its PWM at `hz`: the values embassy-stm32 0.6's `SimplePwm::set_frequency`
+/// programs (`timer/simple_pwm.rs` 361-371: edge-aligned, 16 ARR bits, rounded to the slower
+/// frequency by `calculate_psc_arr`, `timer/low_level.rs` 309-364), computed in 32 bits. The
+/// adapter programs the timers with it instead of calling the HAL, whose 64-bit arithmetic
+/// links compiler-builtins' 64-bit division (0.9 KiB of flash; issue 12). The tests compare it
+/// with the HAL's 64-bit formula at every `u16` frequency. Both values are at most 0xFFFF
+/// (with 32-bit clock counts the prescaler always fits 16 bits); `None` for 0 Hz.
+pub fn stm32_psc_arr(timer_hz: u32, hz: u32) -> Option<(u32, u32)> {
     if hz == 0 {
         return None;
     }
-    let clocks = u64::from(timer_hz) / u64::from(hz);
-    let max_arr: u64 = 0xFFFF;
-    let psc = u16::try_from(clocks.saturating_sub(1) / (max_arr + 1)).ok()?;
-    let psc1 = u64::from(psc) + 1;
-    let arr = clocks.div_ceil(psc1).saturating_sub(1).clamp(1, max_arr);
-    Some((u32::from(psc), arr as u32))
+    let clocks = timer_hz / hz;
+    // The smallest prescaler that brings ARR + 1 within 2^16 (at most 0xFFFF: clocks < 2^32).
+    let psc = clocks.saturating_sub(1) >> 16;
+    let arr = clocks.div_ceil(psc + 1).saturating_sub(1).clamp(1, 0xFFFF);
+    Some((psc, arr))
 }
 
 /// A PWM unit's time base: how many counts a period has, and how fast the counter ticks
@@ -258,14 +260,55 @@ mod tests {
     fn stm32_full_duty_at_the_frequencies_where_arr_is_ffff() {
         // The issue's three frequencies on a 170 MHz timer clock: ARR = 0xFFFF, so the HAL's
         // maximum duty is 65 536, one more than a 16-bit compare register holds.
-        for hz in [1, 2, 1_297] {
-            let (_, arr) = stm32_psc_arr(170_000_000, hz).unwrap();
+        for hz in [1u16, 2, 1_297] {
+            let (_, arr) = stm32_psc_arr(170_000_000, u32::from(hz)).unwrap();
             assert_eq!(arr, 0xFFFF, "{hz} Hz");
             let tb = Timebase::from_frequency(u32::from(hz), arr + 1);
             let c = tb.compare(Output::Duty(255)).unwrap();
             assert_eq!(c, 65_536);
             assert_eq!(stm32_compare(c, arr + 1), 0xFFFF);
         }
+    }
+
+    /// embassy-stm32 0.6's own arithmetic, in 64 bits: `SimplePwm::set_frequency` (edge-aligned)
+    /// and `calculate_psc_arr` with 16 ARR bits, rounding to the slower frequency.
+    fn hal_psc_arr(timer_hz: u32, hz: u32) -> Option<(u32, u32)> {
+        let clocks = u64::from(timer_hz) / u64::from(hz);
+        let max_arr: u64 = (1 << 16) - 1;
+        let psc = u16::try_from(clocks.saturating_sub(1) / (max_arr + 1)).ok()?;
+        let psc1 = u64::from(psc) + 1;
+        let arr = clocks.div_ceil(psc1).saturating_sub(1).clamp(1, max_arr);
+        Some((u32::from(psc), u32::try_from(arr).unwrap()))
+    }
+
+    /// The 32-bit prescaler and ARR equal the HAL's at every u16 frequency, on the timer clocks
+    /// of the G431 (170 MHz) and the C011 (48 MHz) and a few others, and at the frequencies
+    /// above u16 that a failed change restores (what the timer reported before).
+    #[test]
+    fn stm32_psc_arr_is_the_hals() {
+        for timer_hz in [
+            170_000_000,
+            48_000_000,
+            16_000_000,
+            150_000_000,
+            1_000_000,
+            u32::MAX,
+        ] {
+            for hz in (1..=u32::from(u16::MAX)).chain([65_536, 100_000, 1_000_000, timer_hz]) {
+                assert_eq!(
+                    stm32_psc_arr(timer_hz, hz),
+                    hal_psc_arr(timer_hz, hz),
+                    "{timer_hz} Hz timer, {hz} Hz"
+                );
+            }
+        }
+        assert_eq!(stm32_psc_arr(170_000_000, 0), None);
+        // 1 Hz on a 170 MHz timer: PSC 2593, ARR 65 535 (2594 · 65 536 ≥ 170 000 000).
+        assert_eq!(stm32_psc_arr(170_000_000, 1), Some((2_593, 0xFFFF)));
+        // The default 1 kHz: 170 000 clocks, PSC 2, ARR 56 666.
+        assert_eq!(stm32_psc_arr(170_000_000, 1_000), Some((2, 56_666)));
+        // 32-bit clock counts always fit: u32::MAX clocks take PSC 65 535, ARR 65 535.
+        assert_eq!(stm32_psc_arr(u32::MAX, 1), Some((0xFFFF, 0xFFFF)));
     }
 
     /// Every frequency the protocol can ask for (u16) that the adapter accepts, on the timer
@@ -279,7 +322,7 @@ mod tests {
                 if !stm32_frequency_ok(timer_hz, hz) {
                     continue;
                 }
-                let (psc, arr) = stm32_psc_arr(timer_hz, hz).unwrap();
+                let (psc, arr) = stm32_psc_arr(timer_hz, u32::from(hz)).unwrap();
                 let max_duty = arr + 1;
                 // What SimplePwm::get_frequency reports (timer/low_level.rs 577-588).
                 let reported = timer_hz / arr / (psc + 1);
@@ -381,7 +424,7 @@ mod tests {
         fn stm32_compares_match_64_bit_division(hz in 1..=u16::MAX, us in 0..=u16::MAX, d in 0..=255u8, fast in proptest::bool::ANY) {
             let timer_hz = if fast { 170_000_000 } else { 48_000_000 };
             proptest::prop_assume!(stm32_frequency_ok(timer_hz, hz));
-            let (psc, arr) = stm32_psc_arr(timer_hz, hz).unwrap();
+            let (psc, arr) = stm32_psc_arr(timer_hz, u32::from(hz)).unwrap();
             let tb = Timebase::from_frequency(timer_hz / arr / (psc + 1), arr + 1);
             proptest::prop_assert_eq!(tb.compare(Output::Duty(d)), reference_compare(&tb, Output::Duty(d)));
             proptest::prop_assert_eq!(tb.compare(Output::PulseUs(us)), reference_compare(&tb, Output::PulseUs(us)));
@@ -397,7 +440,7 @@ mod tests {
         ) {
             let timer_hz = if fast { 170_000_000 } else { 48_000_000 };
             proptest::prop_assume!(stm32_frequency_ok(timer_hz, hz));
-            let (psc, arr) = stm32_psc_arr(timer_hz, hz).unwrap();
+            let (psc, arr) = stm32_psc_arr(timer_hz, u32::from(hz)).unwrap();
             let tb = Timebase::from_frequency(timer_hz / arr / (psc + 1), arr + 1);
             if let Some(c) = tb.compare(Output::PulseUs(us)) {
                 let c = stm32_compare(c, arr + 1);

@@ -96,8 +96,7 @@ macro_rules! stm32_build {
             ) -> Board {
                 use embassy_stm32::gpio::{Input, OutputType, Pin as _};
                 use embassy_stm32::i2c::{self, I2c, SlaveAddrConfig};
-                use embassy_stm32::timer::low_level::CountingMode;
-                use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
+                use embassy_stm32::timer::simple_pwm::PwmPin;
                 use $crate::stm32::{input, output_low, ActuatorPort, Lock, SensorPort};
                 // Inputs only while they are read; dropped, the pins are disconnected again.
                 let jumpers = {
@@ -126,15 +125,11 @@ macro_rules! stm32_build {
                 let actuators = [ $( ActuatorPort {
                     gpio: [(p.$da.port(), p.$da.pin()), (p.$db.port(), p.$db.pin())],
                     pins: [Lock::new(output_low(p.$da.into())), Lock::new(output_low(p.$db.into()))],
-                    pwm: Lock::new((PwmUnit::$tim(SimplePwm::new(
-                        p.$tim,
-                        Some(PwmPin::new(p.$pa, OutputType::PushPull)),
-                        Some(PwmPin::new(p.$pb, OutputType::PushPull)),
-                        None,
-                        None,
-                        embassy_stm32::time::Hertz(u32::from($crate::pwm::DEFAULT_HZ)),
-                        CountingMode::EdgeAlignedUp,
-                    )).started(), [$crate::pwm::Output::OFF; 2])),
+                    pwm: Lock::new((PwmUnit::$tim(
+                        embassy_stm32::timer::low_level::Timer::new(p.$tim),
+                        PwmPin::new(p.$pa, OutputType::PushPull),
+                        PwmPin::new(p.$pb, OutputType::PushPull),
+                    ).started(), [$crate::pwm::Output::OFF; 2])),
                 } ),* ];
                 $crate::stm32::Board {
                     bus: $crate::stm32::Stm32Bus::new(i2c, embassy_stm32::pac::$i2c, lines, bus.frequency_hz, bus.timeout_us),
@@ -144,24 +139,58 @@ macro_rules! stm32_build {
             }
         }
 
-        /// The timer of one actuator port (the table gives each port its own timer).
+        /// The timer of one actuator port (the table gives each port its own timer) and its
+        /// two output pins (channel 1 is pin A, channel 2 pin B), kept so that they stay in
+        /// their timer function.
+        ///
+        /// Set up as embassy-stm32's `SimplePwm::new` does it (`timer/simple_pwm.rs` 243-276:
+        /// edge-aligned up-counting, PWM mode 1 with preloaded compare and auto-reload
+        /// values, outputs enabled, an update event, started), but on the HAL's low-level
+        /// timer: the prescaler and ARR come from [`$crate::pwm::stm32_psc_arr`] (32-bit
+        /// arithmetic) instead of `SimplePwm::set_frequency`'s 64-bit division (issue 12).
         #[allow(non_camel_case_types, clippy::upper_case_acronyms)]
         pub enum PwmUnit {
             $(
                 #[doc = stringify!($tim)]
-                $tim(embassy_stm32::timer::simple_pwm::SimplePwm<'static, embassy_stm32::peripherals::$tim>),
+                $tim(
+                    embassy_stm32::timer::low_level::Timer<'static, embassy_stm32::peripherals::$tim>,
+                    embassy_stm32::timer::simple_pwm::PwmPin<'static, embassy_stm32::peripherals::$tim, embassy_stm32::timer::Ch1>,
+                    embassy_stm32::timer::simple_pwm::PwmPin<'static, embassy_stm32::peripherals::$tim, embassy_stm32::timer::Ch2>,
+                ),
             )*
         }
 
         impl PwmUnit {
-            /// Both channels on at 0 % duty.
+            /// The timer's registers that set its period.
+            fn core(&self) -> embassy_stm32::pac::timer::TimCore {
+                match self {
+                    $( PwmUnit::$tim(t, ..) => t.regs_core(), )*
+                }
+            }
+
+            /// Running at the default frequency, both channels on at 0 % duty.
             fn started(mut self) -> PwmUnit {
+                use embassy_stm32::timer::low_level::{CountingMode, OutputCompareMode};
+                use embassy_stm32::timer::Channel;
+                use $crate::stm32::PwmTimer as _;
+                self.set_frequency(u32::from($crate::pwm::DEFAULT_HZ));
                 match &mut self {
-                    $( PwmUnit::$tim(p) => {
-                        p.ch1().set_duty_cycle(0);
-                        p.ch2().set_duty_cycle(0);
-                        p.ch1().enable();
-                        p.ch2().enable();
+                    $( PwmUnit::$tim(t, ..) => {
+                        t.set_counting_mode(CountingMode::EdgeAlignedUp);
+                        // Required for advanced timers (their main output enable).
+                        t.enable_outputs();
+                        for ch in [Channel::Ch1, Channel::Ch2] {
+                            t.set_output_compare_mode(ch, OutputCompareMode::PwmMode1);
+                            t.set_output_compare_preload(ch, true);
+                        }
+                        t.set_autoreload_preload(true);
+                        // Loads the preloaded registers.
+                        t.generate_update_event();
+                        t.start();
+                        for ch in [Channel::Ch1, Channel::Ch2] {
+                            t.set_compare_value(ch, 0);
+                            t.enable_channel(ch, true);
+                        }
                     } )*
                 }
                 self
@@ -171,28 +200,37 @@ macro_rules! stm32_build {
         impl $crate::stm32::PwmTimer for PwmUnit {
             fn timer_hz(&self) -> u32 {
                 match self {
-                    $( PwmUnit::$tim(_) => embassy_stm32::rcc::frequency::<embassy_stm32::peripherals::$tim>().0, )*
+                    $( PwmUnit::$tim(t, ..) => t.get_clock_frequency().0, )*
                 }
             }
 
             fn set_frequency(&mut self, hz: u32) {
-                match self {
-                    $( PwmUnit::$tim(p) => p.set_frequency(embassy_stm32::time::Hertz(hz)), )*
+                // `None` only for 0 Hz, which the adapter never asks for.
+                if let Some((psc, arr)) = $crate::pwm::stm32_psc_arr(self.timer_hz(), hz) {
+                    let core = self.core();
+                    // Both at most 0xFFFF. Applied at the next update event (ARR preloaded).
+                    core.psc().write_value(psc as u16);
+                    core.arr().write(|w| w.set_arr(arr as u16));
                 }
             }
 
             fn frequency_and_max(&self) -> (u32, u32) {
-                match self {
-                    $( PwmUnit::$tim(p) => (p.get_frequency().0, p.max_duty_cycle()), )*
-                }
+                let core = self.core();
+                let psc = u32::from(core.psc().read());
+                let arr = u32::from(core.arr().read().arr());
+                // What the HAL's `get_frequency` reports (`timer/low_level.rs` 577-588: the
+                // timer clock / ARR / (PSC + 1)) and its maximum duty, ARR + 1.
+                (self.timer_hz() / arr.max(1) / (psc + 1), arr + 1)
             }
 
             fn set_compare(&mut self, pin: x10_microcode::Pin, c: u32) {
+                let ch = match pin {
+                    x10_microcode::Pin::A => embassy_stm32::timer::Channel::Ch1,
+                    x10_microcode::Pin::B => embassy_stm32::timer::Channel::Ch2,
+                };
                 match self {
-                    $( PwmUnit::$tim(p) => match pin {
-                        x10_microcode::Pin::A => p.ch1().set_duty_cycle(c),
-                        x10_microcode::Pin::B => p.ch2().set_duty_cycle(c),
-                    }, )*
+                    // `c` is at most 0xFFFF (`stm32_compare`): it fits every timer's word.
+                    $( PwmUnit::$tim(t, ..) => t.set_compare_value(ch, c as _), )*
                 }
             }
         }
