@@ -41,10 +41,9 @@ use crate::pwm::{rp2040_slice, Output, SliceTiming, Timebase, DEFAULT_HZ};
 use crate::{address, port_lookup, BusConfig, RX_LEN};
 
 bind_interrupts!(
-    /// The interrupts the Pico images use: the bus's I2C block and the ADC.
+    /// The interrupts the Pico images use: the bus's I2C block (the ADC is read blocking).
     pub struct Irqs {
         I2C0_IRQ => i2c::InterruptHandler<peripherals::I2C0>;
-        ADC_IRQ_FIFO => adc::InterruptHandler;
     }
 );
 
@@ -111,7 +110,7 @@ macro_rules! pico_build {
 
                 let bus = bus(jumpers);
                 let sys_hz = embassy_rp::clocks::clk_sys_freq();
-                let adc = adc::Adc::new(p.ADC, Irqs, adc::Config::default());
+                let adc = adc::Adc::new_blocking(p.ADC, adc::Config::default());
                 let sensors = [ $( SensorPort {
                     pins: [Lock::new(input(p.$sa.into())), Lock::new(input(p.$sb.into()))],
                     analog: Lock::new(adc::Channel::new_pin(p.$san, Pull::None)),
@@ -671,7 +670,7 @@ fn slice_config(t: SliceTiming, a: u16, b: u16) -> pwm::Config {
 /// Each pin is behind its own async mutex: a pulse-in holds its pin for the whole
 /// measurement, and any other operation on that pin meanwhile answers [`PortError::Busy`].
 pub struct PicoPorts {
-    adc: Lock<adc::Adc<'static, adc::Async>>,
+    adc: Lock<adc::Adc<'static, adc::Blocking>>,
     sensors: [SensorPort; SENSORS],
     actuators: [ActuatorPort; ACTUATORS],
     latches: BlockingMutex<CriticalSectionRawMutex, Cell<Latches>>,
@@ -799,7 +798,10 @@ impl Ports for PicoPorts {
     }
 
     async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
-        let mut u = self.pwm(pin.port)?.lock().await;
+        let mut u = self
+            .pwm(pin.port)?
+            .try_lock()
+            .map_err(|_| PortError::Busy)?;
         let mut out = u.out;
         out[pin.pin.index()] = Output::Duty(duty);
         let timing = u.timing;
@@ -807,14 +809,17 @@ impl Ports for PicoPorts {
     }
 
     async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
-        let mut u = self.pwm(port)?.lock().await;
+        let mut u = self.pwm(port)?.try_lock().map_err(|_| PortError::Busy)?;
         let timing = rp2040_slice(u.sys_hz, hz).ok_or(PortError::Unsupported)?;
         let out = u.out;
         u.apply(timing, out)
     }
 
     async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
-        let mut u = self.pwm(pin.port)?.lock().await;
+        let mut u = self
+            .pwm(pin.port)?
+            .try_lock()
+            .map_err(|_| PortError::Busy)?;
         let mut out = u.out;
         out[pin.pin.index()] = Output::PulseUs(us);
         let timing = u.timing;
@@ -826,9 +831,10 @@ impl Ports for PicoPorts {
     /// a retry).
     async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         let sensor = port_lookup::sensor(&self.sensors, port)?;
-        let mut ch = sensor.analog.lock().await;
-        let mut adc = self.adc.lock().await;
-        adc.read(&mut ch).await.map_err(|_| PortError::Busy)
+        let mut ch = sensor.analog.try_lock().map_err(|_| PortError::Busy)?;
+        let mut adc = self.adc.try_lock().map_err(|_| PortError::Busy)?;
+        // A blocking conversion: 96 cycles of the 48 MHz ADC clock, 2 µs.
+        adc.blocking_read(&mut ch).map_err(|_| PortError::Busy)
     }
 
     /// # Errors

@@ -797,7 +797,10 @@ impl<U: PwmTimer, const S: usize, const A: usize> Stm32Ports<U, S, A> {
 
     /// Sets one output of a port, or changes nothing when it does not fit the period.
     async fn set_output(&self, pin: PinRef, out: Output) -> Result<(), PortError> {
-        let mut guard = self.pwm(pin.port)?.lock().await;
+        let mut guard = self
+            .pwm(pin.port)?
+            .try_lock()
+            .map_err(|_| PortError::Busy)?;
         let (unit, outs) = &mut *guard;
         let c = compare(unit, out).ok_or(PortError::Unsupported)?;
         unit.set_compare(pin.pin, c);
@@ -839,7 +842,7 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
     }
 
     async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
-        let mut guard = self.pwm(port)?.lock().await;
+        let mut guard = self.pwm(port)?.try_lock().map_err(|_| PortError::Busy)?;
         let (unit, outs) = &mut *guard;
         if !stm32_frequency_ok(unit.timer_hz(), hz) {
             return Err(PortError::Unsupported);
@@ -866,8 +869,8 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
 
     async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         let sensor = port_lookup::sensor(&self.sensors, port)?;
-        let mut ch = sensor.analog.lock().await;
-        let mut adc = self.adc.lock().await;
+        let mut ch = sensor.analog.try_lock().map_err(|_| PortError::Busy)?;
+        let mut adc = self.adc.try_lock().map_err(|_| PortError::Busy)?;
         // A blocking conversion: 47.5 + 12.5 ADC cycles, under 2 µs at the G431's 42.5 MHz
         // ADC clock (170 MHz / 4), under 2 µs at the C011's (at most 35 MHz).
         Ok(adc.blocking_read(&mut *ch, adc::SampleTime::CYCLES47_5))
