@@ -30,7 +30,7 @@
 //!
 //! Features: `rp2040`, `stm32g431`, `stm32c011` (one per build: each brings its HAL and
 //! critical section), `time` (only [`EmbassyClock`]), `small-mem` (the images' small
-//! `memcpy`/`memset`, [`mem`]; on with `motherboard` and `daughterboard`). Without any, only
+//! `memcpy`/`memset` and 64-bit division, [`mem`]; on with `motherboard` and `daughterboard`). Without any, only
 //! the portable parts compile: the pin tables, PWM arithmetic ([`pwm`]), pulse-in edge logic
 //! ([`pulse`]), where a request's port or pin leads ([`port_lookup`]), the STM32 and RP2040
 //! bus decisions ([`i2c_v2`], [`pico_rules`]) and addresses, all tested on the host.
@@ -39,9 +39,9 @@
 #[macro_use]
 pub mod pins;
 pub mod address;
+pub mod i2c_v2;
 // Raw-pointer loops behind the images' memcpy/memset (see the module): the one place of
 // this crate that needs `unsafe`.
-pub mod i2c_v2;
 #[allow(unsafe_code)]
 pub mod mem;
 pub mod pico_rules;
