@@ -27,7 +27,6 @@ use embassy_rp::gpio::{Flex, Input, Pull};
 use embassy_rp::{adc, bind_interrupts, i2c, i2c_slave, pac, peripherals, pwm, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
-use embassy_sync::mutex::{Mutex, MutexGuard};
 use embassy_time::{block_for, with_deadline, with_timeout, Duration, Instant, Timer};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{EdgeCount, PortError, Ports};
@@ -57,9 +56,9 @@ pub const JUMPERS: usize = PICO.jumpers.len();
 /// ADC resolution of the RP2040.
 pub const ADC_BITS: u8 = 12;
 
-type Lock<T> = Mutex<CriticalSectionRawMutex, T>;
+use crate::port_lookup::Lock;
 /// A digital pin, taken.
-type PinGuard<'a> = MutexGuard<'a, CriticalSectionRawMutex, Flex<'static>>;
+type PinGuard<'a> = port_lookup::Guard<'a, Flex<'static>>;
 
 /// Starts the HAL: clocks from the Pico's 12 MHz crystal (125 MHz system clock), time driver.
 pub fn init() -> embassy_rp::Peripherals {
@@ -763,7 +762,7 @@ impl PicoPorts {
             |s| &s.pins,
             |a| &a.pins,
         )?;
-        lock.try_lock().map_err(|_| PortError::Busy)
+        port_lookup::take(lock)
     }
 
     fn pwm(&self, port: Port) -> Result<&Lock<PwmUnit>, PortError> {
@@ -798,10 +797,7 @@ impl Ports for PicoPorts {
     }
 
     async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
-        let mut u = self
-            .pwm(pin.port)?
-            .try_lock()
-            .map_err(|_| PortError::Busy)?;
+        let mut u = port_lookup::take(self.pwm(pin.port)?)?;
         let mut out = u.out;
         out[pin.pin.index()] = Output::Duty(duty);
         let timing = u.timing;
@@ -809,17 +805,14 @@ impl Ports for PicoPorts {
     }
 
     async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
-        let mut u = self.pwm(port)?.try_lock().map_err(|_| PortError::Busy)?;
+        let mut u = port_lookup::take(self.pwm(port)?)?;
         let timing = rp2040_slice(u.sys_hz, hz).ok_or(PortError::Unsupported)?;
         let out = u.out;
         u.apply(timing, out)
     }
 
     async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
-        let mut u = self
-            .pwm(pin.port)?
-            .try_lock()
-            .map_err(|_| PortError::Busy)?;
+        let mut u = port_lookup::take(self.pwm(pin.port)?)?;
         let mut out = u.out;
         out[pin.pin.index()] = Output::PulseUs(us);
         let timing = u.timing;
@@ -831,8 +824,8 @@ impl Ports for PicoPorts {
     /// a retry).
     async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         let sensor = port_lookup::sensor(&self.sensors, port)?;
-        let mut ch = sensor.analog.try_lock().map_err(|_| PortError::Busy)?;
-        let mut adc = self.adc.try_lock().map_err(|_| PortError::Busy)?;
+        let mut ch = port_lookup::take(&sensor.analog)?;
+        let mut adc = port_lookup::take(&self.adc)?;
         // A blocking conversion: 96 cycles of the 48 MHz ADC clock, 2 µs.
         adc.blocking_read(&mut ch).map_err(|_| PortError::Busy)
     }

@@ -29,7 +29,6 @@ use embassy_stm32::mode::Async;
 use embassy_stm32::{pac, peripherals, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
-use embassy_sync::mutex::{Mutex, MutexGuard};
 use embassy_time::{Duration, Instant};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{EdgeCount, PortError, Ports};
@@ -41,10 +40,9 @@ use crate::pwm::{stm32_compare, stm32_frequency_ok, Output, Timebase, DEFAULT_HZ
 use crate::stm32_latch::{self, Pending};
 use crate::{port_lookup, RX_LEN};
 
-/// An async mutex (pins and timers are shared by the runtime's tasks).
-pub type Lock<T> = Mutex<CriticalSectionRawMutex, T>;
+pub use crate::port_lookup::Lock;
 /// A digital pin, taken.
-type PinGuard<'a> = MutexGuard<'a, CriticalSectionRawMutex, Flex<'static>>;
+type PinGuard<'a> = port_lookup::Guard<'a, Flex<'static>>;
 
 /// What the chip module does with one actuator port's timer (its `PwmUnit` enum, one variant
 /// per timer of the table).
@@ -788,7 +786,7 @@ impl<U: PwmTimer, const S: usize, const A: usize> Stm32Ports<U, S, A> {
             |s| &s.pins,
             |a| &a.pins,
         )?;
-        lock.try_lock().map_err(|_| PortError::Busy)
+        port_lookup::take(lock)
     }
 
     fn pwm(&self, port: Port) -> Result<&Lock<(U, [Output; 2])>, PortError> {
@@ -797,10 +795,7 @@ impl<U: PwmTimer, const S: usize, const A: usize> Stm32Ports<U, S, A> {
 
     /// Sets one output of a port, or changes nothing when it does not fit the period.
     async fn set_output(&self, pin: PinRef, out: Output) -> Result<(), PortError> {
-        let mut guard = self
-            .pwm(pin.port)?
-            .try_lock()
-            .map_err(|_| PortError::Busy)?;
+        let mut guard = port_lookup::take(self.pwm(pin.port)?)?;
         let (unit, outs) = &mut *guard;
         let c = compare(unit, out).ok_or(PortError::Unsupported)?;
         unit.set_compare(pin.pin, c);
@@ -842,7 +837,7 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
     }
 
     async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
-        let mut guard = self.pwm(port)?.try_lock().map_err(|_| PortError::Busy)?;
+        let mut guard = port_lookup::take(self.pwm(port)?)?;
         let (unit, outs) = &mut *guard;
         if !stm32_frequency_ok(unit.timer_hz(), hz) {
             return Err(PortError::Unsupported);
@@ -869,8 +864,8 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
 
     async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         let sensor = port_lookup::sensor(&self.sensors, port)?;
-        let mut ch = sensor.analog.try_lock().map_err(|_| PortError::Busy)?;
-        let mut adc = self.adc.try_lock().map_err(|_| PortError::Busy)?;
+        let mut ch = port_lookup::take(&sensor.analog)?;
+        let mut adc = port_lookup::take(&self.adc)?;
         // A blocking conversion: 47.5 + 12.5 ADC cycles, under 2 µs at the G431's 42.5 MHz
         // ADC clock (170 MHz / 4), under 2 µs at the C011's (at most 35 MHz).
         Ok(adc.blocking_read(&mut *ch, adc::SampleTime::CYCLES47_5))
