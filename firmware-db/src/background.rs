@@ -6,7 +6,7 @@ use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::RawMutex;
 use heapless::Vec;
 use x10_hal::time::{Clock, Instant};
-use x10_microcode::{EventConfig, EventKind, Pin, PinRef, Port, Status};
+use x10_microcode::{BootInfo, EventConfig, EventKind, Pin, PinRef, Port, Status};
 
 use crate::daughterboard::{bump, port_status, Daughterboard, MAX_EVENT_PINS};
 use crate::event::OutEvent;
@@ -16,7 +16,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// Runs the board's background work; never returns. Call once, next to the transport.
     ///
     /// At start every actuator port goes to its safe state and a `boot` event (payload: the
-    /// board's identity) is queued. Then, concurrently:
+    /// board's identity and why it started, [`BootInfo`]) is queued. Then, concurrently:
     ///
     /// * pulse-in measurements accepted with `pending` run ([`crate::DEFERRED_WORKERS`] at a
     ///   time, on different pins); each result goes out as a `deferred_reply` event with the
@@ -40,8 +40,18 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     ///   (payload: timeout in ms, u16 LE) is queued, once per silence.
     pub async fn run_background<C: Clock>(&self, clock: C) -> ! {
         self.apply_safe_state().await;
-        let id = self.identity().to_bytes();
-        self.push_event(EventKind::Boot, PinRef::from_byte(0), None, Status::Ok, &id);
+        let boot = BootInfo {
+            identity: self.identity(),
+            reset_reason: self.config().reset_reason,
+        }
+        .to_bytes();
+        self.push_event(
+            EventKind::Boot,
+            PinRef::from_byte(0),
+            None,
+            Status::Ok,
+            &boot,
+        );
         let (never, _, _) = join3(
             self.failsafe_loop(&clock),
             self.sample_loop(&clock),

@@ -1,7 +1,7 @@
 //! Configuration of a daughterboard: who it is and how its background work is timed.
 
 use x10_hal::retry::RetryPolicy;
-use x10_microcode::{Address, BoardKind, Capabilities};
+use x10_microcode::{Address, BoardKind, Capabilities, ResetReason};
 
 /// Parses one decimal component of the crate version at compile time (0 if it does not fit).
 const fn version_part(s: &str) -> u8 {
@@ -50,11 +50,14 @@ pub struct DbConfig {
     pub default_pulse_timeout_ms: u16,
     /// Failsafe timeout in effect at boot, in ms (0: off until the MB sets one).
     pub failsafe_timeout_ms: u16,
+    /// Why the board started, reported by its `boot` event (the image reads it from the
+    /// chip at start-up; [`ResetReason::PowerOn`] by default).
+    pub reset_reason: ResetReason,
 }
 
 impl DbConfig {
     /// A configuration with every capability, events sampled every 10 ms, a 1 s default
-    /// pulse-in timeout and the failsafe off.
+    /// pulse-in timeout, the failsafe off and a power-on start.
     pub const fn new(address: Address, board: BoardKind) -> DbConfig {
         DbConfig {
             address,
@@ -63,6 +66,7 @@ impl DbConfig {
             sample_interval_us: 10_000,
             default_pulse_timeout_ms: 1_000,
             failsafe_timeout_ms: 0,
+            reset_reason: ResetReason::PowerOn,
         }
     }
 }

@@ -353,11 +353,13 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         Some(ev)
     }
 
-    /// Encodes `ev` as sent by this board to the motherboard at `mb` (with its PEC byte when
-    /// PEC is on) into `buf`; returns the length, 0 if `buf` is too short.
+    /// Encodes `ev` as sent by this board to the motherboard at `mb` (with its check when
+    /// PEC is on, and a `boot` event always: it is the one frame a board sends before the MB
+    /// could switch PEC on, and one flipped bit in it must not go unseen) into `buf`; returns
+    /// the length, 0 if `buf` is too short.
     pub fn encode_event(&self, ev: &OutEvent, mb: Address, buf: &mut [u8]) -> usize {
         let e = ev.as_event(self.config.address);
-        let r = if self.pec_enabled() {
+        let r = if self.pec_enabled() || ev.kind == EventKind::Boot {
             e.emit_with_pec(mb, buf)
         } else {
             e.emit(buf)

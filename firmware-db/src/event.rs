@@ -1,10 +1,10 @@
 //! Events waiting to be delivered to the motherboard.
 
 use heapless::Vec;
-use x10_microcode::{Address, Event, EventKind, Identity, PinRef, Status};
+use x10_microcode::{Address, BootInfo, Event, EventKind, PinRef, Status};
 
-/// Largest payload of an event this runtime produces (the boot event's [`Identity`]).
-pub const EVENT_PAYLOAD_LEN: usize = Identity::LEN;
+/// Largest payload of an event this runtime produces (the boot event's [`BootInfo`]).
+pub const EVENT_PAYLOAD_LEN: usize = BootInfo::LEN;
 
 /// An event in the queue of a daughterboard, before the sender's address and the PEC are
 /// added. The transport turns it into an [`Event`] with [`OutEvent::as_event`].

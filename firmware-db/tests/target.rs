@@ -27,9 +27,15 @@ fn setup() -> (TestClock, Db, FakeBus, TargetConfig) {
     (clock, db, bus, tcfg)
 }
 
+/// The boot event as it goes on the bus: identity, reset reason (power-on), and always its
+/// check (a CRC-16: the frame is 17 bytes), whatever the board's PEC setting.
 fn boot_frame(db: &Db) -> Vec<u8> {
-    let mut f = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
+    let mut f = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0B];
     f.extend_from_slice(&db.identity().to_bytes());
+    f.push(0x00);
+    let n = f.len();
+    f.resize(n + pec::check_len(n), 0);
+    pec::append(MB << 1, &mut f, n).unwrap();
     f
 }
 
@@ -329,22 +335,18 @@ fn events_carry_pec_when_negotiated_and_overruns_count_as_bad_length() {
 }
 
 #[test]
-fn an_event_retried_after_the_mb_turned_pec_on_goes_out_with_pec() {
+fn the_boot_event_is_checked_before_and_after_the_mb_turned_pec_on() {
     let (clock, db, bus, tcfg) = setup();
     // The boot event's first attempt is NACKed; while the board waits to retry, the MB turns
-    // PEC on. The retry must carry the PEC byte the MB now expects.
+    // PEC on. Both attempts carry the check (a CRC-16: the boot event is 17 bytes).
     bus.script_writes(&[Err(BusError::Nack)]);
     let fut = run(&db, bus.clone(), &clock, tcfg);
     let mut fut = core::pin::pin!(fut);
     run_until(&clock, 0, fut.as_mut());
     bus.push(Txn::Write(vec![0x07, 0x09, 0x00, 0x01, 0x01])); // set_pec(1)
     run_until(&clock, 10_000, fut.as_mut());
-    let plain = boot_frame(&db);
-    // The boot event is 16 bytes: its check is a CRC-16.
-    let mut with_pec = plain.clone();
-    with_pec.resize(plain.len() + pec::check_len(plain.len()), 0);
-    pec::append(MB << 1, &mut with_pec, plain.len()).unwrap();
-    assert_eq!(with_pec.len(), plain.len() + 2);
+    let checked = boot_frame(&db);
+    assert_eq!(checked.len(), 6 + 11 + 2);
     let writes: Vec<Vec<u8>> = bus
         .take_ops()
         .into_iter()
@@ -353,7 +355,7 @@ fn an_event_retried_after_the_mb_turned_pec_on_goes_out_with_pec() {
             _ => None,
         })
         .collect();
-    assert_eq!(writes, vec![plain, with_pec]);
+    assert_eq!(writes, vec![checked.clone(), checked]);
     assert!(db.pec_enabled());
     assert_eq!(db.diagnostics().events_sent, 1);
 }

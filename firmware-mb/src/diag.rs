@@ -50,9 +50,9 @@ pub struct MbDiagnostics {
     pub unknown_replies: u32,
     /// Events received (bus and internal board).
     pub events: u32,
-    /// Writes to the motherboard that were not a valid event (length, source, a wrong PEC
-    /// byte, or none from a board with PEC on unless it is a `boot` event), or an event of
-    /// unknown kind.
+    /// Writes to the motherboard that were not a valid event (length, source, a wrong check,
+    /// or none from a board with PEC on, or a `boot` event without its check), or an event
+    /// of unknown kind.
     pub bad_events: u32,
     /// Pin events that no task claimed and that were pushed out of the unclaimed queue.
     pub events_dropped: u32,
@@ -62,6 +62,12 @@ pub struct MbDiagnostics {
     pub failsafe_trips: u32,
     /// `boot` events (a board started or restarted).
     pub boots: u32,
+    /// `boot` events whose reason is the board's watchdog (its executor hung).
+    pub watchdog_resets: u32,
+    /// `boot` events whose reason is a panic of the board's firmware.
+    pub panic_resets: u32,
+    /// `boot` events whose reason is a processor fault (HardFault) on the board.
+    pub fault_resets: u32,
     /// `overflow` events (a board dropped events).
     pub overflows: u32,
     /// Events missing from a board's event counter (byte 3 of every event but
@@ -71,8 +77,9 @@ pub struct MbDiagnostics {
     /// Events the boards reported dropped, from the cumulative count of their `overflow`
     /// events (so a lost report loses no count).
     pub events_lost: u32,
-    /// Times the PEC setting of a board was corrected from its replies (it answered
-    /// `pec_mismatch` to a frame without PEC, or `bad_length` without PEC to one with PEC).
+    /// Times the PEC setting of a board was corrected from what it sent (it answered
+    /// `pec_mismatch` to a frame without PEC, or `bad_length` without PEC to one with PEC,
+    /// or sent an event without PEC while the motherboard had PEC on for it).
     pub pec_resyncs: u32,
     /// Reads addressed to the motherboard (answered with nothing).
     pub unexpected_reads: u32,
@@ -111,6 +118,9 @@ impl MbDiagnostics {
             rejected: 0,
             failsafe_trips: 0,
             boots: 0,
+            watchdog_resets: 0,
+            panic_resets: 0,
+            fault_resets: 0,
             overflows: 0,
             event_gaps: 0,
             events_lost: 0,

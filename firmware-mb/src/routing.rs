@@ -6,7 +6,7 @@
 
 use embassy_sync::signal::Signal;
 use x10_devices::{LinkError, PinEvent};
-use x10_microcode::{Address, Event, EventKind, Payload, PinRef, Status};
+use x10_microcode::{Address, BootInfo, Event, EventKind, Payload, PinRef, ResetReason, Status};
 
 use crate::diag::bump;
 use crate::mb_core::{now, MbCore};
@@ -40,34 +40,68 @@ impl MbCore {
     /// Parses a write to the motherboard's own address as an event and routes it. Anything
     /// else is counted in `bad_events` and dropped.
     ///
-    /// From a board with PEC negotiated ([`MbCore::pec_enabled`]) an event must carry a
-    /// valid PEC byte, with one exception: a `boot` event without PEC is accepted (a board
-    /// that just restarted has PEC off) and turns PEC off for that board. From a board with
-    /// PEC off, the frame is parsed without PEC first and, if that fails, with PEC: a board
-    /// that has just executed a `set_pec(true)` the motherboard has not recorded yet sends
-    /// its events with PEC. The two readings never both succeed: the LEN byte fixes the
-    /// frame's length, and the PEC byte makes it exactly one longer.
+    /// A `boot` event is accepted only with its check (a PEC byte, or the CRC-16 of a long
+    /// frame): a board sends it so whatever its PEC setting, since it is the one frame sent
+    /// before the motherboard could switch PEC on. From a board with PEC negotiated
+    /// ([`MbCore::pec_enabled`]) every event must carry a valid check. From a board with PEC
+    /// off, the frame is parsed without PEC first and, if that fails, with PEC: a board that
+    /// has just executed a `set_pec(true)` the motherboard has not recorded yet sends its
+    /// events with PEC. The two readings never both succeed: the LEN byte fixes the frame's
+    /// length, and the check makes it one or two bytes longer.
+    ///
+    /// An event without its check from a board with PEC negotiated is dropped; but when the
+    /// motherboard prepares its boards (`MbConfig::pec`) and that event is a `rejected` with
+    /// status `bad_length` (the board took our check for data: it has PEC off, so it
+    /// restarted and its `boot` event was lost), the board is taken as restarted: PEC off,
+    /// prepared again before its next request, its failsafe set again. An unchecked frame
+    /// only ever leads to that preparation, never to a value or an output.
     pub(crate) fn route_event_bytes(&self, bytes: &[u8]) {
-        let pec_on = bytes
-            .first()
-            .and_then(|&b| Address::new(b).ok())
-            .is_some_and(|source| self.with(|t| t.boards.pec(source)));
+        let source = bytes.first().and_then(|&b| Address::new(b).ok());
+        let pec_on = source.is_some_and(|source| self.with(|t| t.boards.pec(source)));
         let with_pec = || Event::parse_with_pec(self.config.address, bytes);
-        let parsed = if pec_on {
-            with_pec().or_else(|e| match Event::parse(bytes) {
-                Ok(ev) if ev.kind == EventKind::Boot => Ok(ev),
-                _ => Err(e),
+        let unchecked = || {
+            Event::parse(bytes).and_then(|ev| match ev.kind {
+                EventKind::Boot => Err(x10_microcode::Error::CrcMismatch),
+                _ => Ok(ev),
             })
+        };
+        let parsed = if pec_on {
+            with_pec()
         } else {
-            Event::parse(bytes).or_else(|_| with_pec())
+            unchecked().or_else(|_| with_pec())
         };
         match parsed {
             Ok(ev) if !ev.source.is_internal() => self.route_event(&ev),
             _ => {
                 warn!("bad event ({} bytes)", bytes.len());
                 self.with(|t| bump(&mut t.diag.bad_events));
+                match source {
+                    Some(board) if pec_on && self.lost_pec_sign(board, bytes) => {
+                        warn!("board {} refuses our PEC: it restarted", board.get());
+                        let t_now = now();
+                        self.with(|t| {
+                            bump(&mut t.diag.pec_resyncs);
+                            t.boards.booted(board, t_now);
+                        });
+                        self.notify_keepalive();
+                    }
+                    _ => {}
+                }
             }
         }
+    }
+
+    /// True when `bytes`, without a check, read as a `rejected` event with status
+    /// `bad_length` from `board`, and the motherboard prepares its boards: see
+    /// [`MbCore::route_event_bytes`].
+    fn lost_pec_sign(&self, board: Address, bytes: &[u8]) -> bool {
+        self.config.pec
+            && !board.is_internal()
+            && Event::parse(bytes).is_ok_and(|ev| {
+                ev.source == board
+                    && ev.kind == EventKind::Rejected
+                    && ev.status == Status::BadLength
+            })
     }
 
     /// Routes one event: a deferred reply to its waiting request, a pin event to its waiters
@@ -133,9 +167,17 @@ impl MbCore {
                 self.with(|t| bump(&mut t.diag.overflows));
             }
             EventKind::Boot => {
-                info!("board {} booted", ev.source.get());
+                let reason = BootInfo::parse(ev.payload)
+                    .map_or(ResetReason::Unknown(0xFF), |b| b.reset_reason);
+                info!("board {} booted ({})", ev.source.get(), reason.name());
                 self.with(|t| {
                     bump(&mut t.diag.boots);
+                    match reason {
+                        ResetReason::Watchdog => bump(&mut t.diag.watchdog_resets),
+                        ResetReason::Panic => bump(&mut t.diag.panic_resets),
+                        ResetReason::Fault => bump(&mut t.diag.fault_resets),
+                        _ => {}
+                    }
                     t.boards.booted(ev.source, now());
                 });
             }

@@ -535,8 +535,7 @@ fn pec_is_negotiated_per_board_and_reset_by_its_boot_event() {
     with_pec.push(pec::compute(0x12, &frame));
     assert_eq!(seen[1].1, Seen::WriteRead(9, with_pec, 6));
     // the board restarts: its boot event turns PEC off on the MB side
-    let mut boot = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
-    boot.extend_from_slice(&w.db9.identity().to_bytes());
+    let boot = common::boot_event(9, &w.db9.identity());
     w.bus.to_mb(boot);
     w.sim(w.clock.sleep_until(Instant(w.clock.now_us() + 1)));
     assert!(!w.mb.pec_enabled(addr(9)));
@@ -551,8 +550,7 @@ fn a_stale_pec_setting_is_corrected_from_the_boards_replies() {
         w.mb.call(addr(9), Op::SetPec(true)).await.unwrap();
         // a boot event older than our set_pec arrives late: the MB turns PEC off, the board
         // still checks it
-        let mut boot = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
-        boot.extend_from_slice(&w.db9.identity().to_bytes());
+        let boot = common::boot_event(9, &w.db9.identity());
         w.bus.to_mb(boot);
         w.clock.sleep_until(Instant(2_000)).await;
         let first = w.mb.call(addr(9), Op::AnalogRead(s(1))).await;

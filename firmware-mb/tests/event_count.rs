@@ -29,9 +29,7 @@ fn overflow(seq: u8, since_report: u16, total: u32) -> Vec<u8> {
 
 /// DB 9's boot event (event counter 0).
 fn boot(db9: &Db) -> Vec<u8> {
-    let mut b = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
-    b.extend_from_slice(&db9.identity().to_bytes());
-    b
+    common::boot_event(9, &db9.identity())
 }
 
 /// Writes `frames` to the MB as DB 9 would, 1 ms apart from 1 ms on (DB 9's own boot event,

@@ -47,11 +47,9 @@ fn with_pec(mut frame: Vec<u8>) -> Vec<u8> {
     frame
 }
 
-/// DB 9's boot event, without PEC.
+/// DB 9's boot event (always with its check).
 fn boot(db9: &Db) -> Vec<u8> {
-    let mut b = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
-    b.extend_from_slice(&db9.identity().to_bytes());
-    b
+    common::boot_event(9, &db9.identity())
 }
 
 #[test]
@@ -110,36 +108,53 @@ fn an_event_with_a_bad_or_missing_pec_from_a_board_with_pec_is_counted_and_dropp
     assert!(w.mb.pec_enabled(db9()));
 }
 
+/// Issue 22 item 7: a `boot` event is accepted only with its check (a board sends it so
+/// whatever its PEC setting); one without is counted and dropped like any other event without
+/// PEC from a board with PEC on. A checked one turns PEC off.
 #[test]
-fn a_boot_event_without_pec_from_a_board_with_pec_is_accepted_and_turns_pec_off() {
+fn a_boot_event_needs_its_check_and_turns_pec_off() {
     let w = World::new();
-    // only `boot` is excepted: a `rejected` event without PEC is dropped
     let rejected = vec![0x09, 0x05, 0x00, 0x07, 0x03, 0x00];
     assert_eq!(
         x10_microcode::Event::parse(&rejected).unwrap().kind,
         EventKind::Rejected
     );
-    let (before, after_rejected, after_boot) = w.sim(async {
+    let checked = boot(&w.db9);
+    let unchecked = checked[..checked.len() - 2].to_vec();
+    assert!(x10_microcode::Event::parse(&unchecked).is_ok());
+    let (before, after_unchecked, after_boot) = w.sim(async {
         w.pec_on().await;
         let before = w.mb.diagnostics();
         w.at(2_000).await;
         w.bus.to_mb(rejected);
+        w.bus.to_mb(unchecked);
         w.at(3_000).await;
-        let after_rejected = (w.mb.diagnostics(), w.mb.pec_enabled(db9()));
-        w.bus.to_mb(boot(&w.db9));
+        let after = (w.mb.diagnostics(), w.mb.pec_enabled(db9()));
+        w.bus.to_mb(checked);
         w.at(4_000).await;
-        (before, after_rejected, w.mb.diagnostics())
+        (before, after, w.mb.diagnostics())
     });
-    let (d, pec) = after_rejected;
+    let (d, pec) = after_unchecked;
     assert_eq!(
         (d.bad_events, d.rejected, d.boots, pec),
-        (before.bad_events + 1, before.rejected, before.boots, true)
+        (before.bad_events + 2, before.rejected, before.boots, true)
     );
     assert_eq!(
         (after_boot.bad_events, after_boot.boots),
         (d.bad_events, d.boots + 1)
     );
     assert!(!w.mb.pec_enabled(db9()));
+    // The same unchecked boot from a board with PEC off is refused too.
+    let w = World::new();
+    let unchecked = boot(&w.db9)[..boot(&w.db9).len() - 2].to_vec();
+    let d = w.sim(async {
+        w.at(1_000).await;
+        let before = w.mb.diagnostics();
+        w.bus.to_mb(unchecked);
+        w.at(2_000).await;
+        (before, w.mb.diagnostics())
+    });
+    assert_eq!((d.1.bad_events, d.1.boots), (d.0.bad_events + 1, d.0.boots));
 }
 
 #[test]

@@ -132,8 +132,7 @@ fn a_board_that_rebooted_gets_its_failsafe_set_again() {
             .unwrap();
         // DB 9 restarts (its failsafe is off again) and says so with a boot event
         w.at(50_000).await;
-        let mut boot = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
-        boot.extend_from_slice(&w.db9.identity().to_bytes());
+        let boot = common::boot_event(9, &w.db9.identity());
         w.bus.to_mb(boot);
         w.at(200_000).await;
     });

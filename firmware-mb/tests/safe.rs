@@ -89,8 +89,7 @@ fn after_a_boot_pec_is_turned_on_again_before_anything_else_reaches_the_board() 
         let off = req_pec(9, &[0x07, 0x09, 0x00, 0x50, 0x00]);
         w.db9.handle_write(&off, false).await;
         assert!(!w.db9.pec_enabled());
-        let mut boot = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0A];
-        boot.extend_from_slice(&w.db9.identity().to_bytes());
+        let boot = common::boot_event(9, &w.db9.identity());
         w.bus.to_mb(boot);
         w.at(11_000).await;
         assert!(w.mb.pec_enabled(db(9)) && w.db9.pec_enabled());
@@ -253,4 +252,43 @@ fn a_refused_event_enable_ends_in_the_boards_status() {
         .map(|(_, _, read)| read)
         .collect();
     assert!(enables.iter().all(|&n| n == 4), "{enables:?}");
+}
+
+/// Issue 22 item 7: a board restarts and its `boot` event is lost. Its first output, framed
+/// with PEC, is refused (`bad_length`: the board took the check for data) and reported in a
+/// `rejected` event without PEC. That event cannot be trusted as an event, but it shows the
+/// board lost PEC: the motherboard prepares it again (PEC, failsafe, both read back), and the
+/// next output reaches the port (checked on the port itself).
+#[test]
+fn a_board_whose_boot_event_was_lost_is_prepared_again_when_it_refuses_our_pec() {
+    let w = World::safe();
+    let a1b = Port::actuator(1).unwrap().pin(x10_microcode::Pin::B);
+    let (first, second) = w.sim(async {
+        w.at(1_000).await;
+        w.mb.call(db(9), Op::Ping).await.unwrap();
+        // DB 9 restarts: PEC and failsafe off; its boot event never arrives.
+        w.at(10_000).await;
+        let off = req_pec(9, &[0x07, 0x09, 0x00, 0x50, 0x00]);
+        w.db9.handle_write(&off, false).await;
+        let no_failsafe = [0x03, 0x09, 0x00, 0x51, 0x00, 0x00];
+        w.db9.handle_write(&no_failsafe, false).await;
+        assert!(!w.db9.pec_enabled());
+        let high = Op::DigitalWrite(a1b, x10_microcode::Level::High);
+        let first = w.mb.call(db(9), high).await;
+        w.at(20_000).await;
+        let second = w.mb.call(db(9), high).await;
+        w.at(21_000).await;
+        (first, second)
+    });
+    // The first was acknowledged on the bus (the refusal comes after it); the second went
+    // out once the board was prepared again.
+    assert_eq!(
+        (first, second),
+        (Ok(Default::default()), Ok(Default::default()))
+    );
+    assert!(w.db9.pec_enabled());
+    assert_eq!(w.db9.failsafe_timeout_ms(), 300);
+    assert!(w.db9.ports().digital.borrow()[&a1b.to_byte()]);
+    let d = w.mb.diagnostics();
+    assert_eq!((d.pec_resyncs, d.bad_events, d.rejected), (1, 1, 0));
 }

@@ -25,9 +25,9 @@ use std::fmt;
 use serde::{Deserialize, Serialize};
 use serde_json::{Map, Value};
 use x10_microcode::{
-    pec, Address, BatchResults, Diagnostics, Edge, Event, EventConfig, EventKind, Identity, Op,
-    Pin, PinRef, Port, PortKind, Reply, Request, ScanResult, Status, MAX_FRAME_LEN,
-    MAX_REQUEST_DATA,
+    pec, Address, BatchResults, BootInfo, Diagnostics, Edge, Event, EventConfig, EventKind,
+    Identity, Op, Pin, PinRef, Port, PortKind, Reply, Request, ResetReason, ScanResult, Status,
+    MAX_FRAME_LEN, MAX_REQUEST_DATA,
 };
 
 mod hex;
@@ -349,7 +349,8 @@ fn batch_results(results: Input<'_>) -> Result<Vec<u8>> {
 
 /// The decoded value of an event payload, by kind: `level` (and `rising_edges`,
 /// `falling_edges` from a 5-byte `pin_change`), `value` and `inside`, `width_us`,
-/// `timeout_ms`, `dropped` (and `dropped_total` from a 6-byte `overflow`), `identity`.
+/// `timeout_ms`, `dropped` (and `dropped_total` from a 6-byte `overflow`), `identity` and
+/// `reset_reason` (`boot`).
 #[derive(Serialize, Deserialize, Default)]
 struct EventValue {
     level: Option<u8>,
@@ -362,6 +363,7 @@ struct EventValue {
     dropped: Option<u16>,
     dropped_total: Option<u32>,
     identity: Option<Identity>,
+    reset_reason: Option<ResetReason>,
 }
 
 impl EventValue {
@@ -390,7 +392,15 @@ impl EventValue {
                 v.dropped = le16(a, b);
                 v.dropped_total = Some(u32::from_le_bytes([c, d, e, f]));
             }
-            (EventKind::Boot, p) => v.identity = Identity::parse(p).ok(),
+            (EventKind::Boot, p) => {
+                if let Ok(b) = BootInfo::parse(p) {
+                    v.identity = Some(b.identity);
+                    v.reset_reason = Some(b.reset_reason);
+                } else {
+                    // A board of an earlier version: the identity alone.
+                    v.identity = Identity::parse(p).ok();
+                }
+            }
             _ => {}
         }
         v
@@ -425,7 +435,16 @@ impl EventValue {
                 }
                 p
             }),
-            EventKind::Boot => self.identity.map(|id| id.to_bytes().to_vec()),
+            // Without a reset reason: the identity alone, as a board of an earlier version.
+            EventKind::Boot => self.identity.map(|identity| match self.reset_reason {
+                Some(reset_reason) => BootInfo {
+                    identity,
+                    reset_reason,
+                }
+                .to_bytes()
+                .to_vec(),
+                None => identity.to_bytes().to_vec(),
+            }),
             EventKind::Rejected | EventKind::Unknown(_) => None,
         };
         Ok(bytes.unwrap_or_default())

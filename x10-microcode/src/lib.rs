@@ -67,7 +67,8 @@ pub use reply::{Payload, Reply, ReplyFrame};
 pub use request::{Request, RequestFrame};
 pub use status::Status;
 pub use system::{
-    BoardKind, Capabilities, Diagnostics, EventConfig, Identity, ScanResult, DIAGNOSTIC_NAMES,
+    BoardKind, BootInfo, Capabilities, Diagnostics, EventConfig, Identity, ResetReason, ScanResult,
+    DIAGNOSTIC_NAMES,
 };
 pub use types::{Address, Edge, Level, Pin, PinRef, Port, PortKind};
 

@@ -29,7 +29,8 @@ use serde::ser::{SerializeMap, Serializer};
 use serde::{Deserialize, Serialize};
 
 use crate::{
-    BoardKind, Event, EventKind, Op, PinRef, Request, ScanResult, Status, MAX_REQUEST_DATA,
+    BoardKind, Event, EventKind, Op, PinRef, Request, ResetReason, ScanResult, Status,
+    MAX_REQUEST_DATA,
 };
 
 // -------------------------------------------------------------------------------------------
@@ -100,6 +101,30 @@ impl<'de> Deserialize<'de> for EventKind {
             expecting: "an event kind name or code 0..=255",
             of_name: EventKind::from_name,
             of_code: EventKind::from_byte,
+        })
+    }
+}
+
+impl Serialize for ResetReason {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        match self {
+            ResetReason::Unknown(code) => s.serialize_u8(*code),
+            known => s.serialize_str(known.name()),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for ResetReason {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<ResetReason, D::Error> {
+        d.deserialize_any(NameOrCode {
+            what: "reset reason",
+            expecting: "a reset reason name or code 0..=255",
+            of_name: |name| {
+                (0..=255)
+                    .map(ResetReason::from_byte)
+                    .find(|r| !matches!(r, ResetReason::Unknown(_)) && r.name() == name)
+            },
+            of_code: ResetReason::from_byte,
         })
     }
 }

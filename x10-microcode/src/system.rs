@@ -35,6 +35,120 @@ impl BoardKind {
     }
 }
 
+/// Why a board last started, reported by its `boot` event after its identity (byte 10 of the
+/// payload). A board reads it from its chip at start-up (reset-cause flags, and a mark its
+/// panic or fault handler left in memory that survives the reset).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ResetReason {
+    /// Power applied (or brown-out): code 0. Also what a board reports that cannot tell.
+    PowerOn,
+    /// The hardware watchdog fired: the executor hung (code 1).
+    Watchdog,
+    /// The firmware panicked; its handler put the outputs in their safe state and reset the
+    /// chip (code 2).
+    Panic,
+    /// A processor fault (HardFault); its handler put the outputs in their safe state and
+    /// reset the chip (code 3).
+    Fault,
+    /// The reset pin, or a debug probe (code 4).
+    ResetPin,
+    /// A reset the firmware asked for (code 5), e.g. after an update.
+    Software,
+    /// A code this version does not know.
+    Unknown(u8),
+}
+
+impl ResetReason {
+    /// The reason of wire code `b`.
+    pub const fn from_byte(b: u8) -> ResetReason {
+        match b {
+            0 => ResetReason::PowerOn,
+            1 => ResetReason::Watchdog,
+            2 => ResetReason::Panic,
+            3 => ResetReason::Fault,
+            4 => ResetReason::ResetPin,
+            5 => ResetReason::Software,
+            other => ResetReason::Unknown(other),
+        }
+    }
+
+    /// The wire code.
+    pub const fn to_byte(self) -> u8 {
+        match self {
+            ResetReason::PowerOn => 0,
+            ResetReason::Watchdog => 1,
+            ResetReason::Panic => 2,
+            ResetReason::Fault => 3,
+            ResetReason::ResetPin => 4,
+            ResetReason::Software => 5,
+            ResetReason::Unknown(b) => b,
+        }
+    }
+
+    /// Name for people (`unknown` for codes this version does not know).
+    pub const fn name(self) -> &'static str {
+        match self {
+            ResetReason::PowerOn => "power_on",
+            ResetReason::Watchdog => "watchdog",
+            ResetReason::Panic => "panic",
+            ResetReason::Fault => "fault",
+            ResetReason::ResetPin => "reset_pin",
+            ResetReason::Software => "software",
+            ResetReason::Unknown(_) => "unknown",
+        }
+    }
+
+    /// True for a reset caused by the firmware failing (watchdog, panic, fault).
+    pub const fn is_crash(self) -> bool {
+        matches!(
+            self,
+            ResetReason::Watchdog | ResetReason::Panic | ResetReason::Fault
+        )
+    }
+}
+
+/// Payload of the `boot` event: the board's [`Identity`] (10 bytes), then why it started
+/// (1 byte). A receiver reads the identity from the first 10 bytes and ignores bytes it does
+/// not know after the reason.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct BootInfo {
+    /// What `identify` answers.
+    pub identity: Identity,
+    /// Why the board started.
+    pub reset_reason: ResetReason,
+}
+
+impl BootInfo {
+    /// Encoded length.
+    pub const LEN: usize = Identity::LEN + 1;
+
+    /// Parses a `boot` event's payload.
+    ///
+    /// # Errors
+    /// [`Error::BadLength`] when it is shorter than [`BootInfo::LEN`].
+    pub fn parse(payload: &[u8]) -> Result<BootInfo> {
+        let id = payload.get(..Identity::LEN).ok_or(Error::BadLength)?;
+        let reason = *payload.get(Identity::LEN).ok_or(Error::BadLength)?;
+        Ok(BootInfo {
+            identity: Identity::parse(id)?,
+            reset_reason: ResetReason::from_byte(reason),
+        })
+    }
+
+    /// Encodes the payload.
+    pub fn to_bytes(&self) -> [u8; Self::LEN] {
+        let mut b = [0u8; Self::LEN];
+        let (id, reason) = b.split_at_mut(Identity::LEN);
+        id.copy_from_slice(&self.identity.to_bytes());
+        if let Some(r) = reason.first_mut() {
+            *r = self.reset_reason.to_byte();
+        }
+        b
+    }
+}
+
 /// Capability bits reported by `identify`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -320,7 +320,18 @@ fn event_fields(e: &Event<'_>) -> Flat {
                 Val::Int(u32::from_le_bytes([c, d, e, f]).into()),
             );
         }
-        (EventKind::Boot, p) => identity_fields(&mut m, &Identity::parse(p).unwrap()),
+        (EventKind::Boot, p) => match x10_microcode::BootInfo::parse(p) {
+            Ok(b) => {
+                identity_fields(&mut m, &b.identity);
+                put(
+                    &mut m,
+                    "reset_reason",
+                    Val::Str(b.reset_reason.name().into()),
+                );
+            }
+            // A board of an earlier version: the identity alone.
+            Err(_) => identity_fields(&mut m, &Identity::parse(p).unwrap()),
+        },
         _ => {}
     }
     m

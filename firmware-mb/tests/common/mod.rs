@@ -30,6 +30,18 @@ pub const BUS_TIMEOUT_US: u64 = 25_000;
 /// The motherboard's address in these tests.
 pub const MB: u8 = 0x08;
 
+/// The `boot` event a board at `source` with `identity` sends after a power-on start, as it
+/// goes on the bus: identity, reset reason 0, and always its check (a CRC-16: 17 bytes).
+pub fn boot_event(source: u8, identity: &x10_microcode::Identity) -> Vec<u8> {
+    let mut b = vec![source, 0x07, 0x00, 0x00, 0x00, 0x0B];
+    b.extend_from_slice(&identity.to_bytes());
+    b.push(0x00);
+    let n = b.len();
+    b.resize(n + x10_microcode::pec::check_len(n), 0);
+    x10_microcode::pec::append(MB << 1, &mut b, n).unwrap();
+    b
+}
+
 pub fn mb_address() -> Address {
     Address::external(MB).unwrap()
 }
