@@ -314,6 +314,29 @@ impl Requests {
         }
     }
 
+    /// Request `t`, a deferred operation on `pin`, ends without a reply that proves the board
+    /// refused it: the board may be measuring. Its pair stays held until `hold_us` after `now`
+    /// (the board's deadline): once its caller is done with it, the slot is kept as
+    /// `Abandoned` until then (see `release`), and a slot whose caller already gave up while
+    /// it was on the bus is kept until then too.
+    pub(crate) fn hold(&mut self, t: Ticket, (pin, hold_us): (PinRef, u64), now: Instant) {
+        let until = now.plus_us(hold_us);
+        let Some(s) = self.slot_mut(t) else {
+            return;
+        };
+        match s.state {
+            SlotState::Queued | SlotState::Sending => {
+                s.pin = pin;
+                s.until = until;
+            }
+            SlotState::Abandoned if s.until == ON_THE_BUS => {
+                s.pin = pin;
+                s.until = until;
+            }
+            _ => {}
+        }
+    }
+
     /// Ends a queued or deferred request with `result` (the caller signals it). Counts the
     /// outcome. False if the request already ended.
     pub(crate) fn complete(
@@ -330,6 +353,10 @@ impl Requests {
             SlotState::Queued | SlotState::Sending | SlotState::Deferred
         ) {
             return false;
+        }
+        if s.state == SlotState::Deferred {
+            // Answered: nothing more to hold it for.
+            s.until = Instant(0);
         }
         s.state = SlotState::Done;
         let d = diag;
@@ -365,6 +392,11 @@ impl Requests {
             return;
         }
         if s.state == SlotState::Abandoned {
+            return;
+        }
+        if s.state == SlotState::Done && s.until.0 != 0 {
+            // Held by `hold`: the board may still answer it.
+            s.state = SlotState::Abandoned;
             return;
         }
         self.retire(t.index, ended);

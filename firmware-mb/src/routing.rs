@@ -6,7 +6,9 @@
 
 use embassy_sync::signal::Signal;
 use x10_devices::{LinkError, PinEvent};
-use x10_microcode::{Address, BootInfo, Event, EventKind, Payload, PinRef, ResetReason, Status};
+use x10_microcode::{
+    Address, BootInfo, Edge, Event, EventKind, Op, Payload, PinRef, ResetReason, Status,
+};
 
 use crate::diag::bump;
 use crate::mb_core::{now, MbCore};
@@ -121,9 +123,19 @@ impl MbCore {
                 else {
                     return;
                 };
-                let r = match ev.status {
-                    Status::Ok => Payload::from_slice(ev.payload).map_err(|_| LinkError::BadReply),
-                    s => Err(LinkError::Status(s)),
+                // Checked against the operation: every deferred request is a pulse-in
+                // (`ok` with its 4-byte width, or another status with nothing).
+                let pulse_in = Op::PulseIn {
+                    pin: ev.pin,
+                    edge: Edge::Rising,
+                    timeout_ms: None,
+                };
+                let r = match (pulse_in.check_deferred(ev.status, ev.payload), ev.status) {
+                    (Err(_), _) => Err(LinkError::BadReply),
+                    (Ok(()), Status::Ok) => {
+                        Payload::from_slice(ev.payload).map_err(|_| LinkError::BadReply)
+                    }
+                    (Ok(()), s) => Err(LinkError::Status(s)),
                 };
                 if t.requests.complete(ticket, &r, &mut t.diag) {
                     if let Some(s) = self.done.get(ticket.index) {

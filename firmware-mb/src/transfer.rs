@@ -22,6 +22,13 @@ pub(crate) fn link_error(e: BusError) -> LinkError {
     }
 }
 
+/// True when a request that ended in `e` may have reached the board and been accepted: every
+/// error but a NACK (the board took nothing: a write is NACKed before its end) and a status
+/// the board answered.
+fn board_may_have_accepted(e: &LinkError) -> bool {
+    !matches!(e, LinkError::Nack | LinkError::Status(_))
+}
+
 /// The operation of a request frame (PEC byte excluded).
 pub(crate) fn request_op(frame: &[u8]) -> Option<Op<'_>> {
     let f = x10_microcode::RequestFrame::new_checked(frame).ok()?;
@@ -78,6 +85,16 @@ impl MbCore {
                     // caller still waits (a `set_pec`: `board_pec_is`).
                     if let (Ok(_), Some(ms)) = (&r, meta.failsafe_change) {
                         t.boards.failsafe_set(meta.db, ms, now());
+                    }
+                    // A deferred request that ends without a reply that proves the board
+                    // refused it (its `pending` lost to a bus error or a bad check) may be
+                    // measuring all the same: its (board, sequence number) pair is held
+                    // until the board's deadline, so its deferred reply, if it comes, is
+                    // counted as late and never completes a later request.
+                    if let (Err(e), Some(deferred)) = (&r, meta.deferred) {
+                        if board_may_have_accepted(e) {
+                            t.requests.hold(meta.ticket, deferred, now());
+                        }
                     }
                     if t.requests.complete(meta.ticket, &r, &mut t.diag) {
                         if let Some(s) = self.done.get(meta.ticket.index) {

@@ -37,6 +37,8 @@ struct WaiterSlot {
     owner: Option<Waker>,
     /// An event that came while the slot was lingering.
     held: Option<PinEvent>,
+    /// `held` has been given to another task too (a first wait for the pin), once.
+    shared: bool,
 }
 
 /// A registered event waiter.
@@ -62,6 +64,7 @@ impl Waiters {
                     state: Waiter::Free,
                     owner: None,
                     held: None,
+                    shared: false,
                 }
             }; MAX_EVENT_WAITERS],
             generation: 0,
@@ -99,6 +102,22 @@ impl Waiters {
         {
             return Ok(Ok(self.unclaimed.remove(i)));
         }
+        // A task's first wait for the pin: an event held for another task that took the
+        // pin's previous event and has not come back is this task's too (every task waiting
+        // for a pin gets its events); it stays held for the other task as well.
+        if own.is_none() {
+            let other = self.waiters.iter_mut().find(|w| {
+                matches!(w.state, Waiter::Lingering(b, p) if b == board && p == pin)
+                    && w.held.is_some()
+                    && !w.shared
+            });
+            if let Some(w) = other {
+                w.shared = true;
+                if let Some(ev) = w.held.clone() {
+                    return Ok(Ok(ev));
+                }
+            }
+        }
         // Its own slot, else a free one, else one lingering for a task that stopped waiting
         // (an empty one first; a held event it drops is counted).
         let index = own
@@ -130,6 +149,7 @@ impl Waiters {
                 state: Waiter::Waiting(board, pin),
                 owner: Some(task.clone()),
                 held: None,
+                shared: false,
             };
         }
         if dropped {
@@ -161,6 +181,7 @@ impl Waiters {
                         dropped += 1;
                     } else {
                         w.held = Some(ev.clone());
+                        w.shared = false;
                     }
                     any = true;
                 }
@@ -195,6 +216,7 @@ impl Waiters {
                 w.state = Waiter::Free;
                 w.owner = None;
                 w.held = None;
+                w.shared = false;
                 delivered
             }
             _ => false,

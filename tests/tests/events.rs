@@ -126,3 +126,54 @@ fn two_tasks_waiting_on_one_pin_each_get_every_event() {
     assert_eq!(*seen[0].borrow(), [1, 0, 1, 0]);
     assert_eq!(*seen[1].borrow(), [1, 0, 1, 0]);
 }
+
+/// Issue 22 item 9: a task waits once for a pin's event, takes it and moves on; the pin's
+/// next event is held for that task. A second task that waits on the pin later must get it
+/// (before: it was kept for the first task, which never came back, and counted nowhere).
+#[test]
+fn a_task_that_waits_later_gets_the_event_held_for_one_that_moved_on() {
+    use x10_microcode::{EventConfig, Op, Pin, Port};
+    let world = World::new()
+        .board(Board::new(9, 2, 2))
+        .device(Device::button("button", 9, 1, Pin::A).pressed_at_ms(100, 10));
+    let pin = Port::sensor(1).unwrap().pin(Pin::A);
+    let db = Address::new(9).unwrap();
+    let seen: Rc<RefCell<Vec<(&'static str, u8, u64)>>> = Rc::default();
+    let (s1, s2) = (seen.clone(), seen.clone());
+    let config = SimConfig {
+        duration_ms: 500,
+        ..SimConfig::default()
+    };
+    world
+        .sim(config)
+        .unwrap()
+        .with_robot("once", move |x10: X10| async move {
+            let both = EventConfig {
+                rising: true,
+                falling: true,
+                ..EventConfig::OFF
+            };
+            x10.call(db, Op::EventEnable(pin, both)).await?;
+            let ev = x10.wait_event(db, pin).await?;
+            s1.borrow_mut()
+                .push(("once", ev.value[0], Instant::now().as_millis()));
+            // moves on: never waits for this pin again
+            Timer::after(Duration::from_secs(10)).await;
+            Ok::<(), x10_devices::LinkError>(())
+        })
+        .with_robot("later", move |x10: X10| async move {
+            Timer::after(Duration::from_millis(200)).await;
+            let ev = x10.wait_event(db, pin).await?;
+            s2.borrow_mut()
+                .push(("later", ev.value[0], Instant::now().as_millis()));
+            Ok::<(), x10_devices::LinkError>(())
+        })
+        .run()
+        .unwrap();
+    // Pressed at 100 ms (the first task), released at 110 ms: held, then the second task's
+    // at once when it waits at 200 ms.
+    let seen = seen.borrow().clone();
+    assert_eq!(seen.len(), 2, "{seen:?}");
+    assert_eq!((seen[0].0, seen[0].1), ("once", 1));
+    assert_eq!(seen[1], ("later", 0, 200));
+}

@@ -642,11 +642,17 @@ impl<'a> Op<'a> {
 
     /// Checks a reply payload against this operation: `ok` must carry a length
     /// [`Op::reply_len`] allows (for a batch: one well-formed result per item, each of a
-    /// length its item allows), every other status an empty payload.
+    /// length its item allows), every other status an empty payload. A deferred operation is
+    /// never answered `ok` at once (it answers `pending`; see [`Op::check_deferred`]).
     ///
     /// # Errors
     /// [`Error::BadLength`] when the payload does not fit.
     pub fn check_reply(&self, status: crate::Status, payload: &[u8]) -> Result<()> {
+        // A deferred operation is answered `pending` (or refused) at once, never `ok`: its
+        // value comes in the deferred reply ([`Op::check_deferred`]).
+        if status == crate::Status::Ok && self.is_deferred() {
+            return Err(Error::BadLength);
+        }
         if status != crate::Status::Ok {
             return if payload.is_empty() {
                 Ok(())
@@ -672,6 +678,26 @@ impl<'a> Op<'a> {
             }
         }
         Ok(())
+    }
+}
+
+impl Op<'_> {
+    /// Checks a `deferred_reply` event's status and payload against this operation: `ok`
+    /// with exactly [`Op::deferred_len`] bytes, or another status (never `pending`) with an
+    /// empty payload.
+    ///
+    /// # Errors
+    /// [`Error::BadLength`] for anything else, and for an operation that is never deferred.
+    pub fn check_deferred(&self, status: crate::Status, payload: &[u8]) -> Result<()> {
+        let Some(len) = self.deferred_len() else {
+            return Err(Error::BadLength);
+        };
+        match status {
+            crate::Status::Ok if payload.len() == len => Ok(()),
+            crate::Status::Ok | crate::Status::Pending => Err(Error::BadLength),
+            _ if payload.is_empty() => Ok(()),
+            _ => Err(Error::BadLength),
+        }
     }
 }
 
