@@ -138,7 +138,8 @@ fn a_task_that_waits_later_gets_the_event_held_for_one_that_moved_on() {
         .device(Device::button("button", 9, 1, Pin::A).pressed_at_ms(100, 10));
     let pin = Port::sensor(1).unwrap().pin(Pin::A);
     let db = Address::new(9).unwrap();
-    let seen: Rc<RefCell<Vec<(&'static str, u8, u64)>>> = Rc::default();
+    type Log = Rc<RefCell<Vec<(&'static str, u8, u64)>>>;
+    let seen: Log = Rc::default();
     let (s1, s2) = (seen.clone(), seen.clone());
     let config = SimConfig {
         duration_ms: 500,
