@@ -68,6 +68,11 @@ impl Boards {
         self.keepalive_changed = true;
     }
 
+    /// A failsafe setting changed through [`Boards::keepalive`] directly.
+    pub(crate) fn keepalive_changed_now(&mut self) {
+        self.keepalive_changed = true;
+    }
+
     /// True (once) when a failsafe setting changed since the last call.
     pub(crate) fn take_keepalive_changed(&mut self) -> bool {
         core::mem::take(&mut self.keepalive_changed)

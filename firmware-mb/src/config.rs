@@ -53,9 +53,11 @@ pub struct MbConfig {
 
 impl MbConfig {
     /// The default failsafe: 300 ms, kept alive by a heartbeat to a quiet board every 100 ms
-    /// (a third of it), LEGO's keep-alive period. Three heartbeats in a row must be lost
-    /// before a live board trips, and a board whose motherboard stopped puts its actuators
-    /// in their safe state within 300 ms. The cost on the bus: one heartbeat with PEC is 6
+    /// (a third of it), LEGO's keep-alive period. A lost heartbeat is tried again half an
+    /// interval after it was due, so a live board is tried at 100, 150, 200 and 250 ms of
+    /// silence (each try given up after 25 ms): four in a row must be lost before it trips,
+    /// and a board whose motherboard stopped puts its actuators in their safe state within
+    /// 300 ms. The cost on the bus: one heartbeat with PEC is 6
     /// bytes (address + 4 + PEC), about 56 bit times, 140 µs at 400 kHz, so 0.14 % of the
     /// bus per quiet board (0.56 % at 100 kHz); a board that hears a request in that time
     /// costs nothing.

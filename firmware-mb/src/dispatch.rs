@@ -15,10 +15,9 @@ use x10_microcode::{Address, Op, Request, Status, MAX_FRAME_LEN, REPLY_HEADER_LE
 
 use crate::boards::pec_change;
 use crate::diag::bump;
-use crate::jobs::{Job, JobMeta};
+use crate::jobs::Job;
 use crate::keepalive::{KeepaliveOp, Next};
 use crate::mb_core::{now, sleep_until, MbCore};
-use crate::requests::Ticket;
 use crate::transfer::{link_error, request_op, Outcome};
 
 impl MbCore {
@@ -432,20 +431,7 @@ impl MbCore {
         let n = req.emit(&mut frame).map_err(LinkError::Invalid)?;
         frame.truncate(n);
         let reads = op != Op::Heartbeat;
-        let job = Job {
-            meta: JobMeta {
-                ticket: Ticket {
-                    index: usize::MAX,
-                    generation: 0,
-                },
-                db,
-                seq,
-                read: reads.then(|| op.reply_capacity()),
-                deferred: None,
-                failsafe_change: None,
-            },
-            frame,
-        };
+        let job = Job::own(db, seq, reads.then(|| op.reply_capacity()), frame);
         let mut backoff = Backoff::new(self.config.retry, seed ^ u32::from(seq));
         let mut read = [0u8; MAX_FRAME_LEN];
         loop {

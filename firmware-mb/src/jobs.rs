@@ -41,6 +41,32 @@ pub(crate) struct Job {
     pub(crate) frame: Vec<u8, MAX_FRAME_LEN>,
 }
 
+impl Job {
+    /// A request of the runtime's own (board set-up, keepalive) to `db` with sequence number
+    /// `seq`: no pending slot, read back when `read` says how many payload bytes to read.
+    pub(crate) fn own(
+        db: Address,
+        seq: u8,
+        read: Option<usize>,
+        frame: Vec<u8, MAX_FRAME_LEN>,
+    ) -> Job {
+        Job {
+            meta: JobMeta {
+                ticket: Ticket {
+                    index: usize::MAX,
+                    generation: 0,
+                },
+                db,
+                seq,
+                read,
+                deferred: None,
+                failsafe_change: None,
+            },
+            frame,
+        }
+    }
+}
+
 /// The queued jobs, oldest first (a ring: taking the oldest moves nothing). Each holds a
 /// slot, so the queue never overflows.
 pub(crate) struct Jobs {

@@ -29,7 +29,7 @@ use crate::board_set::{board_index as index, BoardSet, BOARDS};
 use crate::diag::{bump, MbDiagnostics};
 
 /// The static RAM the keepalive state takes: a timeout (2 bytes) and a due time (4 bytes)
-/// per address, and two bitmaps.
+/// per address, and four bitmaps.
 pub const KEEPALIVE_RAM_BYTES: usize = core::mem::size_of::<Keepalives>();
 
 /// What to do next for a group of boards (the external ones, or the internal one).
@@ -64,6 +64,10 @@ pub(crate) struct Keepalives {
     active: BoardSet,
     /// Boards that rebooted: their failsafe must be set again.
     resend: BoardSet,
+    /// Keepalives lost in a row since the board last acknowledged one (0 to 3: bit 0 in
+    /// `lost_lo`, bit 1 in `lost_hi`).
+    lost_lo: BoardSet,
+    lost_hi: BoardSet,
 }
 
 /// A third of `timeout_ms`, in µs.
@@ -72,12 +76,20 @@ fn interval_us(timeout_ms: u16) -> u64 {
 }
 
 /// How long a keepalive to a board with failsafe `timeout_ms` may take in all (bus
-/// retries): half the keepalive interval (a sixth of the failsafe), at most
-/// `request_timeout_us`. The dispatcher stops retrying it by then, so a board that does not
-/// answer holds back the others' keepalives (and the jobs) by its NACK retries at most.
+/// retries): a quarter of the keepalive interval (a twelfth of the failsafe), at most
+/// `request_timeout_us`, so that a lost one ends before the next try (half an interval
+/// later, see [`Keepalives::done`]). The dispatcher stops retrying it by then, so a board that
+/// does not answer holds back the others' keepalives (and the jobs) by its NACK retries at
+/// most.
 pub(crate) fn keepalive_timeout_us(timeout_ms: u16, request_timeout_us: u64) -> u64 {
-    (interval_us(timeout_ms) / 2).min(request_timeout_us)
+    (interval_us(timeout_ms) / 4).min(request_timeout_us)
 }
+
+/// Keepalives tried half an interval apart after one is lost, before the schedule goes back
+/// to one per interval: with the first at a third of the failsafe, the tries are at 1/3, 1/2,
+/// 2/3 and 5/6 of it after the last transaction the board acknowledged, so four in a row
+/// must be lost before a live board trips.
+const FAST_RETRIES: u8 = 3;
 
 impl Keepalives {
     pub(crate) const fn new() -> Keepalives {
@@ -86,7 +98,19 @@ impl Keepalives {
             due: [0; BOARDS],
             active: BoardSet::new(),
             resend: BoardSet::new(),
+            lost_lo: BoardSet::new(),
+            lost_hi: BoardSet::new(),
         }
+    }
+
+    /// Keepalives lost in a row to entry `i` (0 to 3).
+    fn lost(&self, i: usize) -> u8 {
+        u8::from(self.lost_lo.contains(i)) | u8::from(self.lost_hi.contains(i)) << 1
+    }
+
+    fn set_lost(&mut self, i: usize, n: u8) {
+        self.lost_lo.set(i, n & 1 != 0);
+        self.lost_hi.set(i, n & 2 != 0);
     }
 
     /// The due time of entry `i`, as an instant near `now`.
@@ -120,7 +144,24 @@ impl Keepalives {
         }
         self.active.set(i, timeout_ms > 0);
         self.resend.set(i, false);
+        self.set_lost(i, 0);
         self.set_due(i, now.plus_us(interval_us(timeout_ms)));
+    }
+
+    /// A `set_failsafe` of `timeout_ms` to `board` ended at `now` without an answer that
+    /// says whether the board applied it (a lost or garbled reply): the board may run either
+    /// failsafe. The faster keepalive of the two is kept (a failsafe that is off does not
+    /// count), so the board trips with neither.
+    pub(crate) fn maybe_set(&mut self, board: Address, timeout_ms: u16, now: Instant) {
+        let old = self.timeout_ms(board);
+        let keep = match (old, timeout_ms) {
+            (0, new) => new,
+            (old, 0) => old,
+            (old, new) => old.min(new),
+        };
+        if keep != old {
+            self.set(board, keep, now);
+        }
     }
 
     /// True when a failsafe is kept alive on `board`: only then does
@@ -135,6 +176,7 @@ impl Keepalives {
         let i = index(board);
         if self.active.contains(i) && !self.resend.contains(i) {
             let ms = self.timeout_ms.get(i).copied().unwrap_or(0);
+            self.set_lost(i, 0);
             self.set_due(i, now.plus_us(interval_us(ms)));
         }
     }
@@ -190,9 +232,11 @@ impl Keepalives {
     }
 
     /// A keepalive to `board` ended at `now` (`ok`: the board acknowledged it, and for a
-    /// re-send confirmed it). Counted; after a failure the next try comes a third of the
-    /// timeout later (a board that does not answer is not flooded), and a re-send stays due
-    /// until it succeeds.
+    /// re-send confirmed it). Counted. After a lost heartbeat the next try is due half an
+    /// interval (a sixth of the timeout) after the lost one was due, [`FAST_RETRIES`] times
+    /// in a row, so that a live board hears one of four tries before it trips; after that
+    /// (the board is gone or has tripped) one try per interval, so a board that does not
+    /// answer is not flooded. A re-send stays due until it succeeds.
     pub(crate) fn done(
         &mut self,
         board: Address,
@@ -203,16 +247,32 @@ impl Keepalives {
     ) {
         let i = index(board);
         let ms = self.timeout_ms.get(i).copied().unwrap_or(0);
-        match (op, ok) {
-            (KeepaliveOp::Heartbeat, true) => bump(&mut diag.keepalives),
+        let lost = self.lost(i);
+        let next = match (op, ok) {
+            (KeepaliveOp::Heartbeat, true) => {
+                bump(&mut diag.keepalives);
+                self.set_lost(i, 0);
+                now.plus_us(interval_us(ms))
+            }
             (KeepaliveOp::SetFailsafe(_), true) => {
                 bump(&mut diag.failsafe_resends);
                 self.resend.set(i, false);
+                self.set_lost(i, 0);
+                now.plus_us(interval_us(ms))
             }
-            (_, false) => bump(&mut diag.keepalive_failures),
-        }
+            (KeepaliveOp::Heartbeat, false) if lost < FAST_RETRIES => {
+                bump(&mut diag.keepalive_failures);
+                self.set_lost(i, lost + 1);
+                // Half an interval after the lost one was due (at once if that has passed).
+                self.due(i, now).plus_us(interval_us(ms) / 2).max(now)
+            }
+            (_, false) => {
+                bump(&mut diag.keepalive_failures);
+                now.plus_us(interval_us(ms))
+            }
+        };
         if self.active.contains(i) {
-            self.set_due(i, now.plus_us(interval_us(ms)));
+            self.set_due(i, next);
         }
     }
 
@@ -242,13 +302,62 @@ mod tests {
         let later = near_wrap.plus_us(100_001);
         assert_eq!(
             k.next(later, false, 100_000),
-            Next::Send(a(9), KeepaliveOp::Heartbeat, 50_000)
+            Next::Send(a(9), KeepaliveOp::Heartbeat, 25_000)
         );
         assert_eq!(k.next(later, true, 100_000), Next::Idle);
     }
 
+    /// Issue 22 item 10: with a 300 ms failsafe, a board that acknowledged a transaction at
+    /// 0 gets heartbeats tried at 100, 150, 200 and 250 ms when they are lost (each given up
+    /// after 25 ms), so four must be lost before it trips at 300 ms; then one per 100 ms.
+    #[test]
+    fn lost_heartbeats_are_tried_again_half_an_interval_later_four_before_the_trip() {
+        let mut k = Keepalives::new();
+        let mut diag = MbDiagnostics::new();
+        k.set(a(9), 300, Instant(0));
+        let mut tries: heapless::Vec<u64, 8> = heapless::Vec::new();
+        let mut now = Instant(0);
+        for _ in 0..6 {
+            let at = match k.next(now, false, 100_000) {
+                Next::At(at) => at,
+                other => panic!("{other:?}"),
+            };
+            assert_eq!(
+                k.next(at, false, 100_000),
+                Next::Send(a(9), KeepaliveOp::Heartbeat, 25_000)
+            );
+            tries.push(at.as_micros() / 1_000).unwrap();
+            // lost: given up after its 25 ms
+            now = at.plus_us(25_000);
+            k.done(a(9), KeepaliveOp::Heartbeat, false, now, &mut diag);
+        }
+        assert_eq!(tries[..], [100, 150, 200, 250, 375, 500]);
+        // One acknowledged: back to one per third of the failsafe, and four fast tries again.
+        k.sent(a(9), Instant(600_000));
+        assert_eq!(
+            k.next(Instant(600_000), false, 100_000),
+            Next::At(Instant(700_000))
+        );
+        assert_eq!(k.lost(9), 0);
+    }
+
+    /// A `set_failsafe` whose answer was lost: the faster of the two keepalives is kept.
+    #[test]
+    fn an_unconfirmed_failsafe_keeps_the_faster_keepalive() {
+        let mut k = Keepalives::new();
+        k.set(a(9), 300, Instant(0));
+        k.maybe_set(a(9), 100, Instant(10_000));
+        assert_eq!(k.timeout_ms(a(9)), 100);
+        k.maybe_set(a(9), 500, Instant(20_000));
+        k.maybe_set(a(9), 0, Instant(20_000));
+        assert_eq!(k.timeout_ms(a(9)), 100);
+        let mut k = Keepalives::new();
+        k.maybe_set(a(9), 200, Instant(0));
+        assert_eq!(k.timeout_ms(a(9)), 200);
+    }
+
     #[test]
     fn the_state_stays_small() {
-        assert_eq!(KEEPALIVE_RAM_BYTES, 128 * 2 + 128 * 4 + 16 + 16);
+        assert_eq!(KEEPALIVE_RAM_BYTES, 128 * 2 + 128 * 4 + 4 * 16);
     }
 }

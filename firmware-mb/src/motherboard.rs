@@ -9,6 +9,7 @@ use core::ops::Deref;
 use embassy_futures::join::join4;
 use embassy_futures::select::{select, select3, Either, Either3};
 use firmware_db::{Daughterboard, Ports, REPLY_BUF_LEN};
+use heapless::Vec;
 use x10_hal::bus::MultiMaster;
 use x10_hal::time::EmbassyClock;
 use x10_microcode::{Address, Op, Request, MAX_FRAME_LEN};
@@ -16,9 +17,11 @@ use x10_microcode::{Address, Op, Request, MAX_FRAME_LEN};
 use crate::config::MbConfig;
 use crate::diag::bump;
 use crate::handle::X10;
+use crate::jobs::Job;
 use crate::keepalive::{KeepaliveOp, Next};
 use crate::mb_core::{now, sleep_until, MbCore, M};
 use crate::observe::CallObserver;
+use crate::transfer::Outcome;
 
 /// The motherboard runtime: the shared [`MbCore`] and the internal daughterboard (address 0)
 /// on the board's own ports `P`. It names no chip.
@@ -128,21 +131,19 @@ impl<P: Ports> Motherboard<P> {
                 self.core.with(|t| bump(&mut t.diag.abandoned));
                 continue;
             }
-            let read = meta.read.is_some();
+            // Every request is read back, outputs too (it costs no bus): a refusal ends the
+            // call in its status, never in `Ok` followed by a `rejected` event.
             let (frame, pec) = self.core.frame_to_send(&job);
-            self.internal.handle_write(&frame, read).await;
-            if read {
-                let mut reply = [0u8; REPLY_BUF_LEN];
-                let n = self.internal.take_reply(&mut reply);
-                self.core.finish_transfer(&job, pec, Ok(reply.get(..n)));
-            } else {
-                self.core.finish_transfer(&job, pec, Ok(None));
-            }
+            self.internal.handle_write(&frame, true).await;
+            let mut reply = [0u8; REPLY_BUF_LEN];
+            let n = self.internal.take_reply(&mut reply);
+            self.core.finish_transfer(&job, pec, Ok(reply.get(..n)));
         }
     }
 
-    /// A keepalive to the internal board: a heartbeat, or its failsafe set again, as a
-    /// write with a fresh sequence number (the internal board always takes it).
+    /// A keepalive to the internal board: a heartbeat, or its failsafe set again, with a
+    /// fresh sequence number, framed as the board's PEC setting is (a program may have
+    /// turned it on) and read back: it counts as sent only when the board answered `ok`.
     async fn internal_keepalive(&self, board: Address, op: KeepaliveOp) {
         let seq = self.core.with(|t| t.requests.fresh_seq(board));
         let op_sent = match op {
@@ -154,13 +155,19 @@ impl<P: Ports> Motherboard<P> {
             seq,
             op: op_sent,
         };
-        let mut frame = [0u8; MAX_FRAME_LEN];
+        let mut frame: Vec<u8, MAX_FRAME_LEN> = Vec::new();
+        let _ = frame.resize(req.buffer_len().min(MAX_FRAME_LEN), 0);
         let ok = match req.emit(&mut frame) {
             Ok(n) => {
-                self.internal
-                    .handle_write(frame.get(..n).unwrap_or(&[]), false)
-                    .await;
-                true
+                frame.truncate(n);
+                let job = Job::own(board, seq, Some(0), frame);
+                let (tx, pec) = self.core.frame_to_send(&job);
+                self.internal.handle_write(&tx, true).await;
+                let mut reply = [0u8; REPLY_BUF_LEN];
+                let n = self.internal.take_reply(&mut reply);
+                let read = reply.get(..n).unwrap_or(&[]);
+                let (outcome, _) = self.core.interpret(&job.meta, pec, &op_sent, read);
+                matches!(outcome, Outcome::Complete(Ok(_)))
             }
             Err(_) => false,
         };

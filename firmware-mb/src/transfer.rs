@@ -96,6 +96,14 @@ impl MbCore {
                             t.requests.hold(meta.ticket, deferred, now());
                         }
                     }
+                    // Likewise a `set_failsafe` the board may have applied: the faster of
+                    // the two keepalives is kept, so the board trips with neither.
+                    if let (Err(e), Some(ms)) = (&r, meta.failsafe_change) {
+                        if board_may_have_accepted(e) {
+                            t.boards.keepalive.maybe_set(meta.db, ms, now());
+                            t.boards.keepalive_changed_now();
+                        }
+                    }
                     if t.requests.complete(meta.ticket, &r, &mut t.diag) {
                         if let Some(s) = self.done.get(meta.ticket.index) {
                             s.signal(r);

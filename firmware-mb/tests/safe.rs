@@ -292,3 +292,53 @@ fn a_board_whose_boot_event_was_lost_is_prepared_again_when_it_refuses_our_pec()
     let d = w.mb.diagnostics();
     assert_eq!((d.pec_resyncs, d.bad_events, d.rejected), (1, 1, 0));
 }
+
+/// Issue 22 item 10: a program's `set_failsafe(100)` reaches the board (which had 300 ms),
+/// but its reply is garbled on the wire: the call ends in `BadReply`, and the board may run
+/// either failsafe. The motherboard keeps the faster keepalive, so the board never trips
+/// (before: it kept the 300 ms schedule and the board tripped ten times a second).
+#[test]
+fn a_failsafe_whose_reply_was_lost_is_kept_alive_at_the_faster_rate() {
+    let w = World::safe();
+    let r = w.sim(async {
+        w.at(1_000).await;
+        w.mb.call(db(9), Op::Ping).await.unwrap();
+        w.bus.flip_reply(9, vec![0x00, 0x01]);
+        let r = w.mb.call(db(9), Op::SetFailsafe { timeout_ms: 100 }).await;
+        w.at(1_001_000).await;
+        r
+    });
+    assert_eq!(r, Err(LinkError::BadReply));
+    assert_eq!(w.db9.failsafe_timeout_ms(), 100);
+    assert_eq!(w.mb.keepalive_ms(db(9)), 100);
+    assert_eq!(w.db9.diagnostics().failsafe_trips, 0);
+}
+
+/// Issue 22 item 10: a program turns PEC on for the internal board; its keepalive goes on
+/// with PEC and is read back, so the board's failsafe never trips and no heartbeat counts as
+/// sent unless the board took it (before: every internal heartbeat was refused as
+/// `bad_length`, and counted as sent).
+#[test]
+fn internal_heartbeats_follow_the_internal_boards_pec_setting() {
+    let w = World::new();
+    w.sim(async {
+        w.at(1_000).await;
+        let internal = Address::INTERNAL;
+        w.mb.call(internal, Op::SetFailsafe { timeout_ms: 300 })
+            .await
+            .unwrap();
+        w.mb.call(internal, Op::SetPec(true)).await.unwrap();
+        w.at(1_001_000).await;
+    });
+    let internal = w.mb.internal().diagnostics();
+    assert_eq!(
+        (
+            internal.failsafe_trips,
+            internal.pec_errors,
+            internal.bad_length
+        ),
+        (0, 0, 0)
+    );
+    let d = w.mb.diagnostics();
+    assert_eq!((d.keepalives, d.keepalive_failures, d.rejected), (9, 0, 0));
+}

@@ -87,6 +87,9 @@ pub enum Seen {
 struct Inner {
     nodes: RefCell<BTreeMap<u8, Node>>,
     faults: RefCell<BTreeMap<u8, VecDeque<Fault>>>,
+    /// Bit masks XORed into the next replies read from an address (the board has the
+    /// request; its reply is corrupted on the wire).
+    reply_flips: RefCell<BTreeMap<u8, VecDeque<Vec<u8>>>>,
     to_mb: RefCell<VecDeque<Vec<u8>>>,
     /// Every write to the motherboard, with its virtual time.
     to_mb_log: RefCell<Vec<(u64, Vec<u8>)>>,
@@ -120,6 +123,17 @@ impl LoopBus {
             .entry(addr)
             .or_default()
             .push_back(f);
+    }
+
+    /// The next reply read from `addr` reaches the motherboard with `mask` XORed into it
+    /// (byte by byte from the first): the board received and executed the request.
+    pub fn flip_reply(&self, addr: u8, mask: Vec<u8>) {
+        self.inner
+            .reply_flips
+            .borrow_mut()
+            .entry(addr)
+            .or_default()
+            .push_back(mask);
     }
 
     /// A daughterboard writes `bytes` to the motherboard.
@@ -248,6 +262,15 @@ impl MultiMaster for LoopBus {
                 let mut buf = [0u8; 40];
                 let n = d.take_reply(&mut buf).min(read.len());
                 read[..n].copy_from_slice(&buf[..n]);
+                let flip = self
+                    .inner
+                    .reply_flips
+                    .borrow_mut()
+                    .get_mut(&addr)
+                    .and_then(VecDeque::pop_front);
+                for (r, m) in read.iter_mut().zip(flip.unwrap_or_default()) {
+                    *r ^= m;
+                }
                 Ok(())
             }
             Do::Reply(delay, reply) => {
