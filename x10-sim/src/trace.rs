@@ -13,7 +13,7 @@
 
 use std::fmt;
 
-use x10_microcode::{Event, EventConfig, EventKind, Op, Reply, Request};
+use x10_microcode::{Address, Event, EventConfig, EventKind, Op, Reply, Request};
 
 use crate::bus::{BusRecord, Outcome};
 use crate::exec::Nanos;
@@ -161,32 +161,49 @@ pub fn describe_op(op: &Op<'_>) -> String {
     }
 }
 
-/// A request frame in words (`io high A1.B seq 2`), or why it does not parse.
-pub fn describe_request(bytes: &[u8]) -> String {
+/// A request frame to board `db` in words (`io high A1.B seq 2`; `+pec` when it carries its
+/// check, a PEC byte or a CRC-16), or why it does not parse.
+pub fn describe_request(db: u8, bytes: &[u8]) -> String {
     match Request::parse(bytes) {
         Ok(r) => format!("{} seq {}", describe_op(&r.op), r.seq),
-        Err(e) => match bytes.split_last() {
-            // The frame may carry a PEC byte.
-            Some((_, frame)) if Request::parse(frame).is_ok() => match Request::parse(frame) {
-                Ok(r) => format!("{} seq {} +pec", describe_op(&r.op), r.seq),
-                Err(_) => format!("unparsed ({e})"),
-            },
-            _ => format!("unparsed ({e})"),
+        Err(e) => match Address::new(db).and_then(|a| Request::parse_with_pec(a, bytes)) {
+            Ok(r) => format!("{} seq {} +pec", describe_op(&r.op), r.seq),
+            Err(_) => format!("unparsed ({e})"),
         },
     }
 }
 
-/// A reply in words (`reply seq 3 ok [01]`).
-pub fn describe_reply(bytes: &[u8]) -> String {
-    match Reply::parse(bytes) {
+/// A reply read from board `db` in words (`reply seq 3 ok [01]`; `+pec` when it carries its
+/// check). The bytes are what the motherboard read: the frame, its check, then padding.
+pub fn describe_reply(db: u8, bytes: &[u8]) -> String {
+    let Ok(a) = Address::new(db) else {
+        return "unparsed reply (address)".to_string();
+    };
+    match Reply::parse_read(a, false, bytes) {
         Ok(r) => format!("reply seq {} {} {}", r.seq, r.status.name(), hex(r.payload)),
-        Err(e) => format!("unparsed reply ({e})"),
+        Err(e) => match Reply::parse_read(a, true, bytes) {
+            Ok(r) => format!(
+                "reply seq {} {} {} +pec",
+                r.seq,
+                r.status.name(),
+                hex(r.payload)
+            ),
+            Err(_) => format!("unparsed reply ({e})"),
+        },
     }
 }
 
-/// An event in words (`event pin_change S1.A seq 4 ok [01]`).
-pub fn describe_event(bytes: &[u8]) -> String {
-    match Event::parse(bytes) {
+/// An event written to the motherboard at `mb` in words (`event pin_change S1.A seq 4 ok
+/// [01]`; `+pec` when it carries its check; a `rejected` event names the status it reports).
+pub fn describe_event(mb: u8, bytes: &[u8]) -> String {
+    let (parsed, checked) = match Event::parse(bytes) {
+        Ok(ev) => (Ok(ev), false),
+        Err(e) => match Address::new(mb).and_then(|a| Event::parse_with_pec(a, bytes)) {
+            Ok(ev) => (Ok(ev), true),
+            Err(_) => (Err(e), false),
+        },
+    };
+    match parsed {
         Ok(ev) => {
             let pin = match ev.kind {
                 EventKind::PinChange
@@ -196,11 +213,12 @@ pub fn describe_event(bytes: &[u8]) -> String {
                 _ => String::new(),
             };
             format!(
-                "event {}{pin} seq {} {} {}",
+                "event {}{pin} seq {} {} {}{}",
                 ev.kind,
                 ev.seq,
                 ev.status.name(),
-                hex(ev.payload)
+                hex(ev.payload),
+                if checked { " +pec" } else { "" }
             )
         }
         Err(e) => format!("unparsed event ({e})"),
@@ -257,9 +275,9 @@ pub fn bus_lines(rec: &BusRecord, names: &BusNames<'_>) -> Vec<TraceLine> {
     }
     let is_event = names.mb_address == Some(rec.addr) && !rec.is_read;
     let what = if is_event {
-        describe_event(&rec.written)
+        describe_event(rec.addr, &rec.written)
     } else {
-        describe_request(&rec.written)
+        describe_request(rec.addr, &rec.written)
     };
     let stretch = if rec.stretch_ns > 0 {
         format!(" stretch {}", micros(rec.stretch_ns))
@@ -286,7 +304,7 @@ pub fn bus_lines(rec: &BusRecord, names: &BusNames<'_>) -> Vec<TraceLine> {
                     master,
                     format!(
                         "<- {target} {} {}",
-                        describe_reply(&rec.read),
+                        describe_reply(rec.addr, &rec.read),
                         hex(&rec.read)
                     ),
                 ));

@@ -681,3 +681,23 @@ fn the_thesis_thermistor_model_matches_the_scenario() {
         c += 0.37;
     }
 }
+
+/// Issue 22 item 11 and issue 23 item 4: the trace decodes what the safe defaults send.
+/// Every request, reply and event of the Figure 4.4 run (PEC on every board, the boot
+/// events always checked) reads in words, with `+pec` when it carries its check.
+#[test]
+fn the_trace_decodes_every_frame_the_defaults_send() {
+    let config = SimConfig {
+        duration_ms: 3_000,
+        ..SimConfig::default()
+    };
+    let outcome = x10_sim::examples::sim("fig4_4", config)
+        .unwrap()
+        .run()
+        .unwrap();
+    let trace = outcome.trace.render();
+    assert!(!trace.contains("unparsed"), "{trace}");
+    assert!(trace.contains("event boot seq 0 ok"), "{trace}");
+    assert!(trace.contains("+pec"), "{trace}");
+    assert!(trace.contains("<- db09 reply seq"), "{trace}");
+}
