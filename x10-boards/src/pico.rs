@@ -33,11 +33,11 @@ use x10_hal::ports::{EdgeCount, PortError, Ports};
 use x10_microcode::{Edge, Level, PinRef, Port};
 
 use crate::pico_rules::{
-    self, Activity, AfterRead, Controller, ControllerEnd, Recovery, ReplyEnd, Switch, Target,
+    self, Activity, Controller, ControllerEnd, Heard, Listen, Recovery, ReplyEnd, Switch, Target,
 };
 use crate::pins::PICO;
 use crate::pwm::{rp2040_slice, Output, SliceTiming, Timebase, DEFAULT_HZ};
-use crate::{address, port_lookup, BusConfig, RX_LEN};
+use crate::{address, port_lookup, BusConfig};
 
 bind_interrupts!(
     /// The interrupts the Pico images use: the bus's I2C block (the ADC is read blocking).
@@ -131,6 +131,11 @@ macro_rules! pico_build {
                         controller_clean: true,
                         target_clean: true,
                         activity: Activity::default(),
+                        kept: None,
+                        sda_hold: pico_rules::sda_tx_hold(
+                            embassy_rp::clocks::clk_peri_freq(),
+                            bus.frequency_hz,
+                        ),
                     },
                     ports: PicoPorts {
                         adc: Lock::new(adc),
@@ -186,6 +191,11 @@ pub struct PicoBus {
     /// How long the target has been active with nothing for this node (a controller gone
     /// without a STOP).
     activity: Activity,
+    /// The first byte of the next transfer, taken from the RX FIFO while `listen` drained the
+    /// one before it (see [`pico_rules::heard`]); the next `listen` starts with it.
+    kept: Option<u8>,
+    /// `IC_SDA_HOLD.IC_SDA_TX_HOLD` for the target ([`pico_rules::sda_tx_hold`]).
+    sda_hold: u16,
 }
 
 /// The fill byte sent when the controller reads more than the reply holds.
@@ -221,7 +231,7 @@ impl PicoBus {
     }
 
     /// The target side's state (see [`pico_rules::Target`]).
-    fn target_state() -> Target {
+    fn target_state(&self) -> Target {
         let r = i2c_regs();
         let status = r.ic_status().read();
         let raw = r.ic_raw_intr_stat().read();
@@ -229,7 +239,7 @@ impl PicoBus {
             slv_activity: status.slv_activity(),
             rfne: status.rfne(),
             rd_req: raw.rd_req(),
-            stop_det: raw.stop_det(),
+            kept: self.kept.is_some(),
         }
     }
 
@@ -240,7 +250,7 @@ impl PicoBus {
             let stale = pico_rules::stale_activity_us(self.config.frequency_hz);
             // Being addressed, holding bytes or a read request: switching would reset the
             // block and lose them. Activity alone for four byte times: abandoned (no STOP).
-            match self.activity.switch(now, Self::target_state(), stale) {
+            match self.activity.switch(now, self.target_state(), stale) {
                 Switch::Refuse => return Err(BusError::ArbitrationLost),
                 Switch::Now | Switch::Stale => {}
             }
@@ -268,12 +278,20 @@ impl PicoBus {
             self.target = None;
             self.target_clean = true;
         }
+        if self.target.is_none() {
+            // A new driver resets the block: nothing of an earlier transfer is left.
+            self.kept = None;
+        }
         let (i2c, scl, sda) = self.parts();
         let mut cfg = i2c_slave::Config::default();
         cfg.addr = u16::from(self.config.own_address);
         cfg.general_call = false;
-        self.target
-            .get_or_insert_with(|| i2c_slave::I2cSlave::new(i2c, scl, sda, Irqs, cfg))
+        let hold = self.sda_hold;
+        self.target.get_or_insert_with(|| {
+            let t = i2c_slave::I2cSlave::new(i2c, scl, sda, Irqs, cfg);
+            set_sda_hold(hold);
+            t
+        })
     }
 
     /// Finishes a controller transaction (issue 11 item 5, Pico part).
@@ -451,24 +469,21 @@ impl PicoBus {
                 }
             }
         }
-        // The read ends with its STOP (or a repeated START into the next transfer).
-        let ended = loop {
-            match pico_rules::after_read(Self::target_state()) {
-                AfterRead::Wait => Timer::after_micros(STOP_POLL_US).await,
-                AfterRead::ClearStop => {
-                    r.ic_clr_stop_det().read();
-                    break true;
-                }
-                AfterRead::Leave => break true,
-            }
+        // The read ends with its STOP (or the next transfer); `STOP_DET` is left alone (see
+        // `pico_rules::read_over`).
+        while !pico_rules::read_over(self.target_state()) {
+            Timer::after_micros(STOP_POLL_US).await;
+        }
+        let Some(t) = self.target.as_mut() else {
+            return Err(BusError::Bus);
         };
         let end = ReplyEnd {
             txflr: r.ic_txflr().read().txflr(),
             tx_abrt: r.ic_raw_intr_stat().read().tx_abrt(),
-            ended,
         };
         if pico_rules::reset_after_reply(end) {
             t.reset();
+            set_sda_hold(self.sda_hold);
         }
         if failed {
             Err(BusError::Bus)
@@ -476,6 +491,75 @@ impl PicoBus {
             Ok(())
         }
     }
+
+    /// Drains one transfer to this node from the RX FIFO into `buf` and reports it (see
+    /// [`pico_rules::heard`]): the transfer's end is told by the next transfer's marked first
+    /// byte (kept for the next call), a read request, or the state machine going idle, never
+    /// by `STOP_DET`. Replaces embassy-rp's `I2cSlave::listen`, which ends a write on
+    /// `STOP_DET` and loses the second of two writes received before it looks (issue 21 item
+    /// 5).
+    ///
+    /// [`BusError::Overrun`] when a write does not fit `buf` (its remaining bytes are read
+    /// as the next transfer, which the frame checks reject).
+    async fn drain(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
+        let r = i2c_regs();
+        let mut len = 0;
+        let mut byte = self.kept.take();
+        loop {
+            // The read request first: it follows every byte of the write before it.
+            let raw = r.ic_raw_intr_stat().read();
+            let mut next = false;
+            let status = loop {
+                if let Some(b) = byte.take() {
+                    *buf.get_mut(len).ok_or(BusError::Overrun)? = b;
+                    len += 1;
+                }
+                let s = r.ic_status().read();
+                if !s.rfne() {
+                    break s;
+                }
+                let d = r.ic_data_cmd().read();
+                if len > 0 && d.first_data_byte() {
+                    self.kept = Some(d.dat());
+                    next = true;
+                    break s;
+                }
+                byte = Some(d.dat());
+            };
+            let l = Listen {
+                len,
+                next,
+                rd_req: raw.rd_req(),
+                restart_det: raw.restart_det(),
+                slv_activity: status.slv_activity(),
+            };
+            match pico_rules::heard(l) {
+                Heard::Wait => Timer::after_micros(ADDRESSED_POLL_US).await,
+                Heard::Write => return Ok(Incoming::Write(len)),
+                Heard::WriteRead => {
+                    r.ic_clr_restart_det().read();
+                    return Ok(Incoming::WriteRead(len));
+                }
+                Heard::Read => {
+                    r.ic_clr_restart_det().read();
+                    return Ok(Incoming::Read);
+                }
+            }
+        }
+    }
+}
+
+/// Sets the target's SDA hold time ([`pico_rules::sda_tx_hold`]) after embassy-rp's
+/// `I2cSlave` reset the block, which leaves it at one clock. The register takes writes only
+/// while the block is disabled: it is disabled for the write, within a microsecond of
+/// embassy-rp enabling it (an address phase begun in that microsecond is not acknowledged,
+/// as while the block was in reset, and its controller retries).
+#[inline(never)]
+fn set_sda_hold(hold: u16) {
+    let r = i2c_regs();
+    r.ic_enable().write(|w| w.set_enable(false));
+    r.ic_sda_hold().modify(|w| w.set_ic_sda_tx_hold(hold));
+    r.ic_enable().write(|w| w.set_enable(true));
 }
 
 fn abort_error(reason: i2c::AbortReason) -> BusError {
@@ -535,43 +619,22 @@ impl MultiMaster for PicoBus {
         // Armed once; an armed target is not rebuilt, so nothing it received is reset.
         self.target();
         // Only this node's own address match counts (issue 11 item 6, issue 16 defect 2).
-        while !pico_rules::addressed(Self::target_state()) {
+        while !pico_rules::addressed(self.target_state()) {
             Timer::after_micros(ADDRESSED_POLL_US).await;
         }
         Ok(())
     }
 
     async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
-        let mut rx = [0u8; RX_LEN];
         let timeout = self.timeout();
-        let t = self.target();
-        loop {
-            // A transfer that never ends (its controller gone without a STOP) must not hold
-            // the node for ever: reset the block after the timeout.
-            let Ok(heard) = with_timeout(timeout, t.listen(&mut rx)).await else {
-                self.target_clean = false;
-                return Err(BusError::Timeout);
-            };
-            let n = match heard {
-                Ok(i2c_slave::Command::Read) => return Ok(Incoming::Read),
-                Ok(i2c_slave::Command::Write(n)) => Incoming::Write(n),
-                Ok(i2c_slave::Command::WriteRead(n)) => Incoming::WriteRead(n),
-                // General calls are not enabled; should one be reported, it is not for us.
-                Ok(i2c_slave::Command::GeneralCall(_)) => continue,
-                Err(i2c_slave::Error::PartialWrite(_)) => return Err(BusError::Overrun),
-                Err(i2c_slave::Error::PartialGeneralCall(_)) => continue,
-                Err(_) => return Err(BusError::Bus),
-            };
-            let len = match n {
-                Incoming::Write(n) | Incoming::WriteRead(n) => n,
-                Incoming::Read => 0,
-            };
-            let (Some(dst), Some(src)) = (buf.get_mut(..len), rx.get(..len)) else {
-                return Err(BusError::Overrun);
-            };
-            dst.copy_from_slice(src);
-            return Ok(n);
-        }
+        self.target();
+        // A transfer that never ends (its controller gone without a STOP) must not hold the
+        // node for ever: reset the block after the timeout.
+        let r = with_timeout(timeout, self.drain(buf)).await;
+        r.unwrap_or_else(|_| {
+            self.target_clean = false;
+            Err(BusError::Timeout)
+        })
     }
 
     /// # Errors
