@@ -1,11 +1,12 @@
 // Scenarios of the Pico bus adapter (x10-boards/src/pico.rs) against the scripted motherboard
 // (lib/vmb.js): db-pico's core held (lib/stall.js) at a chosen moment, to see what a late look
 // at the I2C block does; the target's SDA hold time.
-import { VirtualMb, request, actuator, parseReply } from '../lib/vmb.js';
+import { VirtualMb, request, sensor, actuator, parseReply } from '../lib/vmb.js';
 import { INTR } from '../lib/i2c.js';
-import { stallWhen } from '../lib/stall.js';
+import { hold, stallWhen } from '../lib/stall.js';
 
 const A1A = 4; // GP4: actuator port 1 pin A
+const S1A = 14; // GP14: sensor port 1 pin A
 
 function setup(ctx) {
   const rig = ctx.rig();
@@ -63,6 +64,34 @@ export default [
       const ping = vmb.ask(request(0x00, 9, 0, vmb.nextSeq()), 3);
       ctx.check('after boot, the target: IC_SDA_TX_HOLD 38', boot === 38, `${boot}`);
       ctx.check('after the reset that follows a short read: 38, and the next request answered', hold() === 38 && parseReply(ping)?.status === 0, `${hold()}, ping ${JSON.stringify(ping)}`);
+    },
+  },
+  {
+    name: 'pulse-in-latched',
+    about: 'issue 21 item 6: pulse-in on a pin with pin-change events; a 20 µs pulse ends while db-pico\'s core is held 200 µs from its start edge: the pulse is measured and the event still reports its rising and its falling edge',
+    run(ctx) {
+      const { rig, vmb, db } = setup(ctx);
+      vmb.send(request(0x04, 9, sensor(1), vmb.nextSeq(), [0x03, 0, 0, 0, 0])); // events, both edges
+      rig.run(rig.now() + 25e6); // past the first 10 ms sample
+      const events = () => vmb.events.filter((e) => e.bytes[0] === 9 && e.bytes[1] === 0x01);
+      const before = events().length;
+      const r = vmb.ask(request(0x13, 9, sensor(1), vmb.nextSeq(), [100, 0]), 3); // pulse_in_rising, 100 ms
+      const seq = r?.[0];
+      const deferred = () => vmb.events.find((e) => e.bytes[0] === 9 && e.bytes[1] === 0x03 && e.bytes[3] === seq);
+      rig.run(rig.now() + 2e6);
+      db.setPin(S1A, true);
+      hold(db, rig.now() + 200e3);
+      rig.run(rig.now() + 20e3);
+      db.setPin(S1A, false);
+      rig.run(rig.now() + 40e6, () => deferred() && events().length > before);
+      const d = deferred()?.bytes ?? [];
+      const w = d[4] === 0 && d[5] === 4 ? d[6] | (d[7] << 8) | (d[8] << 16) | (d[9] << 24) : null;
+      ctx.check('pulse_in_rising ends with a width, not a timeout (a pulse over before the core woke is measured as at most its wake-up: 0..260 µs)', w !== null && w <= 260, `width ${w} µs`);
+      const ev = events()[before];
+      const b = ev?.bytes ?? [];
+      const u16 = (i) => b[i] | (b[i + 1] << 8);
+      ctx.check('the pin_change event: level 0, 1 rising and 1 falling edge', !!ev && b[5] === 5 && b[6] === 0 && u16(7) === 1 && u16(9) === 1,
+        ev ? b.map((x) => x.toString(16).padStart(2, '0')).join(' ') : 'no event');
     },
   },
 ];

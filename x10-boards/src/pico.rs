@@ -37,7 +37,7 @@ use crate::pico_rules::{
 };
 use crate::pins::PICO;
 use crate::pwm::{rp2040_slice, Output, SliceTiming, Timebase, DEFAULT_HZ};
-use crate::{address, port_lookup, BusConfig};
+use crate::{address, port_lookup, pulse, BusConfig};
 
 bind_interrupts!(
     /// The interrupts the Pico images use: the bus's I2C block (the ADC is read blocking).
@@ -730,7 +730,8 @@ fn slice_config(t: SliceTiming, a: u16, b: u16) -> pwm::Config {
 /// [`Ports`] on the Pico's pins ([`PICO`]).
 ///
 /// Each pin is behind its own async mutex: a pulse-in holds its pin for the whole
-/// measurement, and any other operation on that pin meanwhile answers [`PortError::Busy`].
+/// measurement, and any other operation on that pin meanwhile answers [`PortError::Busy`], but
+/// `digital_read`, which answers its level.
 pub struct PicoPorts {
     adc: Lock<adc::Adc<'static, adc::Blocking>>,
     sensors: [SensorPort; SENSORS],
@@ -846,10 +847,20 @@ impl Ports for PicoPorts {
         ADC_BITS
     }
 
+    /// A pin held by a pulse-in (an input while it measures) answers its level, read from
+    /// `SIO.GPIO_IN`, not [`PortError::Busy`]: the daughterboard's event sampler reads the
+    /// level of a pin with events right after taking its edges, and drops them when the read
+    /// fails.
     async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
-        let mut f = self.digital(pin)?;
-        f.set_as_input();
-        Ok(Level::from_bool(f.is_high()))
+        let high = match self.digital(pin) {
+            Ok(mut f) => {
+                f.set_as_input();
+                f.is_high()
+            }
+            Err(PortError::Busy) => gpio_level(Self::gpio(pin)?),
+            Err(e) => return Err(e),
+        };
+        Ok(Level::from_bool(high))
     }
 
     async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
@@ -897,20 +908,21 @@ impl Ports for PicoPorts {
     /// As the trait.
     ///
     /// Each edge is awaited with embassy-rp's pin future, which clears the pin's edge latch
-    /// when it arms (`gpio.rs` 296-299): the latched edges of a pin with events are kept first
-    /// and the pulse's first edge is added back (its latch is cleared by the second arming).
-    /// The end of the pulse is looked for right after the second future is armed (the pin's
-    /// level), so a pulse that ends before the task wakes from its start is measured (as at
-    /// most the wake-up time) instead of missed (issue 11 item 9). Afterwards the pin's edge
-    /// interrupt is disarmed: a future dropped at the timeout leaves it armed otherwise, and
-    /// the next pulse-in would wake on the wrong edge.
+    /// when it arms (`gpio.rs` 296-299): the latched edges of a pin with events are kept
+    /// before each arming. The end edge's future is armed only when the pulse is not over yet
+    /// (the pin's level), so a pulse that ends before the task wakes from its start is
+    /// measured (as at most the wake-up time) instead of missed (issue 11 item 9), and both
+    /// its edges stay in the latch; an end edge between that look and the arming is wiped by
+    /// the arming and given back ([`pulse::wiped_end_edge`], issue 21 item 6). Afterwards the
+    /// pin's edge interrupt is disarmed: a future dropped at the timeout leaves it armed
+    /// otherwise, and the next pulse-in would wake on the wrong edge.
     async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError> {
         let gpio = Self::gpio(pin)?;
         let mut f = self.digital(pin)?;
         f.set_as_input();
         self.keep(gpio, EdgeCount::NONE);
         let deadline = Instant::now() + Duration::from_millis(u64::from(timeout_ms));
-        let mut started = false;
+        let mut wiped = EdgeCount::NONE;
         let measure = async {
             // An edge, not a level: a pin already in the pulse waits for the next one.
             match edge {
@@ -918,34 +930,31 @@ impl Ports for PicoPorts {
                 Edge::Falling => f.wait_for_falling_edge().await,
             }
             let start = Instant::now();
-            started = true;
             let high_at_end = matches!(edge, Edge::Falling);
-            let mut end = pin!(async {
-                match edge {
-                    Edge::Rising => f.wait_for_falling_edge().await,
-                    Edge::Falling => f.wait_for_rising_edge().await,
+            if gpio_level(gpio) != high_at_end {
+                // The start edge, before the arming wipes it.
+                self.keep(gpio, EdgeCount::NONE);
+                let mut end = pin!(async {
+                    match edge {
+                        Edge::Rising => f.wait_for_falling_edge().await,
+                        Edge::Falling => f.wait_for_rising_edge().await,
+                    }
+                });
+                // The first poll arms the future; then the level, then the latch.
+                if poll_once(end.as_mut()).is_pending() {
+                    let over = gpio_level(gpio) == high_at_end;
+                    let (latched, _) = pico_rules::latched_edges(intr(gpio).read().0, gpio);
+                    wiped = pulse::wiped_end_edge(edge, over, latched);
+                    if !over {
+                        end.await;
+                    }
                 }
-            });
-            // The first poll arms the future; then the level says whether the pulse is over.
-            if poll_once(end.as_mut()).is_pending() && gpio_level(gpio) != high_at_end {
-                end.await;
             }
             start.elapsed().as_micros()
         };
         let r = with_deadline(deadline, measure).await;
         disarm(gpio);
-        let first = match (started, edge) {
-            (false, _) => EdgeCount::NONE,
-            (true, Edge::Rising) => EdgeCount {
-                rising: 1,
-                falling: 0,
-            },
-            (true, Edge::Falling) => EdgeCount {
-                rising: 0,
-                falling: 1,
-            },
-        };
-        self.keep(gpio, first);
+        self.keep(gpio, wiped);
         r.map(|us| u32::try_from(us).unwrap_or(u32::MAX))
             .map_err(|_| PortError::Timeout)
     }
