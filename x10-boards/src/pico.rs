@@ -11,8 +11,11 @@
 //!   address: the other side retries too. `addressed` arms the target and polls its state
 //!   (address matched and active, bytes received, or a read request) every
 //!   [`ADDRESSED_POLL_US`] without reading anything, so dropping it loses nothing; `listen`
-//!   then drains the transfer with embassy-rp's `I2cSlave::listen` (never raced by the
-//!   runtimes: the bytes it has drained live in its locals).
+//!   then drains the transfer from the RX FIFO itself, ending it by the block's marks
+//!   ([`pico_rules::heard`]), never by `STOP_DET` (never raced by the runtimes: the bytes it
+//!   has drained are in the caller's buffer). Before the block is reset to become a
+//!   controller, the bus lines must have stayed high for two SCL periods
+//!   ([`pico_rules::LineWatch`]).
 //! * [`PicoPorts`]: digital pins are `Flex` pins (input with pull-down, or output), PWM pins are
 //!   channels A/B of one slice per actuator port, analog inputs are ADC0–ADC2, pulse-in uses the
 //!   GPIO edge interrupts.
@@ -33,7 +36,8 @@ use x10_hal::ports::{EdgeCount, PortError, Ports};
 use x10_microcode::{Edge, Level, PinRef, Port};
 
 use crate::pico_rules::{
-    self, Activity, Controller, ControllerEnd, Heard, Listen, Recovery, ReplyEnd, Switch, Target,
+    self, Activity, Controller, ControllerEnd, Heard, LineWatch, Lines, Listen, Recovery, ReplyEnd,
+    Switch, Target,
 };
 use crate::pins::PICO;
 use crate::pwm::{rp2040_slice, Output, SliceTiming, Timebase, DEFAULT_HZ};
@@ -254,11 +258,16 @@ impl PicoBus {
                 Switch::Refuse => return Err(BusError::ArbitrationLost),
                 Switch::Now | Switch::Stale => {}
             }
-            self.target = None;
         }
         if !self.controller_clean {
             self.controller = None;
         }
+        if self.controller.is_none() {
+            // The block is about to be reset, or was: it would not see a transfer already
+            // under way (issue 21 item 3).
+            self.lines_free()?;
+        }
+        self.target = None;
         let (i2c, scl, sda) = self.parts();
         let mut cfg = i2c::Config::default();
         cfg.frequency = self.config.frequency_hz;
@@ -269,6 +278,29 @@ impl PicoBus {
         Ok(self
             .controller
             .get_or_insert_with(|| i2c::I2c::new_async(i2c, scl, sda, Irqs, cfg)))
+    }
+
+    /// Samples SCL and SDA until [`pico_rules::LineWatch`] decides: both high for two SCL
+    /// periods, or a line held for four byte times (a stuck bus: the transfer's own timeout and
+    /// bus clear deal with it). [`BusError::ArbitrationLost`] when a line moved: another
+    /// master's transfer is under way. A synchronous wait of 20 µs at 100 kHz (2 µs at
+    /// 1 MHz), sampling as fast as the core goes so that no SCL pulse is missed.
+    fn lines_free(&self) -> Result<(), BusError> {
+        let hz = self.config.frequency_hz;
+        let (window, stuck) = (
+            pico_rules::idle_window_us(hz),
+            pico_rules::stale_activity_us(hz),
+        );
+        let (scl, sda) = bus_lines();
+        let mut w = LineWatch::new(Instant::now().as_micros(), scl, sda);
+        loop {
+            let (scl, sda) = bus_lines();
+            match w.sample(Instant::now().as_micros(), scl, sda, window, stuck) {
+                None => {}
+                Some(Lines::Active) => return Err(BusError::ArbitrationLost),
+                Some(Lines::Free | Lines::Stuck) => return Ok(()),
+            }
+        }
     }
 
     /// The target driver, built if needed (the controller is idle between calls).
@@ -534,7 +566,7 @@ impl PicoBus {
                 slv_activity: status.slv_activity(),
             };
             match pico_rules::heard(l) {
-                Heard::Wait => Timer::after_micros(ADDRESSED_POLL_US).await,
+                Heard::Wait => Timer::after_micros(STOP_POLL_US).await,
                 Heard::Write => return Ok(Incoming::Write(len)),
                 Heard::WriteRead => {
                     r.ic_clr_restart_det().read();
@@ -1007,6 +1039,17 @@ impl Ports for PicoPorts {
             Timer::after_micros(EDGE_POLL_US).await;
         }
     }
+}
+
+/// GPIO numbers of the bus lines ([`PICO`]).
+const SCL_GPIO: u8 = gpio_of(PICO.i2c.scl);
+const SDA_GPIO: u8 = gpio_of(PICO.i2c.sda);
+
+/// The bus lines' levels (SCL, SDA), from `SIO.GPIO_IN`: the pads' inputs stay enabled in
+/// the I2C function (embassy-rp `i2c.rs` 380-389).
+fn bus_lines() -> (bool, bool) {
+    let v = pac::SIO.gpio_in(0).read();
+    (v & (1 << SCL_GPIO) != 0, v & (1 << SDA_GPIO) != 0)
 }
 
 /// The input level of `gpio` (`SIO.GPIO_IN`), read without its pin driver.

@@ -386,6 +386,76 @@ pub fn edge_mask(pins: u32, reg: usize) -> u32 {
         .fold(0, |m, i| m | (EDGE_LOW | EDGE_HIGH) << (4 * i))
 }
 
+/// What the bus lines showed while [`LineWatch`] sampled them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Lines {
+    /// SCL and SDA high, unchanged, for the whole window: no transfer under way. Start.
+    Free,
+    /// A line changed: another master's transfer is under way (its START came while this
+    /// node's block was being reset, so the block never saw it). Do not start: answer
+    /// `ArbitrationLost` (the runtime listens, then retries).
+    Active,
+    /// A line low and unchanged for the stuck time: a held bus (a target holding SDA, a
+    /// controller gone mid-byte), not a transfer. Start: the transfer fails or times out and
+    /// the bus clear runs, as before this watch.
+    Stuck,
+}
+
+/// Watches SCL and SDA (samples of the pins) before a block that was just reset, or is about
+/// to be, starts a transfer (issue 21 item 3). Every Pico role switch rebuilds the I2C block
+/// (RESETS), and the rebuilt block takes the bus for free: a START of another master during
+/// the reset is not seen, and a START of its own in the middle of that transfer breaks it (an
+/// STM32 master answers BERR, `Bus`, which the MB does not retry). The node starts only after
+/// both lines stayed high for two SCL periods (no transfer can leave both high that long:
+/// SCL is low for part of every period, and a STOP's SDA-high comes with SCL high only
+/// between transfers).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LineWatch {
+    start_us: u64,
+    first: (bool, bool),
+}
+
+impl LineWatch {
+    /// Starts a watch with the first sample (`scl_high`, `sda_high`) at `now_us`.
+    #[must_use]
+    pub fn new(now_us: u64, scl_high: bool, sda_high: bool) -> LineWatch {
+        LineWatch {
+            start_us: now_us,
+            first: (scl_high, sda_high),
+        }
+    }
+
+    /// Takes one more sample at `now_us`. `None`: sample again (as fast as possible, so that
+    /// no SCL pulse goes unseen); otherwise the verdict. `window_us` is two SCL periods
+    /// ([`idle_window_us`]), `stuck_us` the time after which an unchanged low line is a held
+    /// bus ([`stale_activity_us`]).
+    pub fn sample(
+        &mut self,
+        now_us: u64,
+        scl_high: bool,
+        sda_high: bool,
+        window_us: u64,
+        stuck_us: u64,
+    ) -> Option<Lines> {
+        if (scl_high, sda_high) != self.first {
+            return Some(Lines::Active);
+        }
+        let held = now_us.saturating_sub(self.start_us);
+        if scl_high && sda_high {
+            (held >= window_us).then_some(Lines::Free)
+        } else {
+            (held >= stuck_us).then_some(Lines::Stuck)
+        }
+    }
+}
+
+/// Two SCL periods at `frequency_hz`, in µs, rounded up: how long both lines must stay high
+/// before a reset block starts a transfer ([`LineWatch`]).
+#[must_use]
+pub fn idle_window_us(frequency_hz: u32) -> u64 {
+    u64::from(2_000_000u32.div_ceil(frequency_hz.max(1)))
+}
+
 /// Clock pulses of the bus-clear procedure (UM10204 §3.1.16): a target holding SDA low
 /// releases it within nine clocks.
 pub const RECOVERY_CLOCKS: u8 = 9;
@@ -415,6 +485,7 @@ pub fn recovery(sda_high: bool, clocks: u8) -> Recovery {
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
 
     #[test]
@@ -841,6 +912,71 @@ mod tests {
         assert_eq!(abort_error(1 << 16), BusError::Bus);
         assert_eq!(abort_error(1 << 7), BusError::Bus);
         assert_eq!(abort_error(0), BusError::Bus);
+    }
+
+    /// Runs a watch over (time, SCL, SDA) samples, as the adapter's loop does.
+    fn watch(samples: &[(u64, bool, bool)], window: u64, stuck: u64) -> Option<Lines> {
+        let (&(t0, c0, d0), rest) = samples.split_first()?;
+        let mut w = LineWatch::new(t0, c0, d0);
+        rest.iter()
+            .find_map(|&(t, c, d)| w.sample(t, c, d, window, stuck))
+    }
+
+    #[test]
+    fn lines_free_after_two_periods_high() {
+        assert_eq!(idle_window_us(100_000), 20);
+        assert_eq!(idle_window_us(400_000), 5);
+        assert_eq!(idle_window_us(1_000_000), 2);
+        assert_eq!(idle_window_us(0), 2_000_000);
+        let high: std::vec::Vec<_> = (0..=20).map(|t| (t, true, true)).collect();
+        assert_eq!(watch(&high, 20, 360), Some(Lines::Free));
+        // Not before the window is over.
+        assert_eq!(watch(&high[..20], 20, 360), None);
+    }
+
+    /// Issue 21 item 3: a transfer that began while the block was in reset. Both lines high
+    /// at the first sample (SCL's high phase), then SCL falls: the node must not start.
+    #[test]
+    fn a_transfer_under_way_is_seen_in_any_phase() {
+        // 100 kHz: SCL high 5 us, low 5 us; SDA moves while SCL is low.
+        let transfer = |t: u64| {
+            let scl = t % 10 < 5;
+            let sda = scl || (t / 10).is_multiple_of(2);
+            (t, scl, sda)
+        };
+        for phase in 0..10 {
+            let s: std::vec::Vec<_> = (phase..phase + 25).map(transfer).collect();
+            assert_eq!(watch(&s, 20, 360), Some(Lines::Active), "phase {phase}");
+        }
+        // A START alone (SDA falls, SCL high) and a STOP (SDA rises) are changes too.
+        assert_eq!(
+            watch(&[(0, true, true), (3, true, false)], 20, 360),
+            Some(Lines::Active)
+        );
+        assert_eq!(
+            watch(&[(0, true, false), (3, true, true)], 20, 360),
+            Some(Lines::Active)
+        );
+    }
+
+    #[test]
+    fn a_held_line_is_stuck_after_the_stuck_time() {
+        // SDA held low by a target, SCL high: no change for 360 us.
+        let held: std::vec::Vec<_> = (0..=360).map(|t| (t, true, false)).collect();
+        assert_eq!(watch(&held[..360], 20, 360), None);
+        assert_eq!(watch(&held, 20, 360), Some(Lines::Stuck));
+        // SCL held low (a long stretch) the same.
+        let stretch: std::vec::Vec<_> = (0..=360).map(|t| (t, false, true)).collect();
+        assert_eq!(watch(&stretch, 20, 360), Some(Lines::Stuck));
+        // A stretch that ends is a transfer under way.
+        assert_eq!(
+            watch(
+                &[(0, false, true), (100, false, true), (101, true, true)],
+                20,
+                360
+            ),
+            Some(Lines::Active)
+        );
     }
 
     #[test]
