@@ -285,17 +285,18 @@ impl PicoBus {
     /// bus clear deal with it). [`BusError::ArbitrationLost`] when a line moved: another
     /// master's transfer is under way. A synchronous wait of 20 µs at 100 kHz (2 µs at
     /// 1 MHz), sampling as fast as the core goes so that no SCL pulse is missed.
+    #[inline(never)]
     fn lines_free(&self) -> Result<(), BusError> {
         let hz = self.config.frequency_hz;
-        let (window, stuck) = (
-            pico_rules::idle_window_us(hz),
-            pico_rules::stale_activity_us(hz),
-        );
+        let window = pico_rules::idle_window_us(hz);
+        let stuck = u32::try_from(pico_rules::stale_activity_us(hz)).unwrap_or(u32::MAX);
+        // The low 32 bits of the µs clock: the watch uses differences only.
+        let now = || Instant::now().as_micros() as u32;
         let (scl, sda) = bus_lines();
-        let mut w = LineWatch::new(Instant::now().as_micros(), scl, sda);
+        let mut w = LineWatch::new(now(), scl, sda);
         loop {
             let (scl, sda) = bus_lines();
-            match w.sample(Instant::now().as_micros(), scl, sda, window, stuck) {
+            match w.sample(now(), scl, sda, window, stuck) {
                 None => {}
                 Some(Lines::Active) => return Err(BusError::ArbitrationLost),
                 Some(Lines::Free | Lines::Stuck) => return Ok(()),

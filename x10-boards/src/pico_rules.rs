@@ -411,14 +411,16 @@ pub enum Lines {
 /// between transfers).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct LineWatch {
-    start_us: u64,
+    start_us: u32,
     first: (bool, bool),
 }
 
 impl LineWatch {
-    /// Starts a watch with the first sample (`scl_high`, `sda_high`) at `now_us`.
+    /// Starts a watch with the first sample (`scl_high`, `sda_high`) at `now_us` (a µs
+    /// clock that may wrap: only differences are used, in 32 bits, as the image has no
+    /// 64-bit arithmetic to spare).
     #[must_use]
-    pub fn new(now_us: u64, scl_high: bool, sda_high: bool) -> LineWatch {
+    pub fn new(now_us: u32, scl_high: bool, sda_high: bool) -> LineWatch {
         LineWatch {
             start_us: now_us,
             first: (scl_high, sda_high),
@@ -428,19 +430,19 @@ impl LineWatch {
     /// Takes one more sample at `now_us`. `None`: sample again (as fast as possible, so that
     /// no SCL pulse goes unseen); otherwise the verdict. `window_us` is two SCL periods
     /// ([`idle_window_us`]), `stuck_us` the time after which an unchanged low line is a held
-    /// bus ([`stale_activity_us`]).
+    /// bus (four byte times, [`stale_activity_us`]).
     pub fn sample(
         &mut self,
-        now_us: u64,
+        now_us: u32,
         scl_high: bool,
         sda_high: bool,
-        window_us: u64,
-        stuck_us: u64,
+        window_us: u32,
+        stuck_us: u32,
     ) -> Option<Lines> {
         if (scl_high, sda_high) != self.first {
             return Some(Lines::Active);
         }
-        let held = now_us.saturating_sub(self.start_us);
+        let held = now_us.wrapping_sub(self.start_us);
         if scl_high && sda_high {
             (held >= window_us).then_some(Lines::Free)
         } else {
@@ -452,8 +454,8 @@ impl LineWatch {
 /// Two SCL periods at `frequency_hz`, in µs, rounded up: how long both lines must stay high
 /// before a reset block starts a transfer ([`LineWatch`]).
 #[must_use]
-pub fn idle_window_us(frequency_hz: u32) -> u64 {
-    u64::from(2_000_000u32.div_ceil(frequency_hz.max(1)))
+pub fn idle_window_us(frequency_hz: u32) -> u32 {
+    2_000_000u32.div_ceil(frequency_hz.max(1))
 }
 
 /// Clock pulses of the bus-clear procedure (UM10204 §3.1.16): a target holding SDA low
@@ -915,7 +917,7 @@ mod tests {
     }
 
     /// Runs a watch over (time, SCL, SDA) samples, as the adapter's loop does.
-    fn watch(samples: &[(u64, bool, bool)], window: u64, stuck: u64) -> Option<Lines> {
+    fn watch(samples: &[(u32, bool, bool)], window: u32, stuck: u32) -> Option<Lines> {
         let (&(t0, c0, d0), rest) = samples.split_first()?;
         let mut w = LineWatch::new(t0, c0, d0);
         rest.iter()
@@ -939,7 +941,7 @@ mod tests {
     #[test]
     fn a_transfer_under_way_is_seen_in_any_phase() {
         // 100 kHz: SCL high 5 us, low 5 us; SDA moves while SCL is low.
-        let transfer = |t: u64| {
+        let transfer = |t: u32| {
             let scl = t % 10 < 5;
             let sda = scl || (t / 10).is_multiple_of(2);
             (t, scl, sda)
@@ -956,6 +958,27 @@ mod tests {
         assert_eq!(
             watch(&[(0, true, false), (3, true, true)], 20, 360),
             Some(Lines::Active)
+        );
+    }
+
+    #[test]
+    fn the_watch_spans_a_clock_wrap() {
+        let t0 = u32::MAX - 5;
+        assert_eq!(
+            watch(
+                &[(t0, true, true), (t0.wrapping_add(19), true, true)],
+                20,
+                360
+            ),
+            None
+        );
+        assert_eq!(
+            watch(
+                &[(t0, true, true), (t0.wrapping_add(20), true, true)],
+                20,
+                360
+            ),
+            Some(Lines::Free)
         );
     }
 
