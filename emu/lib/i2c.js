@@ -13,6 +13,8 @@
 //   (RX_FIFO_FULL_HLD_CTRL); on a read request with bytes left in the TX FIFO the FIFO is flushed
 //   with TX_ABRT (ABRT_SLVFLUSH_TXFIFO, TX_FLUSH_CNT) and stays flushed until TX_ABRT is
 //   cleared; IC_CLR_RESTART_DET, IC_ACK_GENERAL_CALL, IC_SLV_DATA_NACK_ONLY;
+// * IC_SDA_HOLD: stored (reset value 1, writes taken only while the block is disabled), not
+//   timed (the bus is modelled per byte);
 // * the controller runs its TX FIFO commands on the bus (START/RESTART, address, data, STOP
 //   bit), stalls with SCL low when its FIFO runs empty without a STOP, aborts with the DW abort
 //   sources (7-bit address NACK, data NACK, arbitration lost, user abort);
@@ -27,7 +29,7 @@ const IC_RX_TL = 0x38, IC_TX_TL = 0x3c, IC_CLR_INTR = 0x40, IC_CLR_RX_UNDER = 0x
 const IC_CLR_RX_OVER = 0x48, IC_CLR_TX_OVER = 0x4c, IC_CLR_RD_REQ = 0x50, IC_CLR_TX_ABRT = 0x54;
 const IC_CLR_RX_DONE = 0x58, IC_CLR_ACTIVITY = 0x5c, IC_CLR_STOP_DET = 0x60, IC_CLR_START_DET = 0x64;
 const IC_CLR_GEN_CALL = 0x68, IC_ENABLE = 0x6c, IC_STATUS = 0x70, IC_TXFLR = 0x74, IC_RXFLR = 0x78;
-const IC_TX_ABRT_SOURCE = 0x80, IC_SLV_DATA_NACK_ONLY = 0x84, IC_ACK_GENERAL_CALL = 0x98;
+const IC_SDA_HOLD = 0x7c, IC_TX_ABRT_SOURCE = 0x80, IC_SLV_DATA_NACK_ONLY = 0x84, IC_ACK_GENERAL_CALL = 0x98;
 const IC_ENABLE_STATUS = 0x9c, IC_CLR_RESTART_DET = 0xa8;
 
 // IC_CON bits.
@@ -75,6 +77,7 @@ export class I2CBlock extends RPI2C {
     this.txFIFO = new FIFO(16);
     this.ackGeneralCall = 1;
     this.slvDataNackOnly = 0;
+    this.sdaHold = 1;
     /** True while TX_ABRT holds the TX FIFO flushed (target and controller). */
     this.txFlushed = false;
     /** Controller: in a transfer (from START to STOP) or waiting for the bus. */
@@ -203,6 +206,7 @@ export class I2CBlock extends RPI2C {
       case IC_RXFLR: return this.rxFIFO.itemCount;
       case IC_TX_ABRT_SOURCE: return this.abortSource;
       case IC_SLV_DATA_NACK_ONLY: return this.slvDataNackOnly;
+      case IC_SDA_HOLD: return this.sdaHold;
       case IC_ACK_GENERAL_CALL: return this.ackGeneralCall;
       case IC_ENABLE_STATUS: return this.enable & 1;
     }
@@ -248,6 +252,9 @@ export class I2CBlock extends RPI2C {
         return;
       }
       case IC_SLV_DATA_NACK_ONLY: this.slvDataNackOnly = value & 1; return;
+      case IC_SDA_HOLD:
+        if (!this.enabled) this.sdaHold = value & 0xffffff;
+        return;
       case IC_ACK_GENERAL_CALL: this.ackGeneralCall = value & 1; return;
       case IC_CON:
         this.control = value & 0x7ff;

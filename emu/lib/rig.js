@@ -4,6 +4,7 @@ import { RP2040, GPIOPinState, LogLevel, ConsoleLogger } from 'rp2040js';
 import { readElf } from './elf.js';
 import { applyAll, bootFromFlash } from './patches.js';
 import { Bus } from './bus.js';
+import { driveLines } from './lines.js';
 
 const FLASH = 0x10000000;
 const SRAM = 0x20000000;
@@ -129,6 +130,7 @@ export class Rig {
     /** Called after every quantum (the scripted motherboard polls its registers here). */
     this.hooks = [];
     this.bus = new Bus({ now: () => this.t, at: (t, fn) => this.at(t, fn) }, { stopGapNs: options.stopGapNs, log: options.busLog });
+    driveLines(this); // SDA/SCL as pin levels (./lines.js)
   }
 
   now() { return this.t; }

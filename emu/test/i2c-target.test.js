@@ -127,3 +127,15 @@ test('IC_ACK_GENERAL_CALL is a register (read back as written)', () => {
   wr(t, R.ACK_GENERAL_CALL, 0);
   assert.equal(rd(t, R.ACK_GENERAL_CALL), 0);
 });
+
+test('IC_SDA_HOLD resets to 1 and takes writes only while the block is disabled', () => {
+  const { t } = pair();
+  const SDA_HOLD = 0x7c;
+  assert.equal(rd(t, SDA_HOLD), 1);
+  wr(t, SDA_HOLD, 38);
+  assert.equal(rd(t, SDA_HOLD), 1, 'enabled: the write is dropped');
+  wr(t, R.ENABLE, 0);
+  wr(t, SDA_HOLD, 38);
+  wr(t, R.ENABLE, 1);
+  assert.equal(rd(t, SDA_HOLD), 38);
+});

@@ -11,8 +11,11 @@
 //!   address: the other side retries too. `addressed` arms the target and polls its state
 //!   (address matched and active, bytes received, or a read request) every
 //!   [`ADDRESSED_POLL_US`] without reading anything, so dropping it loses nothing; `listen`
-//!   then drains the transfer with embassy-rp's `I2cSlave::listen` (never raced by the
-//!   runtimes: the bytes it has drained live in its locals).
+//!   then drains the transfer from the RX FIFO itself, ending it by the block's marks
+//!   ([`pico_rules::heard`]), never by `STOP_DET` (never raced by the runtimes: the bytes it
+//!   has drained are in the caller's buffer). Before the block is reset to become a
+//!   controller, the bus lines must have stayed high for two SCL periods
+//!   ([`pico_rules::LineWatch`]).
 //! * [`PicoPorts`]: digital pins are `Flex` pins (input with pull-down, or output), PWM pins are
 //!   channels A/B of one slice per actuator port, analog inputs are ADC0–ADC2, pulse-in uses the
 //!   GPIO edge interrupts.
@@ -33,11 +36,12 @@ use x10_hal::ports::{EdgeCount, PortError, Ports};
 use x10_microcode::{Edge, Level, PinRef, Port};
 
 use crate::pico_rules::{
-    self, Activity, AfterRead, Controller, ControllerEnd, Recovery, ReplyEnd, Switch, Target,
+    self, Activity, Controller, ControllerEnd, Heard, LineWatch, Lines, Listen, Recovery, ReplyEnd,
+    Switch, Target,
 };
 use crate::pins::PICO;
 use crate::pwm::{rp2040_slice, Output, SliceTiming, Timebase, DEFAULT_HZ};
-use crate::{address, port_lookup, BusConfig, RX_LEN};
+use crate::{address, port_lookup, pulse, BusConfig};
 
 bind_interrupts!(
     /// The interrupts the Pico images use: the bus's I2C block (the ADC is read blocking).
@@ -131,6 +135,11 @@ macro_rules! pico_build {
                         controller_clean: true,
                         target_clean: true,
                         activity: Activity::default(),
+                        kept: None,
+                        sda_hold: pico_rules::sda_tx_hold(
+                            embassy_rp::clocks::clk_peri_freq(),
+                            bus.frequency_hz,
+                        ),
                     },
                     ports: PicoPorts {
                         adc: Lock::new(adc),
@@ -186,6 +195,11 @@ pub struct PicoBus {
     /// How long the target has been active with nothing for this node (a controller gone
     /// without a STOP).
     activity: Activity,
+    /// The first byte of the next transfer, taken from the RX FIFO while `listen` drained the
+    /// one before it (see [`pico_rules::heard`]); the next `listen` starts with it.
+    kept: Option<u8>,
+    /// `IC_SDA_HOLD.IC_SDA_TX_HOLD` for the target ([`pico_rules::sda_tx_hold`]).
+    sda_hold: u16,
 }
 
 /// The fill byte sent when the controller reads more than the reply holds.
@@ -221,7 +235,7 @@ impl PicoBus {
     }
 
     /// The target side's state (see [`pico_rules::Target`]).
-    fn target_state() -> Target {
+    fn target_state(&self) -> Target {
         let r = i2c_regs();
         let status = r.ic_status().read();
         let raw = r.ic_raw_intr_stat().read();
@@ -229,7 +243,7 @@ impl PicoBus {
             slv_activity: status.slv_activity(),
             rfne: status.rfne(),
             rd_req: raw.rd_req(),
-            stop_det: raw.stop_det(),
+            kept: self.kept.is_some(),
         }
     }
 
@@ -240,15 +254,20 @@ impl PicoBus {
             let stale = pico_rules::stale_activity_us(self.config.frequency_hz);
             // Being addressed, holding bytes or a read request: switching would reset the
             // block and lose them. Activity alone for four byte times: abandoned (no STOP).
-            match self.activity.switch(now, Self::target_state(), stale) {
+            match self.activity.switch(now, self.target_state(), stale) {
                 Switch::Refuse => return Err(BusError::ArbitrationLost),
                 Switch::Now | Switch::Stale => {}
             }
-            self.target = None;
         }
         if !self.controller_clean {
             self.controller = None;
         }
+        if self.controller.is_none() {
+            // The block is about to be reset, or was: it would not see a transfer already
+            // under way (issue 21 item 3).
+            self.lines_free()?;
+        }
+        self.target = None;
         let (i2c, scl, sda) = self.parts();
         let mut cfg = i2c::Config::default();
         cfg.frequency = self.config.frequency_hz;
@@ -261,6 +280,30 @@ impl PicoBus {
             .get_or_insert_with(|| i2c::I2c::new_async(i2c, scl, sda, Irqs, cfg)))
     }
 
+    /// Samples SCL and SDA until [`pico_rules::LineWatch`] decides: both high for two SCL
+    /// periods, or a line held for four byte times (a stuck bus: the transfer's own timeout and
+    /// bus clear deal with it). [`BusError::ArbitrationLost`] when a line moved: another
+    /// master's transfer is under way. A synchronous wait of 20 µs at 100 kHz (2 µs at
+    /// 1 MHz), sampling as fast as the core goes so that no SCL pulse is missed.
+    #[inline(never)]
+    fn lines_free(&self) -> Result<(), BusError> {
+        let hz = self.config.frequency_hz;
+        let window = pico_rules::idle_window_us(hz);
+        let stuck = u32::try_from(pico_rules::stale_activity_us(hz)).unwrap_or(u32::MAX);
+        // The low 32 bits of the µs clock: the watch uses differences only.
+        let now = || Instant::now().as_micros() as u32;
+        let (scl, sda) = bus_lines();
+        let mut w = LineWatch::new(now(), scl, sda);
+        loop {
+            let (scl, sda) = bus_lines();
+            match w.sample(now(), scl, sda, window, stuck) {
+                None => {}
+                Some(Lines::Active) => return Err(BusError::ArbitrationLost),
+                Some(Lines::Free | Lines::Stuck) => return Ok(()),
+            }
+        }
+    }
+
     /// The target driver, built if needed (the controller is idle between calls).
     fn target(&mut self) -> &mut i2c_slave::I2cSlave<'static, I2cBlock> {
         self.controller = None;
@@ -268,12 +311,20 @@ impl PicoBus {
             self.target = None;
             self.target_clean = true;
         }
+        if self.target.is_none() {
+            // A new driver resets the block: nothing of an earlier transfer is left.
+            self.kept = None;
+        }
         let (i2c, scl, sda) = self.parts();
         let mut cfg = i2c_slave::Config::default();
         cfg.addr = u16::from(self.config.own_address);
         cfg.general_call = false;
-        self.target
-            .get_or_insert_with(|| i2c_slave::I2cSlave::new(i2c, scl, sda, Irqs, cfg))
+        let hold = self.sda_hold;
+        self.target.get_or_insert_with(|| {
+            let t = i2c_slave::I2cSlave::new(i2c, scl, sda, Irqs, cfg);
+            set_sda_hold(hold);
+            t
+        })
     }
 
     /// Finishes a controller transaction (issue 11 item 5, Pico part).
@@ -451,24 +502,21 @@ impl PicoBus {
                 }
             }
         }
-        // The read ends with its STOP (or a repeated START into the next transfer).
-        let ended = loop {
-            match pico_rules::after_read(Self::target_state()) {
-                AfterRead::Wait => Timer::after_micros(STOP_POLL_US).await,
-                AfterRead::ClearStop => {
-                    r.ic_clr_stop_det().read();
-                    break true;
-                }
-                AfterRead::Leave => break true,
-            }
+        // The read ends with its STOP (or the next transfer); `STOP_DET` is left alone (see
+        // `pico_rules::read_over`).
+        while !pico_rules::read_over(self.target_state()) {
+            Timer::after_micros(STOP_POLL_US).await;
+        }
+        let Some(t) = self.target.as_mut() else {
+            return Err(BusError::Bus);
         };
         let end = ReplyEnd {
             txflr: r.ic_txflr().read().txflr(),
             tx_abrt: r.ic_raw_intr_stat().read().tx_abrt(),
-            ended,
         };
         if pico_rules::reset_after_reply(end) {
             t.reset();
+            set_sda_hold(self.sda_hold);
         }
         if failed {
             Err(BusError::Bus)
@@ -476,6 +524,75 @@ impl PicoBus {
             Ok(())
         }
     }
+
+    /// Drains one transfer to this node from the RX FIFO into `buf` and reports it (see
+    /// [`pico_rules::heard`]): the transfer's end is told by the next transfer's marked first
+    /// byte (kept for the next call), a read request, or the state machine going idle, never
+    /// by `STOP_DET`. Replaces embassy-rp's `I2cSlave::listen`, which ends a write on
+    /// `STOP_DET` and loses the second of two writes received before it looks (issue 21 item
+    /// 5).
+    ///
+    /// [`BusError::Overrun`] when a write does not fit `buf` (its remaining bytes are read
+    /// as the next transfer, which the frame checks reject).
+    async fn drain(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
+        let r = i2c_regs();
+        let mut len = 0;
+        let mut byte = self.kept.take();
+        loop {
+            // The read request first: it follows every byte of the write before it.
+            let raw = r.ic_raw_intr_stat().read();
+            let mut next = false;
+            let status = loop {
+                if let Some(b) = byte.take() {
+                    *buf.get_mut(len).ok_or(BusError::Overrun)? = b;
+                    len += 1;
+                }
+                let s = r.ic_status().read();
+                if !s.rfne() {
+                    break s;
+                }
+                let d = r.ic_data_cmd().read();
+                if len > 0 && d.first_data_byte() {
+                    self.kept = Some(d.dat());
+                    next = true;
+                    break s;
+                }
+                byte = Some(d.dat());
+            };
+            let l = Listen {
+                len,
+                next,
+                rd_req: raw.rd_req(),
+                restart_det: raw.restart_det(),
+                slv_activity: status.slv_activity(),
+            };
+            match pico_rules::heard(l) {
+                Heard::Wait => Timer::after_micros(STOP_POLL_US).await,
+                Heard::Write => return Ok(Incoming::Write(len)),
+                Heard::WriteRead => {
+                    r.ic_clr_restart_det().read();
+                    return Ok(Incoming::WriteRead(len));
+                }
+                Heard::Read => {
+                    r.ic_clr_restart_det().read();
+                    return Ok(Incoming::Read);
+                }
+            }
+        }
+    }
+}
+
+/// Sets the target's SDA hold time ([`pico_rules::sda_tx_hold`]) after embassy-rp's
+/// `I2cSlave` reset the block, which leaves it at one clock. The register takes writes only
+/// while the block is disabled: it is disabled for the write, within a microsecond of
+/// embassy-rp enabling it (an address phase begun in that microsecond is not acknowledged,
+/// as while the block was in reset, and its controller retries).
+#[inline(never)]
+fn set_sda_hold(hold: u16) {
+    let r = i2c_regs();
+    r.ic_enable().write(|w| w.set_enable(false));
+    r.ic_sda_hold().modify(|w| w.set_ic_sda_tx_hold(hold));
+    r.ic_enable().write(|w| w.set_enable(true));
 }
 
 fn abort_error(reason: i2c::AbortReason) -> BusError {
@@ -535,43 +652,22 @@ impl MultiMaster for PicoBus {
         // Armed once; an armed target is not rebuilt, so nothing it received is reset.
         self.target();
         // Only this node's own address match counts (issue 11 item 6, issue 16 defect 2).
-        while !pico_rules::addressed(Self::target_state()) {
+        while !pico_rules::addressed(self.target_state()) {
             Timer::after_micros(ADDRESSED_POLL_US).await;
         }
         Ok(())
     }
 
     async fn listen(&mut self, buf: &mut [u8]) -> Result<Incoming, BusError> {
-        let mut rx = [0u8; RX_LEN];
         let timeout = self.timeout();
-        let t = self.target();
-        loop {
-            // A transfer that never ends (its controller gone without a STOP) must not hold
-            // the node for ever: reset the block after the timeout.
-            let Ok(heard) = with_timeout(timeout, t.listen(&mut rx)).await else {
-                self.target_clean = false;
-                return Err(BusError::Timeout);
-            };
-            let n = match heard {
-                Ok(i2c_slave::Command::Read) => return Ok(Incoming::Read),
-                Ok(i2c_slave::Command::Write(n)) => Incoming::Write(n),
-                Ok(i2c_slave::Command::WriteRead(n)) => Incoming::WriteRead(n),
-                // General calls are not enabled; should one be reported, it is not for us.
-                Ok(i2c_slave::Command::GeneralCall(_)) => continue,
-                Err(i2c_slave::Error::PartialWrite(_)) => return Err(BusError::Overrun),
-                Err(i2c_slave::Error::PartialGeneralCall(_)) => continue,
-                Err(_) => return Err(BusError::Bus),
-            };
-            let len = match n {
-                Incoming::Write(n) | Incoming::WriteRead(n) => n,
-                Incoming::Read => 0,
-            };
-            let (Some(dst), Some(src)) = (buf.get_mut(..len), rx.get(..len)) else {
-                return Err(BusError::Overrun);
-            };
-            dst.copy_from_slice(src);
-            return Ok(n);
-        }
+        self.target();
+        // A transfer that never ends (its controller gone without a STOP) must not hold the
+        // node for ever: reset the block after the timeout.
+        let r = with_timeout(timeout, self.drain(buf)).await;
+        r.unwrap_or_else(|_| {
+            self.target_clean = false;
+            Err(BusError::Timeout)
+        })
     }
 
     /// # Errors
@@ -667,7 +763,8 @@ fn slice_config(t: SliceTiming, a: u16, b: u16) -> pwm::Config {
 /// [`Ports`] on the Pico's pins ([`PICO`]).
 ///
 /// Each pin is behind its own async mutex: a pulse-in holds its pin for the whole
-/// measurement, and any other operation on that pin meanwhile answers [`PortError::Busy`].
+/// measurement, and any other operation on that pin meanwhile answers [`PortError::Busy`], but
+/// `digital_read`, which answers its level.
 pub struct PicoPorts {
     adc: Lock<adc::Adc<'static, adc::Blocking>>,
     sensors: [SensorPort; SENSORS],
@@ -783,10 +880,20 @@ impl Ports for PicoPorts {
         ADC_BITS
     }
 
+    /// A pin held by a pulse-in (an input while it measures) answers its level, read from
+    /// `SIO.GPIO_IN`, not [`PortError::Busy`]: the daughterboard's event sampler reads the
+    /// level of a pin with events right after taking its edges, and drops them when the read
+    /// fails.
     async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
-        let mut f = self.digital(pin)?;
-        f.set_as_input();
-        Ok(Level::from_bool(f.is_high()))
+        let high = match self.digital(pin) {
+            Ok(mut f) => {
+                f.set_as_input();
+                f.is_high()
+            }
+            Err(PortError::Busy) => gpio_level(Self::gpio(pin)?),
+            Err(e) => return Err(e),
+        };
+        Ok(Level::from_bool(high))
     }
 
     async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
@@ -834,20 +941,21 @@ impl Ports for PicoPorts {
     /// As the trait.
     ///
     /// Each edge is awaited with embassy-rp's pin future, which clears the pin's edge latch
-    /// when it arms (`gpio.rs` 296-299): the latched edges of a pin with events are kept first
-    /// and the pulse's first edge is added back (its latch is cleared by the second arming).
-    /// The end of the pulse is looked for right after the second future is armed (the pin's
-    /// level), so a pulse that ends before the task wakes from its start is measured (as at
-    /// most the wake-up time) instead of missed (issue 11 item 9). Afterwards the pin's edge
-    /// interrupt is disarmed: a future dropped at the timeout leaves it armed otherwise, and
-    /// the next pulse-in would wake on the wrong edge.
+    /// when it arms (`gpio.rs` 296-299): the latched edges of a pin with events are kept
+    /// before each arming. The end edge's future is armed only when the pulse is not over yet
+    /// (the pin's level), so a pulse that ends before the task wakes from its start is
+    /// measured (as at most the wake-up time) instead of missed (issue 11 item 9), and both
+    /// its edges stay in the latch; an end edge between that look and the arming is wiped by
+    /// the arming and given back ([`pulse::wiped_end_edge`], issue 21 item 6). Afterwards the
+    /// pin's edge interrupt is disarmed: a future dropped at the timeout leaves it armed
+    /// otherwise, and the next pulse-in would wake on the wrong edge.
     async fn pulse_in(&self, pin: PinRef, edge: Edge, timeout_ms: u16) -> Result<u32, PortError> {
         let gpio = Self::gpio(pin)?;
         let mut f = self.digital(pin)?;
         f.set_as_input();
         self.keep(gpio, EdgeCount::NONE);
         let deadline = Instant::now() + Duration::from_millis(u64::from(timeout_ms));
-        let mut started = false;
+        let mut wiped = EdgeCount::NONE;
         let measure = async {
             // An edge, not a level: a pin already in the pulse waits for the next one.
             match edge {
@@ -855,34 +963,31 @@ impl Ports for PicoPorts {
                 Edge::Falling => f.wait_for_falling_edge().await,
             }
             let start = Instant::now();
-            started = true;
             let high_at_end = matches!(edge, Edge::Falling);
-            let mut end = pin!(async {
-                match edge {
-                    Edge::Rising => f.wait_for_falling_edge().await,
-                    Edge::Falling => f.wait_for_rising_edge().await,
+            if gpio_level(gpio) != high_at_end {
+                // The start edge, before the arming wipes it.
+                self.keep(gpio, EdgeCount::NONE);
+                let mut end = pin!(async {
+                    match edge {
+                        Edge::Rising => f.wait_for_falling_edge().await,
+                        Edge::Falling => f.wait_for_rising_edge().await,
+                    }
+                });
+                // The first poll arms the future; then the level, then the latch.
+                if poll_once(end.as_mut()).is_pending() {
+                    let over = gpio_level(gpio) == high_at_end;
+                    let (latched, _) = pico_rules::latched_edges(intr(gpio).read().0, gpio);
+                    wiped = pulse::wiped_end_edge(edge, over, latched);
+                    if !over {
+                        end.await;
+                    }
                 }
-            });
-            // The first poll arms the future; then the level says whether the pulse is over.
-            if poll_once(end.as_mut()).is_pending() && gpio_level(gpio) != high_at_end {
-                end.await;
             }
             start.elapsed().as_micros()
         };
         let r = with_deadline(deadline, measure).await;
         disarm(gpio);
-        let first = match (started, edge) {
-            (false, _) => EdgeCount::NONE,
-            (true, Edge::Rising) => EdgeCount {
-                rising: 1,
-                falling: 0,
-            },
-            (true, Edge::Falling) => EdgeCount {
-                rising: 0,
-                falling: 1,
-            },
-        };
-        self.keep(gpio, first);
+        self.keep(gpio, wiped);
         r.map(|us| u32::try_from(us).unwrap_or(u32::MAX))
             .map_err(|_| PortError::Timeout)
     }
@@ -935,6 +1040,17 @@ impl Ports for PicoPorts {
             Timer::after_micros(EDGE_POLL_US).await;
         }
     }
+}
+
+/// GPIO numbers of the bus lines ([`PICO`]).
+const SCL_GPIO: u8 = gpio_of(PICO.i2c.scl);
+const SDA_GPIO: u8 = gpio_of(PICO.i2c.sda);
+
+/// The bus lines' levels (SCL, SDA), from `SIO.GPIO_IN`: the pads' inputs stay enabled in
+/// the I2C function (embassy-rp `i2c.rs` 380-389).
+fn bus_lines() -> (bool, bool) {
+    let v = pac::SIO.gpio_in(0).read();
+    (v & (1 << SCL_GPIO) != 0, v & (1 << SDA_GPIO) != 0)
 }
 
 /// The input level of `gpio` (`SIO.GPIO_IN`), read without its pin driver.

@@ -5,7 +5,7 @@
 //! to a [`PulseIn`]; the decisions (what counts as an edge, when the measurement is over, the
 //! timeout) are made here and tested on the host.
 
-use x10_hal::ports::PortError;
+use x10_hal::ports::{EdgeCount, PortError};
 use x10_microcode::Edge;
 
 /// One pulse measurement: waits for the start edge (`Rising`: low → high), then for the
@@ -65,6 +65,43 @@ impl PulseIn {
     }
 }
 
+/// The end edge of a pulse to give back to a pin's edge latch after a pulse-in armed its
+/// end-edge wait: one edge when the pin was at the level after the pulse right after the
+/// arming (`over`, read first) and the latch, read next, shows no edge in the end's direction
+/// (`latched`).
+///
+/// On the Pico the latch is the pin's raw interrupt bits, and arming embassy-rp's edge future
+/// clears them (`gpio.rs` 296-299). The adapter arms it only when the pulse is not over yet
+/// (a pulse already over keeps both edges in the latch); an end edge that comes between that
+/// look and the arming is latched, then wiped by the arming, and the pin's next event
+/// reported a rising edge without its falling one (issue 21 item 6). An end edge after the
+/// arming is in the latch and must not be counted twice; one before it is not, and the pin is
+/// then already at its end level: so the level is read before the latch.
+#[must_use]
+pub fn wiped_end_edge(edge: Edge, over: bool, latched: EdgeCount) -> EdgeCount {
+    let (end, seen) = match edge {
+        Edge::Rising => (
+            EdgeCount {
+                rising: 0,
+                falling: 1,
+            },
+            latched.falling,
+        ),
+        Edge::Falling => (
+            EdgeCount {
+                rising: 1,
+                falling: 0,
+            },
+            latched.rising,
+        ),
+    };
+    if over && seen == 0 {
+        end
+    } else {
+        EdgeCount::NONE
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -117,5 +154,37 @@ mod tests {
     fn an_end_edge_seen_at_the_deadline_still_counts() {
         let s = [(0, false), (10, true), (1_000, false)];
         assert_eq!(run(Edge::Rising, 1, &s), Some(Ok(990)));
+    }
+
+    const RISE: EdgeCount = EdgeCount {
+        rising: 1,
+        falling: 0,
+    };
+    const FALL: EdgeCount = EdgeCount {
+        rising: 0,
+        falling: 1,
+    };
+
+    #[test]
+    fn an_end_edge_wiped_by_the_arming_is_given_back() {
+        // Over, nothing latched since the arming: the end edge came before it and was wiped.
+        assert_eq!(wiped_end_edge(Edge::Rising, true, EdgeCount::NONE), FALL);
+        assert_eq!(wiped_end_edge(Edge::Falling, true, EdgeCount::NONE), RISE);
+        // An edge of the other direction since the arming does not stand for it.
+        assert_eq!(wiped_end_edge(Edge::Rising, true, RISE), FALL);
+        assert_eq!(wiped_end_edge(Edge::Falling, true, FALL), RISE);
+    }
+
+    #[test]
+    fn an_end_edge_in_the_latch_is_not_counted_twice() {
+        // Over, its end edge latched after the arming: it will be taken from the latch.
+        assert_eq!(wiped_end_edge(Edge::Rising, true, FALL), EdgeCount::NONE);
+        assert_eq!(wiped_end_edge(Edge::Falling, true, RISE), EdgeCount::NONE);
+        // Not over: the end is awaited, nothing to give back.
+        for latched in [EdgeCount::NONE, RISE, FALL] {
+            for edge in [Edge::Rising, Edge::Falling] {
+                assert_eq!(wiped_end_edge(edge, false, latched), EdgeCount::NONE);
+            }
+        }
     }
 }
