@@ -8,8 +8,8 @@
 //! not latch, and the latches were 200 µs level polls that missed short pulses.
 //!
 //! Unmasking alone would hang the chip: embassy-stm32 0.6 enables every EXTI vector in the
-//! NVIC at start-up (`exti/mod.rs` 546-558, from `init`, `lib.rs` 717-718), and the images
-//! bind no EXTI handler, so the first edge would enter cortex-m-rt's default handler (an
+//! NVIC at start-up (`exti/mod.rs` 547-558, from `init`, `lib.rs` 717-718), and the images
+//! bind no EXTI handler, so the first edge would enter cortex-m-rt 0.7's `DefaultHandler_` (an
 //! endless loop). So `latch_edges` first masks, in the NVIC, the vector that serves the line
 //! ([`exti_vector`]), then unmasks the line in the EXTI: the pending bits latch and no
 //! interrupt is taken (a pending but masked NVIC interrupt does not wake `WFE` either, as
