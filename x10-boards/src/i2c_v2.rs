@@ -94,11 +94,13 @@ pub fn scl_period_us(frequency_hz: u32) -> u32 {
 }
 
 /// How long SCL and SDA must both stay high before the first START after a block reset: two
-/// SCL periods. No master in the middle of a transfer leaves SCL high that long (it drives
-/// SCL low once per bit, and a stretching target holds it low), so a transfer that began
-/// before the reset, whose START the block has not seen, shows within the window.
+/// SCL periods, and at least four of the longest sample gaps ([`max_gap_us`]) so that the
+/// window holds several samples (20 µs at 100 kHz, 12 µs at 400 kHz). No master in the middle
+/// of a transfer leaves SCL high that long (it drives SCL low once per bit, and a stretching
+/// target holds it low), so a transfer that began before the reset, whose START the block has
+/// not seen, shows within the window.
 pub fn quiet_us(frequency_hz: u32) -> u32 {
-    2 * scl_period_us(frequency_hz)
+    (2 * scl_period_us(frequency_hz)).max(4 * max_gap_us(frequency_hz))
 }
 
 /// How long SCL and SDA must both stay high, with BUSY set, for BUSY to count as stale (a
@@ -115,7 +117,8 @@ pub fn stale_us(frequency_hz: u32) -> u32 {
 /// * BUSY: another master's transfer, or a stale BUSY (BUSY clears only on a STOP or PE=0,
 ///   RM0440 §37.7.7, so one START without its STOP would refuse every transfer for ever,
 ///   issue 21 item 1). Start only when both lines stay high for [`stale_us`], after a block
-///   reset; a line seen low is a live transfer: `ArbitrationLost`.
+///   reset; a line seen low is a live transfer: `ArbitrationLost` (unless SDA stays low under
+///   a high SCL as long: a stuck target, which the adapter clocks free first).
 /// * The block reset since its last START (`fresh`: PE off and on clears BUSY without the
 ///   block having seen a START already on the wire, issue 21 item 3): start only when both
 ///   lines stay high for [`quiet_us`].
@@ -210,12 +213,16 @@ impl Hold {
 
 /// The longest gap between two pin samples of a [`Hold`] at `frequency_hz`, in µs of a 1 MHz
 /// clock: the whole µs of the shortest low phase of SCL (t_LOW of UM10204 Table 10: 4.7 µs
-/// at 100 kHz, 1.3 µs at 400 kHz, 0.5 µs at 1 MHz), at least 1. A measured gap of `g` µs is
-/// under `g + 1` µs, so at 100 kHz no SCL low phase fits between two samples; at 400 kHz a
-/// gap just under 2 µs could hide one 1.3 µs low phase, but not the next one an SCL period
-/// later, and every window is at least two SCL periods.
+/// at 100 kHz, 1.3 µs at 400 kHz, 0.5 µs at 1 MHz), at least 3. A measured gap of `g` µs is
+/// under `g + 1` µs, so at 100 kHz (4 µs) no SCL low phase fits between two samples. The floor
+/// of 3 µs is one pass of the sampling loop (two GPIO reads, a read of the time driver and
+/// the 64-bit compares: estimated at up to about 2 µs on the C011 at 48 MHz, not measured),
+/// whose own gaps must not restart the window for ever; at 400 kHz such a gap could hide one
+/// low phase, but a window holds several SCL periods and their lows, and a START misplaced
+/// all the same ends as a bus error before any data byte, which is retried
+/// ([`transfer_error`]) and followed by another reset and quiet window.
 pub fn max_gap_us(frequency_hz: u32) -> u32 {
-    (t_low_ns(frequency_hz) / 1000).max(1)
+    (t_low_ns(frequency_hz) / 1000).max(3)
 }
 
 /// UM10204 Table 10: the shortest SCL low phase (t_LOW) at `frequency_hz`, in ns.
@@ -730,9 +737,9 @@ mod tests {
         );
         assert_eq!(
             before_controller(0, true, 400_000).map(|b| b.quiet_us),
-            Ok(6)
+            Ok(12)
         );
-        assert_eq!(quiet_us(1_000_000), 2);
+        assert_eq!(quiet_us(1_000_000), 12);
         // Another master's transfer under way: SCL is low once per bit.
         let mut h = Hold::new(true, true, 20, max_gap_us(100_000), 0);
         assert_eq!(h.sample(0, true, true), Held::Wait);
@@ -750,8 +757,8 @@ mod tests {
     fn a_gap_between_samples_restarts_the_window_and_too_many_give_up() {
         // 100 kHz: samples at most 4 µs apart.
         assert_eq!(max_gap_us(100_000), 4);
-        assert_eq!(max_gap_us(400_000), 1);
-        assert_eq!(max_gap_us(1_000_000), 1);
+        assert_eq!(max_gap_us(400_000), 3);
+        assert_eq!(max_gap_us(1_000_000), 3);
         let mut h = Hold::new(true, true, 20, 4, 0);
         assert_eq!(h.sample(0, true, true), Held::Wait);
         assert_eq!(h.sample(15, true, true), Held::Wait); // gap of 15: restart at 15

@@ -400,11 +400,20 @@ impl Stm32Bus {
     }
 
     /// Before a controller call: clears what earlier transfers left, after a block reset
-    /// waits for quiet lines, resets a block whose BUSY is stale, or refuses to start
-    /// ([`i2c_v2::before_controller`]).
+    /// waits for quiet lines, resets a block whose BUSY is stale, clears a bus whose SDA a
+    /// target holds, or refuses to start ([`i2c_v2::before_controller`]).
+    ///
+    /// # Errors
+    /// [`BusError::ArbitrationLost`] (retry) or, when a stuck SDA stays low after the bus
+    /// clear, [`BusError::Bus`].
     fn start_controller(&self) -> Result<(), BusError> {
         let b = i2c_v2::before_controller(self.isr(), self.fresh.get(), self.frequency_hz)?;
         if b.quiet_us > 0 && !self.held(true, true, b.quiet_us) {
+            // BUSY and SDA held low under a high SCL as long: a target stuck in a byte whose
+            // controller is gone; nobody else would clock it free. Cleared, then retried.
+            if b.reset && self.held(true, false, b.quiet_us) {
+                self.reset_and_clear_bus()?;
+            }
             return Err(BusError::ArbitrationLost);
         }
         if b.reset {
