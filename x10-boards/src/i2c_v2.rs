@@ -42,7 +42,7 @@ pub mod isr {
     /// Transfer complete (controller, NBYTES done with AUTOEND and RELOAD off).
     pub const TC: u32 = 1 << 6;
     /// Transfer complete reload: NBYTES done with RELOAD on, SCL stretched (as a target
-    /// receiver: before the last byte's ACK bit, RM0440 §37.4.8 "Slave byte control mode").
+    /// receiver: before the last byte's ACK bit, RM0440 §39.4.8 "Target byte control mode").
     pub const TCR: u32 = 1 << 7;
     /// Bus error (misplaced START or STOP).
     pub const BERR: u32 = 1 << 8;
@@ -428,8 +428,8 @@ pub mod cr2 {
 }
 
 /// The CR2 value, from its value `old`, that arms the target side for `nbytes` bytes with
-/// RELOAD on (TCR after them, SCL stretched: RM0440 §37.4.8 "Slave byte control mode", the
-/// driver sets SBC) and, when `nack`, NACKs the byte received last. Writing NBYTES ends a
+/// RELOAD on (TCR after them, SCL stretched: RM0440 §39.4.8 "Target byte control mode" and
+/// "Target with clock stretching", the same paragraphs in RM0490; the driver sets SBC) and, when `nack`, NACKs the byte received last. Writing NBYTES ends a
 /// TCR stretch. START, STOP, AUTOEND and PECBYTE are written 0 (writing 1 to START or STOP
 /// would act as a controller).
 pub fn target_cr2(old: u32, nbytes: u8, nack: bool) -> u32 {

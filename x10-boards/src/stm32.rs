@@ -363,7 +363,7 @@ impl Stm32Bus {
     }
 
     /// The levels of SCL and SDA now (`GPIOx_IDR` reads the pad in the alternate function
-    /// mode too, RM0440 §9.4.5).
+    /// mode too, RM0440 §9.3.11).
     fn levels(&self) -> (bool, bool) {
         let [scl, sda] = self.lines.map(|(port, pin)| {
             gpio(port)
