@@ -648,7 +648,11 @@ impl Stm32Bus {
                     }
                     n += 1;
                 }
-                RxStep::Refuse => self.arm_target(1, true),
+                RxStep::Refuse => {
+                    // NACK chosen first, then NBYTES written, which ends the stretch.
+                    self.regs.cr2().modify(|w| w.set_nack(true));
+                    self.arm_target(1, true);
+                }
                 RxStep::Stop | RxStep::Restart => {
                     let restart = isr & i2c_v2::isr::STOPF == 0;
                     self.clear(isr & i2c_v2::isr::STOPF);
