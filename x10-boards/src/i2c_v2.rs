@@ -24,6 +24,14 @@
 //! [`controller_step`]; a transfer ends on its own STOP (AUTOEND), and what a failure leaves to
 //! do is [`after_controller`]. The register sequence is the driver's own blocking one
 //! (`master_write`, `write_internal`, `read_internal`, 151-227 and 450-572) without its spins.
+//!
+//! Issue 21: BUSY, set by a START and cleared only by a STOP or PE=0, no longer refuses every
+//! transfer for ever after one START without its STOP ([`before_controller`], [`Hold`]); the
+//! first START after a block reset waits for quiet lines; the target side is the adapter's own
+//! too ([`receive_step`], [`transmit_step`]): the driver's `respond_to_write` and
+//! `respond_to_read` held the bus for their 20 ms timeout on a write of 39 bytes or more and on
+//! a read past their buffer (1946-2157: once the DMA is done nothing wakes their poll); the bus
+//! clear waits at least t_LOW per phase ([`clear_half_period_us`]).
 
 use x10_hal::bus::BusError;
 

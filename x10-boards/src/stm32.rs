@@ -3,17 +3,22 @@
 //! gives only what differs: its clocks, its interrupt bindings, its ADC set-up and its pin
 //! table, which it expands with `stm32_build!`.
 //!
-//! * [`Stm32Bus`]: one I2C v2 block is controller and target at once. The target side is
-//!   embassy-stm32's `MultiMaster` handle; the controller side is the adapter's own, on the
-//!   registers (the driver's would spin synchronously on BUSY and on TC, issue 11 item 8):
-//!   it polls ISR with a yield between polls. Decisions in [`crate::i2c_v2`], tested on the
-//!   host: the adapter clears the flags earlier transfers left set before each call, refuses
-//!   to start a controller transfer while the bus is BUSY or this node is addressed
-//!   ([`BusError::ArbitrationLost`], the runtime retries), ends each transfer on its own STOP
-//!   (AUTOEND), and after a timeout sends STOP, resets the block (PE off and on) and clocks a
-//!   stuck SDA free (UM10204 §3.1.16) before giving up with [`BusError::Bus`].
-//!   Target side: `addressed` is the driver's `listen` (ADDR seen, left set, SCL stretched,
-//!   cancel-safe), kept for the adapter's `listen`, which receives the transfer.
+//! * [`Stm32Bus`]: one I2C v2 block is controller and target at once. embassy-stm32's
+//!   `MultiMaster` driver sets the block up and waits for an address match (`listen`);
+//!   everything else is the adapter's own, on the registers, polling ISR with a yield between
+//!   polls (the driver's controller calls spin synchronously on BUSY and TC, issue 11 item 8;
+//!   its target calls stall the bus on over-long transfers, issue 21 item 6). Decisions in
+//!   [`crate::i2c_v2`], tested on the host: the adapter clears the flags earlier transfers left
+//!   set before each call; refuses to start while this node is addressed or another
+//!   controller's transfer is under way ([`BusError::ArbitrationLost`], the runtime retries);
+//!   treats BUSY with both lines quiet for two byte times as stale (block reset), and after
+//!   every block reset waits for quiet lines before its first START (issue 21 items 1 and 3);
+//!   ends each transfer on its own STOP (AUTOEND); after a timeout sends STOP, resets the block
+//!   (PE off and on) and clocks a stuck SDA free (UM10204 §3.1.16) before giving up with
+//!   [`BusError::Bus`]. Target side: `addressed` is the driver's `listen` (ADDR seen, left
+//!   set, SCL stretched, cancel-safe), kept for the adapter's `listen`, which receives the
+//!   write (NACKing a byte past the longest frame); `respond` pads the reply with 0xFF for as
+//!   long as the controller reads.
 //! * [`Stm32Ports`]: digital pins are `Flex` pins (input with pull-down, or push-pull output),
 //!   PWM pins are channels 1 and 2 of one timer per actuator port, analog inputs are on ADC1
 //!   (12 bits), pulse-in samples its pin (see [`crate::pulse`] and `docs/boards.md` for its
@@ -1028,8 +1033,9 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
         }
     }
 
-    /// Latches on the pin's EXTI line (both edges, interrupt masked) when no pin of another
-    /// GPIO port holds that line; see [`crate::stm32_latch`] for what is and is not known.
+    /// Latches on the pin's EXTI line (both edges; the line unmasked in the EXTI, its vector
+    /// masked in the NVIC) when no pin of another GPIO port holds that line; see
+    /// [`crate::stm32_latch`] for what is and is not known.
     ///
     /// # Errors
     /// [`PortError::NoSuchPin`]; [`PortError::Unsupported`] when the line is taken (the
