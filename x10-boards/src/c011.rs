@@ -23,6 +23,16 @@ bind_interrupts!(
     }
 );
 
+/// The C0's EXTI interrupt vectors, in the order of
+/// [`C0_VECTOR_LINES`](crate::stm32_latch::C0_VECTOR_LINES): masked in the NVIC before a line
+/// they serve latches edges (the image binds no EXTI handler).
+pub(crate) const EXTI_VECTORS: [embassy_stm32::interrupt::Interrupt; 3] = {
+    use embassy_stm32::interrupt::Interrupt::*;
+    [EXTI0_1, EXTI2_3, EXTI4_15]
+};
+/// The first EXTI line of each of [`EXTI_VECTORS`].
+pub(crate) const EXTI_VECTOR_LINES: [u8; 3] = crate::stm32_latch::C0_VECTOR_LINES;
+
 /// Number of sensor ports ([`C011`]).
 pub const SENSORS: usize = C011.sensors.len();
 /// Number of actuator ports ([`C011`]).

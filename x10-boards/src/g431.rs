@@ -22,6 +22,16 @@ bind_interrupts!(
     }
 );
 
+/// The G4's EXTI interrupt vectors, in the order of
+/// [`G4_VECTOR_LINES`](crate::stm32_latch::G4_VECTOR_LINES): masked in the NVIC before a line
+/// they serve latches edges (the images bind no EXTI handler).
+pub(crate) const EXTI_VECTORS: [embassy_stm32::interrupt::Interrupt; 7] = {
+    use embassy_stm32::interrupt::Interrupt::*;
+    [EXTI0, EXTI1, EXTI2, EXTI3, EXTI4, EXTI9_5, EXTI15_10]
+};
+/// The first EXTI line of each of [`EXTI_VECTORS`].
+pub(crate) const EXTI_VECTOR_LINES: [u8; 7] = crate::stm32_latch::G4_VECTOR_LINES;
+
 /// Number of sensor ports ([`G431`]).
 pub const SENSORS: usize = G431.sensors.len();
 /// Number of actuator ports ([`G431`]).

@@ -9,8 +9,8 @@
 //!   block between controller and target only while its own target side is idle: it cannot
 //!   see another master's transfer to another node, see `docs/boards.md`) and for the STM32G431
 //!   and STM32C011 (`stm32::Stm32Bus`, as `g431::G431Bus` and `c011::C011Bus`: one I2C v2
-//!   block, embassy-stm32's `MultiMaster` driver as target, the adapter's own register-level
-//!   controller);
+//!   block, embassy-stm32's `MultiMaster` driver waiting for the address match, the adapter's
+//!   own register-level controller and target transfers);
 //! * the ports: [`x10_hal::ports::Ports`] for each board (`pico::PicoPorts`,
 //!   `g431::G431Ports`, `c011::C011Ports`), used by a DB image and by the internal
 //!   daughterboard of an MB image;

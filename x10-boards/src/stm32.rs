@@ -3,24 +3,28 @@
 //! gives only what differs: its clocks, its interrupt bindings, its ADC set-up and its pin
 //! table, which it expands with `stm32_build!`.
 //!
-//! * [`Stm32Bus`]: one I2C v2 block is controller and target at once. The target side is
-//!   embassy-stm32's `MultiMaster` handle; the controller side is the adapter's own, on the
-//!   registers (the driver's would spin synchronously on BUSY and on TC, issue 11 item 8):
-//!   it polls ISR with a yield between polls. Decisions in [`crate::i2c_v2`], tested on the
-//!   host: the adapter clears the flags earlier transfers left set before each call, refuses
-//!   to start a controller transfer while the bus is BUSY or this node is addressed
-//!   ([`BusError::ArbitrationLost`], the runtime retries), ends each transfer on its own STOP
-//!   (AUTOEND), and after a timeout sends STOP, resets the block (PE off and on) and clocks a
-//!   stuck SDA free (UM10204 §3.1.16) before giving up with [`BusError::Bus`].
-//!   Target side: `addressed` is the driver's `listen` (ADDR seen, left set, SCL stretched,
-//!   cancel-safe), kept for the adapter's `listen`, which receives the transfer.
+//! * [`Stm32Bus`]: one I2C v2 block is controller and target at once. embassy-stm32's
+//!   `MultiMaster` driver sets the block up and waits for an address match (`listen`);
+//!   everything else is the adapter's own, on the registers, polling ISR with a yield between
+//!   polls (the driver's controller calls spin synchronously on BUSY and TC, issue 11 item 8;
+//!   its target calls stall the bus on over-long transfers, issue 21 item 6). Decisions in
+//!   [`crate::i2c_v2`], tested on the host: the adapter clears the flags earlier transfers left
+//!   set before each call; refuses to start while this node is addressed or another
+//!   controller's transfer is under way ([`BusError::ArbitrationLost`], the runtime retries);
+//!   treats BUSY with both lines quiet for two byte times as stale (block reset), and after
+//!   every block reset waits for quiet lines before its first START (issue 21 items 1 and 3);
+//!   ends each transfer on its own STOP (AUTOEND); after a timeout sends STOP, resets the block
+//!   (PE off and on) and clocks a stuck SDA free (UM10204 §3.1.16) before giving up with
+//!   [`BusError::Bus`]. Target side: `addressed` is the driver's `listen` (ADDR seen, left
+//!   set, SCL stretched, cancel-safe), kept for the adapter's `listen`, which receives the
+//!   write (NACKing a byte past the longest frame); `respond` pads the reply with 0xFF for as
+//!   long as the controller reads.
 //! * [`Stm32Ports`]: digital pins are `Flex` pins (input with pull-down, or push-pull output),
 //!   PWM pins are channels 1 and 2 of one timer per actuator port, analog inputs are on ADC1
 //!   (12 bits), pulse-in samples its pin (see [`crate::pulse`] and `docs/boards.md` for its
 //!   resolution).
 
 use core::cell::Cell;
-use core::task::Poll;
 
 use embassy_stm32::adc::{self, AnyAdcChannel};
 use embassy_stm32::gpio::{Flex, Pull, Speed};
@@ -32,9 +36,9 @@ use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
 use embassy_time::{Duration, Instant};
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::ports::{EdgeCount, PortError, Ports};
-use x10_microcode::{Edge, Level, Pin, PinRef, Port, MAX_FRAME_LEN};
+use x10_microcode::{Edge, Level, Pin, PinRef, Port};
 
-use crate::i2c_v2::{self, After, Lines, Outcome, Progress, Step};
+use crate::i2c_v2::{self, After, Lines, Outcome, Progress, RxStep, Step, TxStep};
 use crate::pulse::PulseIn;
 use crate::pwm::{stm32_compare, stm32_frequency_ok, Output, Timebase, DEFAULT_HZ};
 use crate::stm32_latch::{self, Pending};
@@ -273,11 +277,10 @@ pub struct Stm32Bus {
     /// The address match [`MultiMaster::addressed`] saw (ADDR still set, SCL stretched),
     /// for the following `listen`.
     matched: Option<SlaveCommandKind>,
+    /// The block was reset (or just set up) and has not started a transfer since: its BUSY
+    /// may miss a transfer already on the wire ([`i2c_v2::before_controller`]).
+    fresh: Cell<bool>,
 }
-
-/// Longest reply that gets padded: a controller reading past the reply gets 0xFF, as the
-/// trait promises, for up to this many bytes in all.
-const TX_LEN: usize = MAX_FRAME_LEN + 16;
 
 fn outcome(r: Result<(), i2c::Error>) -> Outcome {
     match r {
@@ -360,6 +363,34 @@ impl Stm32Bus {
             frequency_hz,
             timeout_us,
             matched: None,
+            fresh: Cell::new(true),
+        }
+    }
+
+    /// The levels of SCL and SDA now (`GPIOx_IDR` reads the pad in the alternate function
+    /// mode too, RM0440 §9.3.11).
+    fn levels(&self) -> (bool, bool) {
+        let [scl, sda] = self.lines.map(|(port, pin)| {
+            gpio(port)
+                .is_some_and(|g| g.idr().read().idr(usize::from(pin)) == pac::gpio::vals::Idr::HIGH)
+        });
+        (scl, sda)
+    }
+
+    /// Whether SCL and SDA hold `scl` and `sda` without a break for `need_us`, sampled in a
+    /// tight loop ([`i2c_v2::Hold`]; synchronous: it ends at the first other level, within an
+    /// SCL period on a live bus, and lasts the whole window only when the lines are still).
+    fn held(&self, scl: bool, sda: bool, need_us: u32) -> bool {
+        let now = || Instant::now().as_micros();
+        let gap = i2c_v2::max_gap_us(self.frequency_hz);
+        let mut h = i2c_v2::Hold::new(scl, sda, need_us, gap, now());
+        loop {
+            let (c, d) = self.levels();
+            match h.sample(now(), c, d) {
+                i2c_v2::Held::Yes => return true,
+                i2c_v2::Held::No => return false,
+                i2c_v2::Held::Wait => {}
+            }
         }
     }
 
@@ -373,9 +404,29 @@ impl Stm32Bus {
         }
     }
 
-    /// Before a controller call: clears what earlier transfers left, or refuses to start.
+    /// Before a controller call: clears what earlier transfers left, after a block reset
+    /// waits for quiet lines, resets a block whose BUSY is stale, clears a bus whose SDA a
+    /// target holds, or refuses to start ([`i2c_v2::before_controller`]).
+    ///
+    /// # Errors
+    /// [`BusError::ArbitrationLost`] (retry) or, when a stuck SDA stays low after the bus
+    /// clear, [`BusError::Bus`].
     fn start_controller(&self) -> Result<(), BusError> {
-        self.clear(i2c_v2::before_controller(self.isr())?);
+        let b = i2c_v2::before_controller(self.isr(), self.fresh.get(), self.frequency_hz)?;
+        if b.quiet_us > 0 && !self.held(true, true, b.quiet_us) {
+            // BUSY and SDA held low under a high SCL as long: a target stuck in a byte whose
+            // controller is gone; nobody else would clock it free. Cleared, then retried.
+            if b.reset && self.held(true, false, b.quiet_us) {
+                self.reset_and_clear_bus()?;
+            }
+            return Err(BusError::ArbitrationLost);
+        }
+        if b.reset {
+            defmt::warn!("I2C: BUSY with both lines high: stale, block reset");
+            self.reset_block();
+        }
+        self.clear(b.icr);
+        self.fresh.set(false);
         Ok(())
     }
 
@@ -391,6 +442,7 @@ impl Stm32Bus {
         // PE reads back low after three APB clock cycles.
         while self.regs.cr1().read().pe() {}
         self.regs.cr1().modify(|w| w.set_pe(true));
+        self.fresh.set(true);
     }
 
     /// Waits (polling, yielding between polls) up to [`i2c_v2::stop_wait_us`] for the STOP
@@ -424,8 +476,11 @@ impl Stm32Bus {
         self.reset_and_clear_bus()
     }
 
-    /// PE reset, then the nine-clock recovery when SDA is held low (synchronous: at most 20
-    /// half SCL periods, 100 µs at 100 kHz; kept out of line, it is rare).
+    /// PE reset, then the nine-clock recovery when SDA is held low under a high SCL for two
+    /// byte times (synchronous: that window, then at most [`i2c_v2::CLEAR_HALF_PERIODS`]
+    /// half periods of [`i2c_v2::clear_half_period_us`], 138 µs at 100 kHz; kept out of line,
+    /// it is rare). A line that moves in the window is a transfer under way (or SCL held low
+    /// by a stretching target), which nine clocks of ours would corrupt: nothing is clocked.
     ///
     /// # Errors
     /// [`BusError::Bus`] when SDA stays low.
@@ -436,16 +491,16 @@ impl Stm32Bus {
         let (Some(gs), Some(gd)) = (gpio(scl.0), gpio(sda.0)) else {
             return Err(BusError::Bus);
         };
+        if !self.held(true, false, i2c_v2::stale_us(self.frequency_hz)) {
+            return Ok(());
+        }
         let mut lines = GpioLines {
             scl: (gs, usize::from(scl.1)),
             sda: (gd, usize::from(sda.1)),
-            half_period: Duration::from_micros(u64::from(
-                (500_000 / self.frequency_hz.max(1)).max(1),
-            )),
+            half_period: Duration::from_micros(u64::from(i2c_v2::clear_half_period_us(
+                self.frequency_hz,
+            ))),
         };
-        if lines.sda_high() {
-            return Ok(());
-        }
         defmt::warn!("I2C: SDA held low, clocking it free");
         lines.scl(true);
         lines.sda(true);
@@ -470,8 +525,10 @@ impl Stm32Bus {
     /// [`BusError::ArbitrationLost`] when the bus is taken or arbitration was lost; `Nack`,
     /// `Timeout`; [`BusError::Bus`] for a bus error or when SDA stays stuck after a recovery.
     async fn transfer(&mut self, addr: u8, write: &[u8], read: &mut [u8]) -> Result<(), BusError> {
+        let phases = i2c_v2::cr2_phases(addr, write.len(), read.len()).ok_or(BusError::Overrun)?;
         self.start_controller()?;
-        let o = self.run_transfer(addr, write, read).await;
+        let mut p = Progress::new(write.len(), read.len());
+        let o = self.run_transfer(phases, write, read, &mut p).await;
         let (icr, after) = i2c_v2::after_controller(o);
         self.clear(icr);
         if o != Outcome::Ok {
@@ -490,7 +547,7 @@ impl Stm32Bus {
         if !free {
             self.recover().await?;
         }
-        i2c_v2::controller_error(o)
+        i2c_v2::transfer_error(o, &p)
     }
 
     /// The register sequence of a transfer (RM0440 §37.4.9; embassy-stm32's blocking
@@ -498,21 +555,18 @@ impl Stm32Bus {
     /// (AUTOEND when no read follows), each TXIS takes a byte, TC starts the read phase with
     /// a repeated START and AUTOEND, each RXNE gives a byte, STOPF ends it. Between polls the
     /// task yields; no wait is synchronous.
-    async fn run_transfer(&mut self, addr: u8, write: &[u8], read: &mut [u8]) -> Outcome {
-        let Some(first) = i2c_v2::cr2_start(addr, write.len(), false, read.is_empty()) else {
-            return Outcome::Other;
-        };
-        // No DMA requests during the adapter's own transfer (the driver's target calls set
-        // their enable bits again each time).
-        self.regs.cr1().modify(|w| {
-            w.set_txdmaen(false);
-            w.set_rxdmaen(false);
-        });
+    async fn run_transfer(
+        &mut self,
+        phases: (u32, u32),
+        write: &[u8],
+        read: &mut [u8],
+        p: &mut Progress,
+    ) -> Outcome {
+        let (first, second) = phases;
         self.regs.cr2().write_value(pac::i2c::regs::Cr2(first));
-        let deadline = Instant::now() + Duration::from_micros(u64::from(self.timeout_us));
-        let mut p = Progress::new(write.len(), read.len());
+        let deadline = self.deadline();
         loop {
-            let step = i2c_v2::controller_step(self.isr(), &p);
+            let step = i2c_v2::controller_step(self.isr(), p);
             match step {
                 Step::Send => {
                     let byte = write.get(p.sent).copied().unwrap_or(0);
@@ -525,10 +579,7 @@ impl Stm32Bus {
                     }
                 }
                 Step::Restart => {
-                    let Some(v) = i2c_v2::cr2_start(addr, read.len(), true, true) else {
-                        return Outcome::Other;
-                    };
-                    self.regs.cr2().write_value(pac::i2c::regs::Cr2(v));
+                    self.regs.cr2().write_value(pac::i2c::regs::Cr2(second));
                 }
                 Step::Finished => {
                     self.clear(i2c_v2::icr::STOPCF);
@@ -548,15 +599,125 @@ impl Stm32Bus {
         }
     }
 
-    /// After a target-side call of the driver failed: its timeout may have left SCL stretched
-    /// in the middle of a transfer, so the block is reset.
-    #[inline(never)]
+    /// After the driver's `listen` failed: see [`Stm32Bus::target_failed`].
     fn target_error(&self, e: i2c::Error) -> BusError {
-        let o = outcome(Err(e));
+        self.target_failed(outcome(Err(e)))
+    }
+
+    /// After a target-side transfer failed: a timeout may have left SCL stretched in the
+    /// middle of it, and errors leave the state machine where they struck, so the block is
+    /// reset ([`i2c_v2::target_needs_reset`]).
+    #[inline(never)]
+    fn target_failed(&self, o: Outcome) -> BusError {
         if i2c_v2::target_needs_reset(o) {
             self.reset_block();
         }
         i2c_v2::controller_error(o).err().unwrap_or(BusError::Bus)
+    }
+
+    /// Arms the target side for `nbytes` bytes (RELOAD; `nack`: NACK the byte received last),
+    /// which also ends a TCR stretch ([`i2c_v2::target_cr2`]).
+    fn arm_target(&self, nbytes: u8, nack: bool) {
+        let v = i2c_v2::target_cr2(self.regs.cr2().read().0, nbytes, nack);
+        self.regs.cr2().write_value(pac::i2c::regs::Cr2(v));
+    }
+
+    /// The deadline of a transfer starting now.
+    fn deadline(&self) -> Instant {
+        Instant::now() + Duration::from_micros(u64::from(self.timeout_us))
+    }
+
+    /// Receives the write whose address match is pending (ADDR set, SCL stretched) into `buf`,
+    /// polling ISR with a yield between polls ([`i2c_v2::receive_step`]). NBYTES is
+    /// [`RX_LEN`], one byte more than the longest frame, with RELOAD: a byte past the longest
+    /// frame raises TCR and is NACKed, so an over-long write ends at once with
+    /// [`BusError::Overrun`] (the driver's `respond_to_write` let the block stretch SCL until
+    /// its timeout after its DMA buffer was full: issue 21 item 6).
+    ///
+    /// A write ended by a repeated START that reads is a write-read (the read's ADDR is left
+    /// set for [`Stm32Bus::transmit`]).
+    async fn receive(&self, buf: &mut [u8]) -> Result<Incoming, BusError> {
+        self.start_target();
+        self.arm_target(RX_LEN as u8, false);
+        self.clear(i2c_v2::icr::ADDRCF);
+        let deadline = self.deadline();
+        let cap = RX_LEN.min(buf.len() + 1);
+        let mut n = 0;
+        loop {
+            let isr = self.isr();
+            match i2c_v2::receive_step(isr) {
+                RxStep::Take => {
+                    let byte = self.regs.rxdr().read().rxdata();
+                    if let Some(slot) = buf.get_mut(n) {
+                        *slot = byte;
+                    }
+                    n += 1;
+                }
+                RxStep::Refuse => {
+                    // NACK chosen first, then NBYTES written, which ends the stretch.
+                    self.regs.cr2().modify(|w| w.set_nack(true));
+                    self.arm_target(1, true);
+                }
+                RxStep::Stop | RxStep::Restart => {
+                    let restart = isr & i2c_v2::isr::STOPF == 0;
+                    self.clear(isr & i2c_v2::isr::STOPF);
+                    return match i2c_v2::received(n, cap, isr, restart) {
+                        Some(true) => Ok(Incoming::WriteRead(n)),
+                        Some(false) => Ok(Incoming::Write(n)),
+                        None => Err(BusError::Overrun),
+                    };
+                }
+                RxStep::Failed => return Err(self.target_failed(Outcome::Bus)),
+                RxStep::Wait => {
+                    if Instant::now() >= deadline {
+                        return Err(self.target_failed(Outcome::Timeout));
+                    }
+                    embassy_futures::yield_now().await;
+                }
+            }
+        }
+    }
+
+    /// Answers the read whose address match is pending: the reply, then 0xFF for as long as
+    /// the controller reads (NBYTES 255 with RELOAD, armed again at each TCR), until its NACK
+    /// and STOP ([`i2c_v2::transmit_step`]). The driver's `respond_to_read` sent only its
+    /// buffer and then let the block stretch SCL until its timeout (issue 21 item 6).
+    async fn transmit(&self, reply: &[u8]) -> Result<(), BusError> {
+        self.start_target();
+        // A byte left in TXDR would go out first.
+        self.regs.isr().write(|w| w.set_txe(true));
+        self.arm_target(255, false);
+        self.clear(i2c_v2::icr::ADDRCF);
+        let deadline = self.deadline();
+        let mut i = 0;
+        let mut nacked = false;
+        loop {
+            let isr = self.isr();
+            match i2c_v2::transmit_step(isr, nacked) {
+                TxStep::Send => {
+                    let byte = i2c_v2::reply_byte(reply, i);
+                    self.regs.txdr().write(|w| w.set_txdata(byte));
+                    i += 1;
+                }
+                TxStep::Reload => self.arm_target(255, false),
+                TxStep::Nacked => {
+                    self.clear(i2c_v2::icr::NACKCF);
+                    self.regs.isr().write(|w| w.set_txe(true));
+                    nacked = true;
+                }
+                TxStep::Done => {
+                    self.clear(isr & i2c_v2::isr::STOPF);
+                    return Ok(());
+                }
+                TxStep::Failed => return Err(self.target_failed(Outcome::Bus)),
+                TxStep::Wait => {
+                    if Instant::now() >= deadline {
+                        return Err(self.target_failed(Outcome::Timeout));
+                    }
+                    embassy_futures::yield_now().await;
+                }
+            }
+        }
     }
 }
 
@@ -604,43 +765,11 @@ impl MultiMaster for Stm32Bus {
         if kind == SlaveCommandKind::Read {
             return Ok(Incoming::Read);
         }
-        self.start_target();
-        // The driver acknowledges and drops bytes past its buffer: one byte more than the
-        // longest frame shows an over-long write.
-        let mut rx = [0u8; RX_LEN];
-        let n = match self.i2c.respond_to_write(&mut rx).await {
-            Ok(n) => n,
-            Err(e) => return Err(self.target_error(e)),
-        };
-        let (Some(dst), Some(src)) = (buf.get_mut(..n), rx.get(..n)) else {
-            return Err(BusError::Overrun);
-        };
-        if n >= RX_LEN {
-            return Err(BusError::Overrun);
-        }
-        dst.copy_from_slice(src);
-        // The write ended with STOP, or with a repeated START: then ADDR is already set again
-        // with the read direction, and `listen` reports it without waiting.
-        match embassy_futures::poll_once(self.i2c.listen()) {
-            Poll::Ready(Ok(c)) if c.kind == SlaveCommandKind::Read => Ok(Incoming::WriteRead(n)),
-            _ => Ok(Incoming::Write(n)),
-        }
+        self.receive(buf).await
     }
 
     async fn respond(&mut self, bytes: &[u8]) -> Result<(), BusError> {
-        let mut tx = [0xFFu8; TX_LEN];
-        let reply: &[u8] = match tx.get_mut(..bytes.len()) {
-            Some(head) => {
-                head.copy_from_slice(bytes);
-                &tx
-            }
-            None => bytes,
-        };
-        self.start_target();
-        match self.i2c.respond_to_read(reply).await {
-            Ok(_) => Ok(()),
-            Err(e) => Err(self.target_error(e)),
-        }
+        self.transmit(bytes).await
     }
 }
 
@@ -700,8 +829,25 @@ fn gpio_level(port: u8, line: usize) -> bool {
     gpio.idr().read().idr(line) == pac::gpio::vals::Idr::HIGH
 }
 
-/// Routes EXTI line `line` to GPIO port `port`, both edges, interrupt masked, pending cleared.
+/// Routes EXTI line `line` to GPIO port `port`, both edges, pending cleared, and unmasks it so
+/// that its pending bits latch, after masking its vector in the NVIC
+/// ([`crate::stm32_latch`]: embassy-stm32 enabled them all and no EXTI handler is bound).
 fn exti_latch(port: u8, line: usize) {
+    #[cfg(feature = "stm32c011")]
+    use crate::c011::{EXTI_VECTORS, EXTI_VECTOR_LINES};
+    #[cfg(feature = "stm32g431")]
+    use crate::g431::{EXTI_VECTORS, EXTI_VECTOR_LINES};
+    use embassy_stm32::interrupt::InterruptExt as _;
+    let (Some(v), Some([imr, rtsr, ftsr])) = (
+        stm32_latch::exti_vector(&EXTI_VECTOR_LINES, line).and_then(|v| EXTI_VECTORS.get(v)),
+        stm32_latch::exti_line_bits(line),
+    ) else {
+        return;
+    };
+    v.disable();
+    // The mask takes effect before the line can raise the interrupt.
+    cortex_m::asm::dsb();
+    cortex_m::asm::isb();
     cortex_m::interrupt::free(|_| {
         #[cfg(feature = "stm32g431")]
         pac::SYSCFG
@@ -711,11 +857,11 @@ fn exti_latch(port: u8, line: usize) {
         pac::EXTI
             .exticr(line / 4)
             .modify(|w| w.set_exti(line % 4, port));
-        pac::EXTI.imr(0).modify(|w| w.set_line(line, false));
-        pac::EXTI.rtsr(0).modify(|w| w.set_line(line, true));
-        pac::EXTI.ftsr(0).modify(|w| w.set_line(line, true));
+        pac::EXTI.rtsr(0).modify(|w| w.0 |= rtsr);
+        pac::EXTI.ftsr(0).modify(|w| w.0 |= ftsr);
+        exti_pending(line, true);
+        pac::EXTI.imr(0).modify(|w| w.0 |= imr);
     });
-    exti_pending(line, true);
 }
 
 /// The pending bits of EXTI line `line`, cleared with `clear`.
@@ -887,8 +1033,9 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
         }
     }
 
-    /// Latches on the pin's EXTI line (both edges, interrupt masked) when no pin of another
-    /// GPIO port holds that line; see [`crate::stm32_latch`] for what is and is not known.
+    /// Latches on the pin's EXTI line (both edges; the line unmasked in the EXTI, its vector
+    /// masked in the NVIC) when no pin of another GPIO port holds that line; see
+    /// [`crate::stm32_latch`] for what is and is not known.
     ///
     /// # Errors
     /// [`PortError::NoSuchPin`]; [`PortError::Unsupported`] when the line is taken (the

@@ -1,15 +1,20 @@
 //! The decisions of the STM32 adapter's edge latches ([`Ports::latch_edges`]), as pure
 //! functions: tested on the host, no HAL.
 //!
-//! A latched pin has its EXTI line set to trigger on both edges with its interrupt masked
-//! (`EXTI_IMR1` bit 0: embassy-stm32's EXTI handler never runs for it and so never clears it),
-//! and the adapter reads the line's pending bits: one bit for both edges on the G4
-//! (`EXTI_PR1`), one per direction on the C0 (`EXTI_RPR1`, `EXTI_FPR1`). The reference
-//! manuals are not at hand here to say whether a masked line still sets its pending bit, so
-//! the adapter also compares the pin's level with the level at the previous take: a change
-//! counts as an edge even when no pending bit says so. Either way no level change is missed
-//! (the runtime no longer samples a latched pin), and, when the pending bits do latch, a
-//! pulse shorter than the 200 µs between two looks is counted too.
+//! A latched pin has its EXTI line set to trigger on both edges with its interrupt unmasked
+//! (`EXTI_IMR1`), so every edge sets the line's pending bits: one bit for both edges on the G4
+//! (`EXTI_PR1`), one per direction on the C0 (`EXTI_RPR1`, `EXTI_FPR1`); they stay set until
+//! the adapter clears them. With the line masked (before issue 21 item 4) the pending bits do
+//! not latch, and the latches were 200 µs level polls that missed short pulses.
+//!
+//! Unmasking alone would hang the chip: embassy-stm32 0.6 enables every EXTI vector in the
+//! NVIC at start-up (`exti/mod.rs` 547-558, from `init`, `lib.rs` 717-718), and the images
+//! bind no EXTI handler, so the first edge would enter cortex-m-rt 0.7's `DefaultHandler_` (an
+//! endless loop). So `latch_edges` first masks, in the NVIC, the vector that serves the line
+//! ([`exti_vector`]), then unmasks the line in the EXTI: the pending bits latch and no
+//! interrupt is taken (a pending but masked NVIC interrupt does not wake `WFE` either, as
+//! `SEVONPEND` is off). The adapter also compares the pin's level with the level at the
+//! previous take: a change counts as an edge even when no pending bit says so.
 //!
 //! [`Ports::latch_edges`]: x10_hal::ports::Ports::latch_edges
 
@@ -70,8 +75,40 @@ pub fn claim(holder: Option<u8>, port: u8) -> Result<(), PortError> {
     }
 }
 
+/// The first EXTI line of each EXTI interrupt vector of the G4, in the order of the
+/// vectors EXTI0, EXTI1, EXTI2, EXTI3, EXTI4, EXTI9_5, EXTI15_10 (stm32-metapac 21,
+/// `stm32g431cb`: interrupts 6 to 10, 23, 40).
+pub const G4_VECTOR_LINES: [u8; 7] = [0, 1, 2, 3, 4, 5, 10];
+
+/// The first EXTI line of each EXTI interrupt vector of the C0: EXTI0_1, EXTI2_3, EXTI4_15
+/// (stm32-metapac 21, `stm32c011f6`: interrupts 5 to 7).
+pub const C0_VECTOR_LINES: [u8; 3] = [0, 2, 4];
+
+/// The index, in a chip's list of EXTI vectors whose first lines are `first_lines`
+/// (ascending), of the vector that serves EXTI line `line` (0 to 15): the one the adapter
+/// masks in the NVIC before it unmasks the line.
+#[must_use]
+pub fn exti_vector(first_lines: &[u8], line: usize) -> Option<usize> {
+    if line > 15 {
+        return None;
+    }
+    first_lines.iter().rposition(|&f| usize::from(f) <= line)
+}
+
+/// The bits a latched line sets in `EXTI_IMR1` (interrupt unmasked, so the pending bits
+/// latch), `EXTI_RTSR1` and `EXTI_FTSR1` (both edges): its own bit in all three.
+#[must_use]
+pub fn exti_line_bits(line: usize) -> Option<[u32; 3]> {
+    let bit = 1u32
+        .checked_shl(u32::try_from(line).ok()?)
+        .filter(|_| line < 16)?;
+    Some([bit; 3])
+}
+
 #[cfg(test)]
 mod tests {
+    extern crate std;
+
     use super::*;
 
     const fn n(rising: u16, falling: u16) -> EdgeCount {
@@ -105,6 +142,30 @@ mod tests {
         assert!(!waiting(Either(false), true, true));
         assert!(waiting(Either(false), true, false));
         assert!(waiting(Either(true), true, true));
+    }
+
+    /// Issue 21 item 4: a latched line is unmasked in the EXTI (before, `IMR1` was cleared and
+    /// the pending bits never latched) once its NVIC vector is masked.
+    #[test]
+    fn a_latched_line_is_unmasked_after_its_vector_is_masked() {
+        let imr = |line| exti_line_bits(line).map(|b| b[0]);
+        assert_eq!(imr(0), Some(1));
+        assert_eq!(imr(7), Some(1 << 7));
+        assert_eq!(exti_line_bits(15), Some([1 << 15; 3]));
+        assert_eq!(exti_line_bits(16), None);
+        // G4: EXTI0..EXTI4 one line each, EXTI9_5, EXTI15_10.
+        let g4: std::vec::Vec<_> = (0..16).map(|l| exti_vector(&G4_VECTOR_LINES, l)).collect();
+        assert_eq!(
+            g4,
+            [0, 1, 2, 3, 4, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6].map(Some)
+        );
+        // C0: EXTI0_1, EXTI2_3, EXTI4_15.
+        let c0: std::vec::Vec<_> = (0..16).map(|l| exti_vector(&C0_VECTOR_LINES, l)).collect();
+        assert_eq!(
+            c0,
+            [0, 0, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2, 2].map(Some)
+        );
+        assert_eq!(exti_vector(&C0_VECTOR_LINES, 16), None);
     }
 
     #[test]
