@@ -5,9 +5,9 @@
 //! entry per 7-bit address; the dispatcher and the internal worker act on it.
 
 use x10_hal::time::Instant;
-use x10_microcode::{Address, Op};
+use x10_microcode::{Address, Identity, Op, PortKind};
 
-use crate::board_set::{board_index, BoardSet};
+use crate::board_set::{board_index, BoardSet, BOARDS};
 use crate::keepalive::Keepalives;
 
 /// The per-board state.
@@ -20,6 +20,11 @@ pub(crate) struct Boards {
     pub(crate) keepalive: Keepalives,
     /// A failsafe setting changed (the dispatcher must look at the keepalives again).
     keepalive_changed: bool,
+    /// Each board's port counts, from its `boot` event or an `identify` reply: sensor ports
+    /// in the high nibble, actuator ports in the low one (15: fifteen or more).
+    ports: [u8; BOARDS],
+    /// Boards whose port counts are known.
+    ports_known: BoardSet,
 }
 
 impl Boards {
@@ -29,6 +34,55 @@ impl Boards {
             ready: BoardSet::new(),
             keepalive: Keepalives::new(),
             keepalive_changed: false,
+            ports: [0; BOARDS],
+            ports_known: BoardSet::new(),
+        }
+    }
+
+    /// `board` described itself (its `boot` event, an `identify` reply): its port counts.
+    pub(crate) fn identified(&mut self, board: Address, id: &Identity) {
+        let i = board_index(board);
+        if let Some(p) = self.ports.get_mut(i) {
+            *p = id.sensor_ports.min(15) << 4 | id.actuator_ports.min(15);
+        }
+        self.ports_known.set(i, true);
+    }
+
+    /// True when `board`'s port counts are known.
+    pub(crate) fn ports_known(&self, board: Address) -> bool {
+        self.ports_known.contains(board_index(board))
+    }
+
+    /// Checks that every port `op` names (a batch: every item's) exists on `board`, as far as
+    /// the motherboard knows the board's ports. `Err` with the port that does not.
+    pub(crate) fn check_ports(
+        &self,
+        board: Address,
+        op: &Op<'_>,
+    ) -> Result<(), x10_microcode::Port> {
+        let i = board_index(board);
+        if !self.ports_known.contains(i) {
+            return Ok(());
+        }
+        let packed = self.ports.get(i).copied().unwrap_or(0xFF);
+        let check = |item: &Op<'_>| match item.pin_ref() {
+            Some(pin) => {
+                let count = match pin.port.kind() {
+                    PortKind::Sensor => packed >> 4,
+                    PortKind::Actuator => packed & 0x0F,
+                };
+                // 15 stands for fifteen or more: no port beyond it is refused.
+                if pin.port.index() < count || count == 15 {
+                    Ok(())
+                } else {
+                    Err(pin.port)
+                }
+            }
+            None => Ok(()),
+        };
+        match op {
+            Op::Batch(b) => b.iter().try_for_each(|item| check(&item)),
+            _ => check(op),
         }
     }
 

@@ -229,6 +229,15 @@ impl MbCore {
                 self.end_job(meta, Outcome::Complete(Err(e)), false, false);
                 return;
             }
+            // The preparation may have told the board's ports (identify): a request for a
+            // port it lacks never goes out.
+            let missing = request_op(&job.frame)
+                .is_some_and(|op| self.with(|t| t.boards.check_ports(meta.db, &op).is_err()));
+            if missing {
+                let refused = Err(LinkError::Status(Status::PortOutOfRange));
+                self.end_job(meta, Outcome::Complete(refused), false, false);
+                return;
+            }
             let (frame, pec) = self.frame_to_send(job);
             // A reply to `set_pec(1)` comes in the new mode, with PEC.
             let pec_read = pec || switches_pec_on;
@@ -336,7 +345,8 @@ impl MbCore {
     /// Prepares external board `db` when the configuration asks for it and it has not been
     /// since its last boot: PEC on (`MbConfig::pec`), confirmed by the board's reply checked
     /// with PEC, then the failsafe (a program's own, else `MbConfig::failsafe_ms`),
-    /// confirmed by its reply, and kept alive. A boot event that comes in meanwhile turns
+    /// confirmed by its reply, and kept alive; then, unless its `boot` event told them, its
+    /// ports (`identify`). A boot event that comes in meanwhile turns
     /// PEC off again and the preparation starts over (three rounds at most).
     async fn ensure_ready<B: MultiMaster>(
         &self,
@@ -391,6 +401,10 @@ impl MbCore {
             let t_now = now();
             self.with(|t| t.boards.failsafe_set(db, ms, t_now));
             self.notify_keepalive();
+        }
+        // Its ports, unless its boot event told them: nothing to a port it lacks goes out.
+        if !self.with(|t| t.boards.ports_known(db)) {
+            self.setup_op(bus, db, Op::Identify, seed, rx).await?;
         }
         Ok(())
     }
@@ -449,6 +463,11 @@ impl MbCore {
                     self.board_pec_is(db, state);
                     let t_now = now();
                     self.with(|t| t.boards.keepalive.sent(db, t_now));
+                    if let (Op::Identify, Outcome::Complete(Ok(p))) = (op, &outcome) {
+                        if let Ok(id) = x10_microcode::Identity::parse(p) {
+                            self.with(|t| t.boards.identified(db, &id));
+                        }
+                    }
                     return match outcome {
                         Outcome::Complete(Ok(_)) => Ok(()),
                         Outcome::Complete(Err(LinkError::Status(Status::PecMismatch)))

@@ -237,6 +237,13 @@ impl MbCore {
                 db.get(),
             )));
         }
+        // A port the board does not have (as its boot event or identify reply said): refused
+        // here, as the board would refuse it, so that an output to it never returns `Ok`.
+        if let Err(port) = self.with(|t| t.boards.check_ports(db, &op)) {
+            warn!("board {} has no port {}", db.get(), port.number());
+            self.with(|t| bump(&mut t.diag.status_errors));
+            return Err(LinkError::Status(x10_microcode::Status::PortOutOfRange));
+        }
         let now = now();
         let deadline = now.plus_us(timeout_us);
         let (ticket, seq) = self.with(|t| {

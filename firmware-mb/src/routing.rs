@@ -179,10 +179,13 @@ impl MbCore {
                 self.with(|t| bump(&mut t.diag.overflows));
             }
             EventKind::Boot => {
-                let reason = BootInfo::parse(ev.payload)
-                    .map_or(ResetReason::Unknown(0xFF), |b| b.reset_reason);
+                let boot = BootInfo::parse(ev.payload).ok();
+                let reason = boot.map_or(ResetReason::Unknown(0xFF), |b| b.reset_reason);
                 info!("board {} booted ({})", ev.source.get(), reason.name());
                 self.with(|t| {
+                    if let Some(b) = boot {
+                        t.boards.identified(ev.source, &b.identity);
+                    }
                     bump(&mut t.diag.boots);
                     match reason {
                         ResetReason::Watchdog => bump(&mut t.diag.watchdog_resets),

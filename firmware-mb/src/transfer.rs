@@ -57,6 +57,11 @@ impl MbCore {
                 Some(op) => {
                     let (outcome, state) = self.interpret(meta, pec, &op, read);
                     self.board_pec_is(meta.db, state);
+                    if let (Op::Identify, Outcome::Complete(Ok(p))) = (op, &outcome) {
+                        if let Ok(id) = x10_microcode::Identity::parse(p) {
+                            self.with(|t| t.boards.identified(meta.db, &id));
+                        }
+                    }
                     outcome
                 }
                 None => Outcome::Complete(Err(LinkError::BadReply)),

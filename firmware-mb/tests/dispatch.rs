@@ -596,15 +596,49 @@ fn a_refused_request_ends_in_its_status_and_refused_outputs_are_counted() {
         (read, out)
     });
     assert_eq!(read, Err(LinkError::Status(Status::PortOutOfRange)));
-    assert!(
-        out.is_ok(),
-        "an output completes once the board acknowledged it"
+    // Issue 22 item 11: the motherboard knows the board's ports from its boot event, so an
+    // output to a port it lacks fails at once, as the read does, never `Ok` followed by a
+    // `rejected` event. Nothing of it goes on the bus.
+    assert_eq!(out, Err(LinkError::Status(Status::PortOutOfRange)));
+    assert!(!w
+        .bus
+        .seen()
+        .iter()
+        .any(|(_, s)| matches!(s, Seen::Write(9, b) if b[0] == 0x12)));
+    assert_eq!(w.mb.diagnostics().rejected, 0);
+}
+
+/// A board whose ports the motherboard does not know yet (it sent no boot event): an output
+/// to a port it lacks goes out (the board's refusal would come as a `rejected` event). Its
+/// `identify` reply teaches the motherboard its ports: the same output then fails at once.
+#[test]
+fn an_identify_reply_teaches_the_motherboard_a_boards_ports() {
+    let w = world();
+    // board 0x11 answers identify (2 sensor and 2 actuator ports) and nothing else
+    w.bus.attach(
+        0x11,
+        Node::Script(Box::new(|req: &[u8]| {
+            let mut r = vec![req[3], 0x00, 0x0A];
+            r.extend_from_slice(&[1, 0, 1, 0, 1, 2, 2, 0xFD, 0x01, 12]);
+            (10, r)
+        })),
     );
-    assert_eq!(
-        w.mb.diagnostics().rejected,
-        1,
-        "its refusal arrives as a rejected event"
-    );
+    let out = Op::DigitalWrite(a(3).pin(Pin::A), Level::High);
+    let (before, id, after) = w.sim(async {
+        let before = w.mb.call(addr(0x11), out).await;
+        let id = w.mb.call(addr(0x11), Op::Identify).await.map(|_| ());
+        let after = w.mb.call(addr(0x11), out).await;
+        (before, id, after)
+    });
+    assert_eq!((before.map(|_| ()), id), (Ok(()), Ok(())));
+    assert_eq!(after, Err(LinkError::Status(Status::PortOutOfRange)));
+    let writes = w
+        .bus
+        .seen()
+        .iter()
+        .filter(|(_, s)| matches!(s, Seen::Write(0x11, _)))
+        .count();
+    assert_eq!(writes, 1);
 }
 
 #[test]
