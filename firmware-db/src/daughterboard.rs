@@ -156,10 +156,24 @@ pub(crate) struct State {
 }
 
 /// What the header of a request says, as far as it could be read.
+/// The check a reply ends in.
+#[derive(Clone, Copy)]
+enum Check {
+    /// PEC off.
+    None,
+    /// A PEC byte, or a CRC-16 after a frame of more than 13 bytes.
+    ByLength,
+    /// A CRC-16 whatever the length (an operation whose reply length varies).
+    Crc16,
+}
+
 struct Head {
     seq: u8,
     port: u8,
     expects_reply: bool,
+    /// The operation's reply length varies (scan, serial read, batch): its reply always ends
+    /// in a CRC-16 when checked (`Reply::emit_for`).
+    crc16_reply: bool,
 }
 
 /// A daughterboard: the microcode interpreter on a board's [`Ports`].
@@ -289,7 +303,12 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             // In the PEC mode the board has now: the reply to a `set_pec` the board applied
             // is sent in the new mode, so that a motherboard reading it back knows the
             // switch happened (with PEC on: a reply with a valid PEC byte).
-            self.store_reply(head.seq, done.status, &done.value, self.pec_enabled());
+            let check = match (self.pec_enabled(), head.crc16_reply) {
+                (false, _) => Check::None,
+                (true, false) => Check::ByLength,
+                (true, true) => Check::Crc16,
+            };
+            self.store_reply(head.seq, done.status, &done.value, check);
         } else if !matches!(done.status, Status::Ok | Status::Pending) {
             self.push_event(
                 EventKind::Rejected,
@@ -314,7 +333,8 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                     bump(&mut s.diag.no_request_reads);
                     s.pec
                 });
-                self.encode_reply(0, Status::NoRequest, &[], pec_on)
+                let check = if pec_on { Check::ByLength } else { Check::None };
+                self.encode_reply(0, Status::NoRequest, &[], check)
             }
         };
         self.heard.signal(());
@@ -372,40 +392,37 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         seq: u8,
         status: Status,
         value: &[u8],
-        pec_on: bool,
+        check: Check,
     ) -> Vec<u8, REPLY_BUF_LEN> {
         let mut buf = [0u8; REPLY_BUF_LEN];
+        let emit = |r: &Reply<'_>, buf: &mut [u8]| {
+            let addr = self.config.address;
+            match check {
+                Check::None => r.emit(buf),
+                Check::ByLength => r.emit_with_pec(addr, buf),
+                Check::Crc16 => r
+                    .emit(buf)
+                    .and_then(|n| pec::append16(addr.addr_byte(true), buf, n)),
+            }
+        };
         let reply = Reply {
             seq,
             status,
             payload: value,
         };
-        let emitted = if pec_on {
-            reply.emit_with_pec(self.config.address, &mut buf)
-        } else {
-            reply.emit(&mut buf)
-        };
-        let len = match emitted {
+        let len = match emit(&reply, &mut buf) {
             Ok(n) => n,
             // A value never exceeds MAX_PAYLOAD (it is a Vec of that capacity), so this is
             // unreachable; answer bad_length rather than nothing.
-            Err(_) => {
-                let r = Reply::status_only(seq, Status::BadLength);
-                let e = if pec_on {
-                    r.emit_with_pec(self.config.address, &mut buf)
-                } else {
-                    r.emit(&mut buf)
-                };
-                e.unwrap_or(0)
-            }
+            Err(_) => emit(&Reply::status_only(seq, Status::BadLength), &mut buf).unwrap_or(0),
         };
         let mut out = Vec::new();
         let _ = out.extend_from_slice(buf.get(..len).unwrap_or(&[]));
         out
     }
 
-    fn store_reply(&self, seq: u8, status: Status, value: &[u8], pec_on: bool) {
-        let frame = self.encode_reply(seq, status, value, pec_on);
+    fn store_reply(&self, seq: u8, status: Status, value: &[u8], check: Check) {
+        let frame = self.encode_reply(seq, status, value, check);
         self.with(|s| s.reply = Some(frame));
     }
 
@@ -490,6 +507,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             seq: bytes.get(3).copied().unwrap_or(0),
             port: bytes.get(2).copied().unwrap_or(0),
             expects_reply: false,
+            crc16_reply: false,
         };
         let body = if pec_on {
             match pec::strip(self.config.address.addr_byte(false), bytes) {
@@ -511,6 +529,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             Err(e) => return (head, Done::status(e.status())),
         };
         head.expects_reply = op.expects_reply();
+        head.crc16_reply = !op.reply_len().is_exact();
         let done = match op {
             Op::Batch(b) => self.execute_batch(head.seq, b).await,
             op => self.execute_op(head.seq, &op).await,

@@ -48,6 +48,18 @@ impl Boards {
         self.ports_known.set(i, true);
     }
 
+    /// False when a `scan` reply's payload from `board` reports another number of sensor
+    /// ports than the board has (as far as the motherboard knows: up to 8 are scanned).
+    pub(crate) fn scan_fits(&self, board: Address, payload: &[u8]) -> bool {
+        let i = board_index(board);
+        if !self.ports_known.contains(i) {
+            return true;
+        }
+        let sensors = self.ports.get(i).copied().unwrap_or(0) >> 4;
+        // 15 stands for fifteen or more: 8 are scanned either way.
+        payload.first() == Some(&sensors.min(8))
+    }
+
     /// True when `board`'s port counts are known.
     pub(crate) fn ports_known(&self, board: Address) -> bool {
         self.ports_known.contains(board_index(board))

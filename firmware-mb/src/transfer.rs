@@ -57,12 +57,21 @@ impl MbCore {
                 Some(op) => {
                     let (outcome, state) = self.interpret(meta, pec, &op, read);
                     self.board_pec_is(meta.db, state);
-                    if let (Op::Identify, Outcome::Complete(Ok(p))) = (op, &outcome) {
-                        if let Ok(id) = x10_microcode::Identity::parse(p) {
-                            self.with(|t| t.boards.identified(meta.db, &id));
+                    match (op, &outcome) {
+                        (Op::Identify, Outcome::Complete(Ok(p))) => {
+                            if let Ok(id) = x10_microcode::Identity::parse(p) {
+                                self.with(|t| t.boards.identified(meta.db, &id));
+                            }
+                            outcome
                         }
+                        // A scan must report the ports the board has.
+                        (Op::Scan, Outcome::Complete(Ok(p)))
+                            if !self.with(|t| t.boards.scan_fits(meta.db, p)) =>
+                        {
+                            Outcome::Complete(Err(LinkError::BadReply))
+                        }
+                        _ => outcome,
                     }
-                    outcome
                 }
                 None => Outcome::Complete(Err(LinkError::BadReply)),
             },

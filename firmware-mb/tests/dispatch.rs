@@ -953,3 +953,31 @@ fn the_same_scenario_gives_the_same_bus_log_byte_for_byte() {
     assert_eq!(a, b);
     assert_eq!(da, db);
 }
+
+/// Issue 22 item 14: a `scan` reply that reports another number of sensor ports than the
+/// board has (as its identify reply said) is a bad reply, not a value.
+#[test]
+fn a_scan_that_disagrees_with_the_boards_port_count_is_a_bad_reply() {
+    let w = world();
+    // board 0x11: 2 sensor ports; its scan claims 3
+    w.bus.attach(
+        0x11,
+        Node::Script(Box::new(|req: &[u8]| match req[0] {
+            0x01 => {
+                let mut r = vec![req[3], 0x00, 0x0A];
+                r.extend_from_slice(&[1, 0, 1, 0, 1, 2, 2, 0xFD, 0x01, 12]);
+                (10, r)
+            }
+            _ => (10, vec![req[3], 0x00, 0x09, 3, 0, 0, 1, 0, 2, 0, 3, 0]),
+        })),
+    );
+    let (unknown, id, known) = w.sim(async {
+        let unknown = w.mb.call(addr(0x11), Op::Scan).await.map(|p| p.len());
+        let id = w.mb.call(addr(0x11), Op::Identify).await.map(|_| ());
+        let known = w.mb.call(addr(0x11), Op::Scan).await.map(|p| p.len());
+        (unknown, id, known)
+    });
+    // Before the board's ports are known the reply is taken as it is.
+    assert_eq!((unknown, id), (Ok(9), Ok(())));
+    assert_eq!(known, Err(LinkError::BadReply));
+}

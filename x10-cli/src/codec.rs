@@ -183,6 +183,15 @@ pub struct Answers {
 }
 
 impl Answers {
+    /// True when the reply's length varies with its content (scan, serial read, batch): with
+    /// PEC on it always ends in a CRC-16 (`Reply::emit_for`).
+    fn crc16_reply(&self) -> bool {
+        matches!(
+            self.name.as_str(),
+            "scan.scan" | "serial.read" | "batch.batch"
+        )
+    }
+
     /// Checks an operation name given by a user.
     ///
     /// # Errors
@@ -502,7 +511,12 @@ pub fn decode(bytes: &[u8], opts: &DecodeOptions) -> Result<Value> {
     let (frame, pec_byte) = match opts.pec {
         Some(addr) => {
             let read = opts.kind == FrameKind::Reply;
-            let frame = pec::strip(addr.addr_byte(read), bytes).map_err(invalid)?;
+            let crc16 = read && opts.answers.as_ref().is_some_and(Answers::crc16_reply);
+            let frame = if crc16 {
+                pec::strip16(addr.addr_byte(read), bytes).map_err(invalid)?
+            } else {
+                pec::strip(addr.addr_byte(read), bytes).map_err(invalid)?
+            };
             // The check after the frame: one PEC byte, or a CRC-16 (little-endian).
             let check = match bytes.get(frame.len()..) {
                 Some(&[b]) => Some((u16::from(b), false)),
@@ -883,8 +897,15 @@ fn finish(
     if let Some(addr) = p.pec_addr {
         let read = kind == FrameKind::Reply;
         let n = bytes.len();
-        bytes.resize(n + pec::check_len(n), 0);
-        pec::append(addr.addr_byte(read), &mut bytes, n).map_err(|e| CodecError::frame(kind, e))?;
+        let crc16 = read && opts.answers.as_ref().is_some_and(Answers::crc16_reply);
+        if crc16 {
+            bytes.resize(n + 2, 0);
+            pec::append16(addr.addr_byte(read), &mut bytes, n)
+        } else {
+            bytes.resize(n + pec::check_len(n), 0);
+            pec::append(addr.addr_byte(read), &mut bytes, n)
+        }
+        .map_err(|e| CodecError::frame(kind, e))?;
         opts.pec = Some(addr);
     } else if p.pec.is_some() {
         return Err(CodecError::new(

@@ -725,6 +725,12 @@ pub enum ReplyLen {
 }
 
 impl ReplyLen {
+    /// True for one fixed length ([`ReplyLen::Exact`]); the replies of the others always end
+    /// in a CRC-16 when checked ([`crate::Reply::emit_for`]).
+    pub const fn is_exact(self) -> bool {
+        matches!(self, ReplyLen::Exact(_))
+    }
+
     /// True when an `ok` payload of `len` bytes is allowed (for a batch: not longer than its
     /// capacity and at least one result header per item is for [`Op::check_reply`]).
     pub const fn allows(self, len: u8) -> bool {

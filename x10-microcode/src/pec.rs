@@ -119,6 +119,36 @@ pub fn append(addr_byte: u8, buf: &mut [u8], len: usize) -> Result<usize> {
     Ok(len + n)
 }
 
+/// Appends a CRC-16 (low byte first) to the `len`-byte frame in `buf`, whatever its length:
+/// the check of a reply to an operation whose reply length varies ([`crate::Op::reply_len`]
+/// other than `Exact`). Returns the new length.
+///
+/// # Errors
+/// [`Error::BufferTooShort`] when `buf` has no room for the frame and two bytes.
+pub fn append16(addr_byte: u8, buf: &mut [u8], len: usize) -> Result<usize> {
+    let (frame, rest) = buf.split_at_mut_checked(len).ok_or(Error::BufferTooShort)?;
+    let slot = rest.get_mut(..2).ok_or(Error::BufferTooShort)?;
+    slot.copy_from_slice(&compute16(addr_byte, frame).to_le_bytes());
+    Ok(len + 2)
+}
+
+/// Checks the CRC-16 that ends `frame_with_check` (whatever its length, as [`append16`] adds
+/// it) and returns the frame without it.
+///
+/// # Errors
+/// [`Error::Truncated`] for fewer than two bytes, [`Error::CrcMismatch`].
+pub fn strip16(addr_byte: u8, frame_with_check: &[u8]) -> Result<&[u8]> {
+    let n = frame_with_check
+        .len()
+        .checked_sub(2)
+        .ok_or(Error::Truncated)?;
+    let (frame, tail) = frame_with_check.split_at(n);
+    match *tail {
+        [lo, hi] if u16::from_le_bytes([lo, hi]) == compute16(addr_byte, frame) => Ok(frame),
+        _ => Err(Error::CrcMismatch),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

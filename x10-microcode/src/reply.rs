@@ -219,12 +219,15 @@ impl<'a> Reply<'a> {
     /// ([`crate::Op::check_reply`]): an `ok` reply must have a length the operation allows,
     /// any other status an empty payload.
     ///
-    /// Where the PEC byte is never depends on a byte the PEC has not checked yet: for an
-    /// operation whose `ok` payload has one length *n* ([`crate::ReplyLen::Exact`]) the PEC
-    /// byte is looked for after *n* payload bytes (an `ok` reply) and, if it does not match
-    /// there, right after the header (a status-only reply); the received LEN byte must then
-    /// agree. For the others the LEN byte is checked against the lengths the operation allows
-    /// before it is used to locate the PEC byte.
+    /// Where the check is never depends on a byte the check has not covered: for an
+    /// operation whose `ok` payload has one length *n* ([`crate::ReplyLen::Exact`]) the check
+    /// is looked for after *n* payload bytes (an `ok` reply) and, if it does not match there,
+    /// right after the header (a status-only reply); the received LEN byte must then agree.
+    /// For the others (scan, serial read, batch) the LEN byte is checked against the lengths
+    /// the operation allows and the reply always ends in a CRC-16 ([`Reply::emit_for`]): a
+    /// LEN byte misread as another allowed length moves the CRC-16 to bytes that match it by
+    /// chance once in 65 536. A status-only reply with a PEC byte (from a board that could not
+    /// parse the request) is accepted only with a status other than `ok`.
     ///
     /// # Errors
     /// [`Error::BadLength`] for a length the operation does not allow, [`Error::Truncated`],
@@ -251,16 +254,53 @@ impl<'a> Reply<'a> {
                     Err(e) => return Err(e),
                 }
             }
+            crate::ReplyLen::Exact(_) => Self::parse_read(db, pec_on, read)?,
             _ => {
                 let len = *read.get(field::LEN).ok_or(Error::Truncated)?;
                 if len != 0 && !ok_len.allows(len) {
                     return Err(Error::BadLength);
                 }
-                Self::parse_read(db, pec_on, read)?
+                if pec_on {
+                    // Always a CRC-16 ([`Reply::emit_for`]): a misread LEN moves where it is
+                    // looked for, and a CRC-16 matches there by chance once in 65 536.
+                    let frame = REPLY_HEADER_LEN + usize::from(len);
+                    let with = read.get(..frame + 2).ok_or(Error::Truncated)?;
+                    match pec::strip16(db.addr_byte(true), with) {
+                        Ok(bytes) => Self::parse(bytes)?,
+                        // A board that could not tell the operation (a frame too broken to
+                        // parse) answers a status alone, with a PEC byte: never `ok`.
+                        Err(e) if len == 0 => {
+                            let r = Self::parse_read(db, true, read).map_err(|_| e)?;
+                            if r.status == Status::Ok {
+                                return Err(e);
+                            }
+                            r
+                        }
+                        Err(e) => return Err(e),
+                    }
+                } else {
+                    Self::parse_read(db, false, read)?
+                }
             }
         };
         op.check_reply(reply.status, reply.payload)?;
         Ok(reply)
+    }
+
+    /// Encodes the reply to `op` from board `db` with its check: a PEC byte or a CRC-16 by the
+    /// frame's length ([`Reply::emit_with_pec`]), except for an operation whose reply length
+    /// varies (scan, serial read, batch: [`crate::Op::reply_len`] other than `Exact`), whose
+    /// replies always end in a CRC-16, so that where the check is never rests on an unchecked
+    /// LEN byte alone (see [`Reply::parse_read_for`]).
+    ///
+    /// # Errors
+    /// As [`Reply::emit`], [`Error::BufferTooShort`].
+    pub fn emit_for(&self, db: Address, op: &crate::Op<'_>, buf: &mut [u8]) -> Result<usize> {
+        if op.reply_len().is_exact() {
+            return self.emit_with_pec(db, buf);
+        }
+        let len = self.emit(buf)?;
+        pec::append16(db.addr_byte(true), buf, len)
     }
 
     /// A reply with no payload.

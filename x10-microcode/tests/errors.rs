@@ -613,3 +613,45 @@ fn event_kind_codes() {
     assert_eq!(EventKind::Unknown(0x20).to_string(), "unknown(0x20)");
     assert_eq!(EventKind::from_name("unknown"), None);
 }
+
+/// Issue 22 item 14: a `scan` reply whose LEN byte is misread (0x0d -> 0x09, one bit) while
+/// a payload byte happens to be the PEC byte of the shorter frame. The check of a reply whose
+/// length varies is always a CRC-16, found where the LEN byte puts it: the misread reply is
+/// refused (before: accepted as a 5-port scan of 9 bytes, a 1-in-256 chance per misread LEN).
+#[test]
+fn a_misread_len_byte_cannot_move_the_check_of_a_scan_reply() {
+    use x10_microcode::{pec, Address, Op, Reply, ReplyFrame, Status};
+    let db = Address::new(9).unwrap();
+    let payload = [5u8, 0x55, 0x01, 1, 0, 2, 0, 3, 0, 4, 0, 5, 0];
+    let mut genuine = vec![0x21, 0x00, payload.len() as u8];
+    genuine.extend_from_slice(&payload);
+    let n = genuine.len();
+    genuine.resize(n + 2, 0);
+    pec::append16(db.addr_byte(true), &mut genuine, n).unwrap();
+    let mut read = genuine.clone();
+    read.resize(3 + 19 + 2, 0xFF);
+    let r = Reply::parse_read_for(db, true, &read, &Op::Scan).unwrap();
+    assert_eq!(
+        (r.seq, r.status, r.payload),
+        (0x21, Status::Ok, &payload[..])
+    );
+    // The LEN byte misread as 9, and the byte after the 9th payload byte equal to the PEC
+    // byte of that 12-byte frame: the old, length-based check would have passed.
+    let mut bad = read.clone();
+    bad[2] = 0x09;
+    bad[12] = pec::compute(db.addr_byte(true), &bad[..12]);
+    assert!(ReplyFrame::new_checked(&bad[..12]).is_ok());
+    assert!(pec::strip(db.addr_byte(true), &bad[..13]).is_ok());
+    assert!(Reply::parse_read_for(db, true, &bad, &Op::Scan).is_err());
+    // A status-only reply with a PEC byte (a board that could not parse the request) is
+    // still read, but never as `ok`.
+    let mut refused = vec![0x21, Status::BadLength.to_byte(), 0x00];
+    refused.push(pec::compute(db.addr_byte(true), &refused));
+    refused.resize(24, 0xFF);
+    let r = Reply::parse_read_for(db, true, &refused, &Op::Scan).unwrap();
+    assert_eq!(r.status, Status::BadLength);
+    let mut ok_alone = vec![0x21, 0x00, 0x00];
+    ok_alone.push(pec::compute(db.addr_byte(true), &ok_alone));
+    ok_alone.resize(24, 0xFF);
+    assert!(Reply::parse_read_for(db, true, &ok_alone, &Op::Scan).is_err());
+}
