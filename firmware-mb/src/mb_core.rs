@@ -6,6 +6,7 @@
 //! means is [`crate::transfer`]'s, where events go [`crate::routing`]'s.
 
 use core::cell::RefCell;
+use core::task::Poll;
 
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
@@ -60,6 +61,24 @@ pub struct MbCore {
     /// Per waiter slot: the pin event, for the waiting task.
     pub(crate) waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
     pub(crate) observer: Option<&'static dyn CallObserver>,
+}
+
+/// A caller counted among those waiting for a slot: uncounted when it gets one, gives up or
+/// is dropped (the next waiter is then woken to look).
+struct SlotWait<'a> {
+    mb: &'a MbCore,
+    counted: bool,
+}
+
+impl Drop for SlotWait<'_> {
+    fn drop(&mut self) {
+        if self.counted {
+            self.mb.with(|t| {
+                t.slot_waiting = t.slot_waiting.saturating_sub(1);
+                t.slot_waiters.wake();
+            });
+        }
+    }
 }
 
 /// Frees a request's slot when the caller's future is dropped before it ended.
@@ -195,8 +214,10 @@ impl MbCore {
     ///
     /// # Errors
     /// [`LinkError::Invalid`] (nothing sent: the operation does not encode, or `db` is the
-    /// motherboard's own address), [`LinkError::Busy`] (no free slot or sequence
-    /// number), [`LinkError::Timeout`], [`LinkError::Nack`] and
+    /// motherboard's own address), [`LinkError::Busy`] (no pending slot or sequence number
+    /// was free by the deadline: a caller that finds none waits for one, behind the callers
+    /// already waiting), [`LinkError::Status`] with `port_out_of_range` (the board has no
+    /// such port, as its `boot` event or `identify` said: nothing was sent), [`LinkError::Timeout`], [`LinkError::Nack`] and
     /// [`LinkError::ArbitrationLost`] (after every retry), [`LinkError::Bus`],
     /// [`LinkError::BadReply`] (unparsable, wrong PEC or wrong sequence number),
     /// [`LinkError::Status`] (the board refused it).
@@ -244,15 +265,8 @@ impl MbCore {
             self.with(|t| bump(&mut t.diag.status_errors));
             return Err(LinkError::Status(x10_microcode::Status::PortOutOfRange));
         }
-        let now = now();
-        let deadline = now.plus_us(timeout_us);
-        let (ticket, seq) = self.with(|t| {
-            let (ticket, seq) = t.requests.alloc(db, now, &mut t.diag)?;
-            if let Some(s) = self.done.get(ticket.index) {
-                s.reset();
-            }
-            Ok::<_, LinkError>((ticket, seq))
-        })?;
+        let deadline = now().plus_us(timeout_us);
+        let (ticket, seq) = self.claim_slot(db, deadline).await?;
         let guard = SlotGuard {
             mb: self,
             ticket,
@@ -320,6 +334,73 @@ impl MbCore {
         }
     }
 
+    /// A pending slot and a sequence number for a request to `db`. When every slot (or every
+    /// sequence number of the board) is taken, waits until one is free, at most until
+    /// `deadline`: woken when a caller releases one, or when an abandoned deferred request's
+    /// hold ends. A storm of callers therefore waits instead of spinning on `Busy`.
+    ///
+    /// # Errors
+    /// [`LinkError::Busy`] when none was free by `deadline` (counted once in `busy`).
+    async fn claim_slot(&self, db: Address, deadline: Instant) -> Result<(Ticket, u8), LinkError> {
+        // Counted in `slot_waiting` while it waits (and uncounted if its caller goes away).
+        let mut waiting = SlotWait {
+            mb: self,
+            counted: false,
+        };
+        loop {
+            // Tries under the lock; when none is free (or others already wait), registers to
+            // be woken by the next release in the same critical section, so none is missed.
+            let claim = core::future::poll_fn(|cx| {
+                let t_now = now();
+                self.with(|t| {
+                    if !waiting.counted && t.slot_waiting > 0 {
+                        waiting.counted = true;
+                        t.slot_waiting = t.slot_waiting.saturating_add(1);
+                        t.slot_waiters.register(cx.waker());
+                        return Poll::Pending;
+                    }
+                    // `alloc` counts into a scratch copy: a wait is counted once, below.
+                    let mut scratch = MbDiagnostics::new();
+                    match t.requests.alloc(db, t_now, &mut scratch) {
+                        Ok((ticket, seq)) => {
+                            bump(&mut t.diag.requests);
+                            if let Some(s) = self.done.get(ticket.index) {
+                                s.reset();
+                            }
+                            if core::mem::take(&mut waiting.counted) {
+                                t.slot_waiting = t.slot_waiting.saturating_sub(1);
+                                // Others may find a slot too: let them look.
+                                t.slot_waiters.wake();
+                            }
+                            Poll::Ready(Ok((ticket, seq)))
+                        }
+                        Err(LinkError::Busy) => {
+                            if !waiting.counted {
+                                waiting.counted = true;
+                                t.slot_waiting = t.slot_waiting.saturating_add(1);
+                            }
+                            t.slot_waiters.register(cx.waker());
+                            Poll::Pending
+                        }
+                        Err(e) => Poll::Ready(Err(e)),
+                    }
+                })
+            });
+            let wake = self
+                .with(|t| t.requests.next_expiry())
+                .map_or(deadline, |at| if at.0 < deadline.0 { at } else { deadline });
+            match select(claim, sleep_until(wake)).await {
+                Either::First(r) => return r,
+                Either::Second(()) if now() >= deadline => {
+                    self.with(|t| bump(&mut t.diag.busy));
+                    return Err(LinkError::Busy);
+                }
+                // An abandoned request's hold ended: try again.
+                Either::Second(()) => {}
+            }
+        }
+    }
+
     /// The oldest queued job; waits for one. Cancel-safe: a job is taken out only when this
     /// returns it.
     pub(crate) async fn next_job(&self) -> Job {
@@ -348,6 +429,7 @@ impl MbCore {
             let wanted = tb.requests.wanted(t);
             if !wanted {
                 tb.requests.transfer_ended(t);
+                tb.slot_waiters.wake();
             }
             wanted
         })

@@ -180,6 +180,15 @@ impl Requests {
         }
     }
 
+    /// The earliest instant an abandoned deferred request's slot frees itself, if any.
+    pub(crate) fn next_expiry(&self) -> Option<Instant> {
+        self.slots
+            .iter()
+            .filter(|s| s.state == SlotState::Abandoned && s.until != ON_THE_BUS)
+            .map(|s| s.until)
+            .min_by_key(|u| u.0)
+    }
+
     /// Claims a slot and the next free sequence number of `board` (skipping numbers still
     /// pending, held by an abandoned deferred request, or recently ended). Counted in
     /// `requests`, or `busy`.

@@ -121,6 +121,8 @@ impl MbCore {
                     .requests
                     .take_deferred(ev.source, ev.seq, ev.pin, &mut t.diag)
                 else {
+                    // A late reply may have freed its abandoned request's slot.
+                    t.slot_waiters.wake();
                     return;
                 };
                 // Checked against the operation: every deferred request is a pulse-in

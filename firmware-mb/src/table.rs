@@ -17,6 +17,8 @@
 use crate::boards::Boards;
 use crate::diag::MbDiagnostics;
 use crate::events_in::EventBook;
+use embassy_sync::waitqueue::MultiWakerRegistration;
+
 use crate::jobs::{Job, Jobs};
 use crate::requests::{Ended, Requests, Ticket};
 use crate::waiters::Waiters;
@@ -28,7 +30,16 @@ pub(crate) struct Table {
     pub(crate) boards: Boards,
     pub(crate) events_in: EventBook,
     pub(crate) diag: MbDiagnostics,
+    /// Callers waiting for a pending slot (or a sequence number) to be free.
+    pub(crate) slot_waiters: MultiWakerRegistration<SLOT_WAITERS>,
+    /// How many callers wait for a slot: while any does, a new caller waits behind them, so
+    /// a task that ends a call and makes the next at once cannot take every freed slot.
+    pub(crate) slot_waiting: u16,
 }
+
+/// Callers whose wakers are kept while they wait for a slot; more wake all and register
+/// again (embassy-sync's `MultiWakerRegistration`).
+const SLOT_WAITERS: usize = 8;
 
 impl Table {
     pub(crate) const fn new() -> Table {
@@ -39,6 +50,8 @@ impl Table {
             boards: Boards::new(),
             events_in: EventBook::new(),
             diag: MbDiagnostics::new(),
+            slot_waiters: MultiWakerRegistration::new(),
+            slot_waiting: 0,
         }
     }
 
@@ -47,6 +60,7 @@ impl Table {
     pub(crate) fn release(&mut self, t: Ticket, ended: Ended) {
         self.jobs.remove(t);
         self.requests.release(t, ended);
+        self.slot_waiters.wake();
     }
 
     /// The oldest job queued for the dispatcher, or for the internal daughterboard when

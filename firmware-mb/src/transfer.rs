@@ -128,6 +128,7 @@ impl MbCore {
                             bump(&mut t.diag.late_replies);
                         }
                         t.requests.transfer_ended(meta.ticket);
+                        t.slot_waiters.wake();
                     }
                 }
             }

@@ -713,24 +713,52 @@ fn the_internal_board_is_reached_without_the_bus() {
     assert_eq!(d.boots, 3);
 }
 
+/// Issue 22 item 15: a caller that finds every pending slot taken waits for one (until its
+/// deadline) instead of failing at once with `Busy` (callers retrying on `Busy` spun every
+/// few µs). With room in its deadline it gets the first slot freed; without, it ends in
+/// `Busy` at its deadline, counted once.
 #[test]
-fn a_full_pending_table_answers_busy() {
+fn a_caller_waits_for_a_slot_until_its_deadline() {
     let w = world();
     w.bus.attach(
         0x24,
         Node::Script(Box::new(|req| (50_000, vec![req[3], 0x00, 0x00]))),
     );
     let results = w.sim(join_array(
-        core::array::from_fn::<_, { MAX_PENDING + 1 }, _>(|_| {
-            w.mb.call_with_timeout(addr(0x24), Op::Ping, 10_000_000)
+        core::array::from_fn::<_, { MAX_PENDING + 1 }, _>(|_| async {
+            let r =
+                w.mb.call_with_timeout(addr(0x24), Op::Ping, 10_000_000)
+                    .await;
+            (r.map(|_| ()), w.clock.now_us())
         }),
     ));
-    let busy = results
+    assert!(results.iter().all(|(r, _)| r.is_ok()), "{results:?}");
+    // The 17th went out when the first ended: its reply came one transfer later.
+    let mut ends: Vec<u64> = results.iter().map(|(_, t)| *t).collect();
+    ends.sort_unstable();
+    assert!(ends[MAX_PENDING] >= ends[0] + 50_000, "{ends:?}");
+    assert_eq!(w.mb.diagnostics().busy, 0);
+    // A deadline shorter than the wait: `Busy` at the deadline, counted once.
+    let w = world();
+    w.bus.attach(
+        0x24,
+        Node::Script(Box::new(|req| (50_000, vec![req[3], 0x00, 0x00]))),
+    );
+    let wr = &w;
+    let results = w.sim(join_array(
+        core::array::from_fn::<_, { MAX_PENDING + 1 }, _>(|i| async move {
+            let timeout = if i == MAX_PENDING { 10_000 } else { 10_000_000 };
+            let r = wr.mb.call_with_timeout(addr(0x24), Op::Ping, timeout).await;
+            (r.map(|_| ()), wr.clock.now_us())
+        }),
+    ));
+    let busy: Vec<_> = results
         .iter()
-        .filter(|r| **r == Err(LinkError::Busy))
-        .count();
-    let ok = results.iter().filter(|r| r.is_ok()).count();
-    assert_eq!((ok, busy), (MAX_PENDING, 1));
+        .filter(|(r, _)| *r == Err(LinkError::Busy))
+        .collect();
+    assert_eq!(busy.len(), 1);
+    assert_eq!(busy[0].1, 10_000);
+    assert_eq!(w.mb.diagnostics().busy, 1);
 }
 
 #[test]
