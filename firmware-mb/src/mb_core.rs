@@ -194,8 +194,10 @@ impl MbCore {
     /// Sends `op` to board `db` (0: the internal daughterboard, without the bus) and waits at
     /// most `timeout_us` for its outcome. Ends exactly once:
     ///
-    /// * outputs: `Ok` with an empty payload once the board acknowledged the write (a refusal
-    ///   comes later as a `rejected` event, counted in [`MbDiagnostics::rejected`]);
+    /// * outputs: with [`MbConfig::confirm_outputs`] (the default) `Ok` with an empty payload
+    ///   once the board's reply says it executed it, else the board's status; without, `Ok`
+    ///   once the board acknowledged the write (a refusal comes later as a `rejected` event,
+    ///   counted in [`MbDiagnostics::rejected`]);
     /// * reads: `Ok(payload)` for status `ok`;
     /// * deferred operations (`pending`): `Ok(payload)` of the deferred reply.
     ///
@@ -294,7 +296,10 @@ impl MbCore {
             // motherboard's side only once the board's reply confirms it. So is an
             // event_enable: a refused one (a corrupted frame, a wrong port) would otherwise
             // end `Ok` and leave a program waiting for events that never come.
+            // With `MbConfig::confirm_outputs` every output is read back too, so a refused
+            // one never ends in `Ok`.
             read: (op.expects_reply()
+                || self.config.confirm_outputs
                 || pec_change(&op).is_some()
                 || failsafe_change(&op).is_some()
                 || matches!(op, Op::EventEnable(..)))

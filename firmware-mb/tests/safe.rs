@@ -255,42 +255,61 @@ fn a_refused_event_enable_ends_in_the_boards_status() {
 }
 
 /// Issue 22 item 7: a board restarts and its `boot` event is lost. Its first output, framed
-/// with PEC, is refused (`bad_length`: the board took the check for data) and reported in a
-/// `rejected` event without PEC. That event cannot be trusted as an event, but it shows the
-/// board lost PEC: the motherboard prepares it again (PEC, failsafe, both read back), and the
-/// next output reaches the port (checked on the port itself).
+/// with PEC and read back (the defaults), is refused (`bad_length`: the board took the check
+/// for data): the caller sees it (`BadReply`: the refusal comes without PEC, so it cannot be
+/// trusted as a status), never `Ok`. The unchecked refusal shows the board lost PEC: the
+/// motherboard prepares it again (PEC, failsafe, both read back), and the next output
+/// reaches the port (checked on the port itself). (Outputs not read back, as with
+/// `confirm_outputs: false`, get the same re-preparation from the unchecked `rejected`
+/// event: `routing.rs`.)
 #[test]
 fn a_board_whose_boot_event_was_lost_is_prepared_again_when_it_refuses_our_pec() {
-    let w = World::safe();
-    let a1b = Port::actuator(1).unwrap().pin(x10_microcode::Pin::B);
-    let (first, second) = w.sim(async {
-        w.at(1_000).await;
-        w.mb.call(db(9), Op::Ping).await.unwrap();
-        // DB 9 restarts: PEC and failsafe off; its boot event never arrives.
-        w.at(10_000).await;
-        let off = req_pec(9, &[0x07, 0x09, 0x00, 0x50, 0x00]);
-        w.db9.handle_write(&off, false).await;
-        let no_failsafe = [0x03, 0x09, 0x00, 0x51, 0x00, 0x00];
-        w.db9.handle_write(&no_failsafe, false).await;
-        assert!(!w.db9.pec_enabled());
-        let high = Op::DigitalWrite(a1b, x10_microcode::Level::High);
-        let first = w.mb.call(db(9), high).await;
-        w.at(20_000).await;
-        let second = w.mb.call(db(9), high).await;
-        w.at(21_000).await;
-        (first, second)
-    });
-    // The first was acknowledged on the bus (the refusal comes after it); the second went
-    // out once the board was prepared again.
-    assert_eq!(
-        (first, second),
-        (Ok(Default::default()), Ok(Default::default()))
-    );
-    assert!(w.db9.pec_enabled());
-    assert_eq!(w.db9.failsafe_timeout_ms(), 300);
-    assert!(w.db9.ports().digital.borrow()[&a1b.to_byte()]);
-    let d = w.mb.diagnostics();
-    assert_eq!((d.pec_resyncs, d.bad_events, d.rejected), (1, 1, 0));
+    let unconfirmed = firmware_mb::MbConfig {
+        confirm_outputs: false,
+        ..firmware_mb::MbConfig::new(common::mb_address())
+    };
+    // (outputs read back?, the first output's outcome, bad_events)
+    for (w, confirmed) in [
+        (World::safe(), true),
+        (World::with_config(unconfirmed), false),
+    ] {
+        let a1b = Port::actuator(1).unwrap().pin(x10_microcode::Pin::B);
+        let (first, second) = w.sim(async {
+            w.at(1_000).await;
+            w.mb.call(db(9), Op::Ping).await.unwrap();
+            // DB 9 restarts: PEC and failsafe off; its boot event never arrives.
+            w.at(10_000).await;
+            let off = req_pec(9, &[0x07, 0x09, 0x00, 0x50, 0x00]);
+            w.db9.handle_write(&off, false).await;
+            let no_failsafe = [0x03, 0x09, 0x00, 0x51, 0x00, 0x00];
+            w.db9.handle_write(&no_failsafe, false).await;
+            assert!(!w.db9.pec_enabled());
+            let high = Op::DigitalWrite(a1b, x10_microcode::Level::High);
+            let first = w.mb.call(db(9), high).await;
+            w.at(20_000).await;
+            let second = w.mb.call(db(9), high).await;
+            w.at(21_000).await;
+            (first, second)
+        });
+        // Read back, the first is refused and its caller knows; a single write is
+        // acknowledged on the bus and its refusal comes after, as an unchecked `rejected`
+        // event that shows the board lost PEC. Either way the second went out once the board
+        // was prepared again.
+        let (first_expected, bad_events) = if confirmed {
+            (Err(LinkError::BadReply), 0)
+        } else {
+            (Ok(Default::default()), 1)
+        };
+        assert_eq!((first, second), (first_expected, Ok(Default::default())));
+        assert!(w.db9.pec_enabled());
+        assert_eq!(w.db9.failsafe_timeout_ms(), 300);
+        assert!(w.db9.ports().digital.borrow()[&a1b.to_byte()]);
+        let d = w.mb.diagnostics();
+        assert_eq!(
+            (d.pec_resyncs, d.bad_events, d.rejected),
+            (1, bad_events, 0)
+        );
+    }
 }
 
 /// Issue 22 item 10: a program's `set_failsafe(100)` reaches the board (which had 300 ms),

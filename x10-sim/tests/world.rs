@@ -560,7 +560,7 @@ devices, 5.000 s at 400k:
     1.500 s  heartbeat  on
     1.750 s  heartbeat  off
              heartbeat  … 10 more, the last at 4.750 s: off
-bus: 70 transactions, busy 10.2 ms = 0.20 % of the run; 5 NACK, 0 arbitration lost, 0 timeouts, 0 bus faults, 1 resets
+bus: 70 transactions, busy 12.4 ms = 0.24 % of the run; 5 NACK, 0 arbitration lost, 0 timeouts, 0 bus faults, 1 resets
 warnings and errors: 7
   4.000000 WARN  mb: -> db09 io high A1.A seq 50 +pec [12 09 00 32 19] bus 25us NACK (address)
   4.000000 WARN  db09: reset: firmware restarts at 4.005000
