@@ -202,11 +202,29 @@ fn db_label(db: Address) -> String {
     }
 }
 
+/// One call a robot or test task made, from its start to its result (what the timeline plot
+/// draws in the task's lane).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct CallSpan {
+    /// The task that called.
+    pub task: String,
+    /// When the call started (ns).
+    pub start_ns: Nanos,
+    /// When its result came (ns).
+    pub end_ns: Nanos,
+    /// The call as the trace prints it: board, operation, outcome, time taken
+    /// (`SELF io high A1.A -> ok in 0us`).
+    pub text: String,
+    /// False when the call failed.
+    pub ok: bool,
+}
+
 /// Traces every call a robot or test task makes (one line per call: board, operation,
-/// outcome, time taken), under the task's name. The motherboard's own calls (keepalives, in
-/// its task `mb`) are left out.
+/// outcome, time taken), under the task's name, and keeps it as a [`CallSpan`]. The
+/// motherboard's own calls (keepalives, in its task `mb`) are left out.
 struct CallTracer {
     lines: Mutex<Vec<TraceLine>>,
+    spans: Mutex<Vec<CallSpan>>,
 }
 
 impl CallObserver for CallTracer {
@@ -220,18 +238,23 @@ impl CallObserver for CallTracer {
             Ok(p) => (Severity::Info, value_text(call.op, p)),
             Err(e) => (Severity::Warn, format!("error: {e}")),
         };
-        let line = TraceLine::new(
-            call.ended.as_micros().saturating_mul(1_000),
-            severity,
-            who,
-            format!(
-                "{} {} -> {outcome} in {took}",
-                db_label(call.db),
-                trace::describe_op(call.op)
-            ),
+        let text = format!(
+            "{} {} -> {outcome} in {took}",
+            db_label(call.db),
+            trace::describe_op(call.op)
         );
+        let end_ns = call.ended.as_micros().saturating_mul(1_000);
+        if let Ok(mut spans) = self.spans.lock() {
+            spans.push(CallSpan {
+                task: who.clone(),
+                start_ns: call.started.as_micros().saturating_mul(1_000),
+                end_ns,
+                text: text.clone(),
+                ok: call.result.is_ok(),
+            });
+        }
         if let Ok(mut lines) = self.lines.lock() {
-            lines.push(line);
+            lines.push(TraceLine::new(end_ns, severity, who, text));
         }
     }
 }
@@ -279,6 +302,9 @@ pub struct SimOutcome {
     /// Instants at which tasks were busy-looping when time moved on
     /// ([`crate::exec::SPIN_POLLS`]): 0 unless some task spins.
     pub spins: u64,
+    /// Every call of a robot or test task, in the order they ended (whether or not the trace
+    /// keeps them, [`SimConfig::trace_calls`]).
+    pub calls: Vec<CallSpan>,
 }
 
 impl SimOutcome {
@@ -527,6 +553,7 @@ impl Sim {
         // Robot tasks hold a `'static` handle: each run leaks its motherboard (a few KiB).
         let tracer: &'static CallTracer = Box::leak(Box::new(CallTracer {
             lines: Mutex::new(Vec::new()),
+            spans: Mutex::new(Vec::new()),
         }));
         let mb: &'static SimMotherboard = Box::leak(Box::new(
             Motherboard::new(mb_cfg, mb_ports).with_observer(tracer),
@@ -646,6 +673,11 @@ impl Sim {
             end_ns,
             speed: config.speed,
             spins: run.spins,
+            calls: tracer
+                .spans
+                .lock()
+                .map(|mut s| std::mem::take(&mut *s))
+                .unwrap_or_default(),
         })
     }
 }

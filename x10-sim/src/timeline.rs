@@ -32,7 +32,7 @@ use crate::sim::SimOutcome;
 use crate::trace::Severity;
 use crate::world::{seconds, Device, DeviceKind, Signal, World};
 
-pub use plot::{timeline_html, timeline_svg, write_timeline};
+pub use plot::{timeline_html, timeline_svg, write_timeline, LABEL_ROWS};
 
 /// How long a motor state must last to count as a state of its own, in ns: an H-bridge
 /// command is three writes (two direction pins, then the duty), which go out as three
