@@ -79,5 +79,12 @@ pub use x10_microcode::{
 /// The internal daughterboard on the motherboard itself (thesis `SELF`, address 0).
 pub const SELF: Address = Address::INTERNAL;
 
+/// `docs/drivers.md`: its complete Rust examples run as doctests; its excerpts (`rust,ignore`
+/// under an `<!-- excerpt: FILE -->` line) are checked against their files by
+/// `tests/docs_examples.rs`.
+#[cfg(doctest)]
+#[doc = include_str!("../../docs/drivers.md")]
+pub struct DriversGuide;
+
 /// Result of every driver method.
 pub type Result<T> = core::result::Result<T, Error>;
