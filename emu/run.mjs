@@ -12,6 +12,7 @@ import { mkdirSync, writeFileSync, readdirSync } from 'node:fs';
 import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
 import { Rig } from './lib/rig.js';
+import { figuresBlock } from './lib/figures.js';
 
 const here = dirname(fileURLToPath(import.meta.url));
 const args = process.argv.slice(2);
@@ -144,6 +145,7 @@ function decodeFrames(transfers) {
 
 let failed = 0;
 const summary = [];
+const results = [];
 for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name))) {
   const checks = [];
   const figures = [];
@@ -182,6 +184,7 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   console.log(`  ${sim.toFixed(3)} simulated s in ${wall.toFixed(1)} wall s`);
   const verdict = expectedFail ? (bad ? 'known defect, fails as expected:' : 'PASSES but is marked as a known defect (remove the mark):') : bad ? 'FAIL' : 'pass';
   summary.push(`${verdict} ${s.name}`);
+  results.push({ scenario: s.name, figures });
   // Trace file: bus transfers (raw and decoded) and every chip's log.
   const text = [];
   for (const [i, r] of rigs.entries()) {
@@ -198,4 +201,6 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   writeFileSync(join(out, `${s.name}.txt`), text.join('\n') + '\n');
 }
 console.log(`\n${summary.join('\n')}`);
+// The figures of a full run, for docs/emulation.md (lib/figures.js).
+if (!wanted.length) writeFileSync(join(out, 'figures.md'), figuresBlock(results));
 process.exit(failed ? 1 : 0);

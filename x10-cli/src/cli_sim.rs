@@ -21,7 +21,8 @@ OUTPUT
   A summary: what each device did and when, the bus load, warnings. --trace prints instead one
   line per bus transaction (microcode, bytes, bus time), reply, event, robot call and output
   change: `seconds LEVEL source: what`. The same seed gives the same output, byte for byte.
-  --svg/--html draw the devices over time; --vcd writes SDA/SCL for GTKWave or Surfer.
+  --svg/--html draw the devices, the bus and each task's calls over time (hover for details; the
+  page zooms and lists every change); --vcd writes SDA/SCL for GTKWave or Surfer.
 
 YOUR OWN ROBOT
   `x10 new PATH` makes a crate of your own; its `cargo sim` takes the same options.

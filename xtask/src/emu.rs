@@ -8,6 +8,11 @@
 //! `node emu/run.mjs` on the two ELFs. The rig, its scenarios and what they check are in
 //! `emu/` and `docs/emulation.md`; the trace of each scenario (bus transfers decoded by
 //! `x10 decode`, defmt logs decoded by `defmt-print`, pins) goes to `target/emu/SCENARIO.txt`.
+//!
+//! A run of every scenario also writes the figures they measured as one Markdown block,
+//! `target/emu/figures.md` (`emu/lib/figures.js`), the block docs/emulation.md holds between
+//! its markers: `--write-docs` puts it there, `--check-docs` (`./test-all`) fails when the docs
+//! hold another, so the emulator's figures are written in one place and cannot drift.
 
 use std::path::Path;
 use std::process::{Command, ExitCode};
@@ -19,6 +24,95 @@ use crate::{target_dir, Error, IMAGES};
 /// # Errors
 /// Build failures, and `npm`/`node` that cannot be started.
 pub fn emu(args: &[String]) -> Result<ExitCode, Error> {
+    let docs = if args.iter().any(|a| a == "--check-docs") {
+        Some(Docs::Check)
+    } else if args.iter().any(|a| a == "--write-docs") {
+        Some(Docs::Write)
+    } else {
+        None
+    };
+    let args: Vec<String> = args
+        .iter()
+        .filter(|a| *a != "--check-docs" && *a != "--write-docs")
+        .cloned()
+        .collect();
+    if docs.is_some() && args.iter().any(|a| !a.starts_with("--")) {
+        return Err(Error::Usage(
+            "--check-docs and --write-docs need every scenario: name none".into(),
+        ));
+    }
+    let code = run(&args)?;
+    let Some(docs) = docs else {
+        return Ok(code);
+    };
+    if code != ExitCode::SUCCESS {
+        return Ok(code);
+    }
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let figures_path = target_dir(&cargo)?.join("emu").join("figures.md");
+    let figures =
+        std::fs::read_to_string(&figures_path).map_err(|e| Error::Io(figures_path.clone(), e))?;
+    let doc_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/emulation.md");
+    let doc = std::fs::read_to_string(&doc_path).map_err(|e| Error::Io(doc_path.clone(), e))?;
+    let updated = replace_block(&doc, &figures).map_err(Error::Usage)?;
+    match docs {
+        Docs::Write => {
+            std::fs::write(&doc_path, updated).map_err(|e| Error::Io(doc_path.clone(), e))?;
+            println!(
+                "docs/emulation.md: figures written from {}",
+                figures_path.display()
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Docs::Check if updated == doc => Ok(ExitCode::SUCCESS),
+        Docs::Check => {
+            eprintln!(
+                "docs/emulation.md's figures differ from this run's ({}):\n{figures}\nrun `cargo xtask emu --write-docs` and commit the change",
+                figures_path.display()
+            );
+            Ok(ExitCode::FAILURE)
+        }
+    }
+}
+
+/// What to do with docs/emulation.md after a full run.
+#[derive(Clone, Copy)]
+enum Docs {
+    /// Fail when its figures block differs from the run's.
+    Check,
+    /// Put the run's block in.
+    Write,
+}
+
+/// `doc` with its figures block (from the line starting `<!-- figures:` to the line starting
+/// `<!-- end of the generated figures`) replaced by `block` (the same two marker lines
+/// included).
+///
+/// # Errors
+/// When `doc` or `block` lacks the markers, or has them out of order.
+fn replace_block(doc: &str, block: &str) -> Result<String, String> {
+    const BEGIN: &str = "<!-- figures:";
+    const END: &str = "<!-- end of the generated figures";
+    let bounds = |text: &str| -> Option<(usize, usize)> {
+        let a = text
+            .find(&format!("\n{BEGIN}"))
+            .map(|i| i + 1)
+            .or_else(|| text.starts_with(BEGIN).then_some(0))?;
+        let e = a + text[a..].find(&format!("\n{END}"))? + 1;
+        let end = e + text[e..].find('\n').map_or(text.len() - e, |n| n + 1);
+        Some((a, end))
+    };
+    let (a, b) =
+        bounds(doc).ok_or_else(|| format!("docs/emulation.md has no `{BEGIN}` … `{END}` block"))?;
+    if bounds(block) != Some((0, block.len())) {
+        return Err(format!(
+            "the figures file is not one `{BEGIN}` … `{END}` block"
+        ));
+    }
+    Ok(format!("{}{block}{}", &doc[..a], &doc[b..]))
+}
+
+fn run(args: &[String]) -> Result<ExitCode, Error> {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let root = Path::new(env!("CARGO_MANIFEST_DIR"))
         .parent()
@@ -149,4 +243,46 @@ fn node(emu: &Path, args: &[String]) -> Result<ExitCode, Error> {
     } else {
         ExitCode::FAILURE
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::replace_block;
+
+    const BLOCK: &str =
+        "<!-- figures: generated -->\n| a | b |\n<!-- end of the generated figures -->\n";
+
+    #[test]
+    fn the_block_is_replaced_and_nothing_else() {
+        let doc = "# Doc\n\ntext\n<!-- figures: generated -->\n| old |\n<!-- end of the generated figures -->\nafter\n";
+        assert_eq!(
+            replace_block(doc, BLOCK).unwrap(),
+            format!("# Doc\n\ntext\n{BLOCK}after\n")
+        );
+        // Idempotent: the same block leaves the doc as it is.
+        let once = replace_block(doc, BLOCK).unwrap();
+        assert_eq!(replace_block(&once, BLOCK).unwrap(), once);
+    }
+
+    #[test]
+    fn missing_markers_are_errors() {
+        assert!(replace_block("# Doc\nno block\n", BLOCK).is_err());
+        let doc = "x\n<!-- figures: generated -->\nno end\n";
+        assert!(replace_block(doc, BLOCK).is_err());
+        let doc = "x\n<!-- figures: generated -->\n<!-- end of the generated figures -->\n";
+        assert!(replace_block(doc, "| a |\n").is_err());
+    }
+
+    /// The docs hold the block the way the check finds it.
+    #[test]
+    fn docs_emulation_md_has_one_figures_block() {
+        let doc = include_str!("../../docs/emulation.md");
+        assert_eq!(doc.matches("\n<!-- figures:").count(), 1);
+        assert_eq!(
+            doc.matches("\n<!-- end of the generated figures -->")
+                .count(),
+            1
+        );
+        assert!(replace_block(doc, BLOCK).is_ok());
+    }
 }

@@ -199,7 +199,7 @@ impl fmt::Display for Error {
         match self {
             Error::Usage(s) => write!(
                 f,
-                "{s}\nusage: cargo xtask size [--no-build]\n       cargo xtask image NAME [ARGS...]   (NAME: {})",
+                "{s}\nusage: cargo xtask size [--no-build]\n       cargo xtask image NAME [ARGS...]   (NAME: {})\n       cargo xtask emu [--list] [--check-docs | --write-docs] [SCENARIO...]",
                 names()
             ),
             Error::Io(p, e) => write!(f, "{}: {e}", p.display()),
