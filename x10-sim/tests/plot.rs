@@ -6,7 +6,10 @@ use embassy_time::Timer;
 use x10_devices::{Actuator, DcMotor, Duty, Error, Pin};
 use x10_microcode::Address;
 use x10_sim::sim::{SimConfig, SimOutcome, X10};
-use x10_sim::timeline::{timeline_html, timeline_svg, Timeline, LABEL_ROWS};
+use x10_sim::timeline::{
+    timeline_html, timeline_svg, DeviceState, MotorState, Timeline, LABEL_ROWS,
+};
+use x10_sim::trace::timestamp;
 use x10_sim::world::{Board, Device, World, SELF};
 
 /// The plot's geometry: the plot runs from x = 230 to x = 976 over the whole run.
@@ -112,13 +115,29 @@ fn every_change_has_its_tooltip_and_its_label() {
         .flat_map(|d| d.track.changes().iter().map(|(t, s)| d.change_text(*t, s)))
         .collect();
     assert_eq!(dots, want);
+    // The first motor's three changes, as the tooltips word them.
+    let left = tl.get("left").unwrap();
+    let changes = left.track.changes();
+    assert_eq!(
+        changes.iter().map(|(_, s)| *s).collect::<Vec<_>>(),
+        [
+            DeviceState::Motor(MotorState::forward(50)),
+            DeviceState::Motor(MotorState::reverse(50)),
+            DeviceState::Motor(MotorState::STOPPED)
+        ]
+    );
+    let at = |i: usize| timestamp(changes[i].0);
     assert_eq!(
         want[..3],
         [
-            "left 1.000851 s: forward 50 %",
-            "left 1.031566 s: reverse 50 %",
-            "left 1.332465 s: stopped"
+            format!("left {} s: forward 50 %", at(0)),
+            format!("left {} s: reverse 50 %", at(1)),
+            format!("left {} s: stopped", at(2))
         ]
+    );
+    assert!(
+        at(0).starts_with("1.00") && at(1).starts_with("1.03"),
+        "{want:?}"
     );
     // Per lane, its labels in time order; which are visible.
     let lanes: Vec<Vec<(String, bool)>> = root
@@ -250,12 +269,7 @@ fn devices_bus_and_calls_share_one_time_axis() {
     for (n, c) in calls.iter().zip(&ordered) {
         assert_eq!(
             title(*n),
-            format!(
-                "{} {} s: {}",
-                c.task,
-                x10_sim::trace::timestamp(c.start_ns),
-                c.text
-            )
+            format!("{} {} s: {}", c.task, timestamp(c.start_ns), c.text)
         );
         let x = if n.has_tag_name("line") {
             assert_eq!(c.start_ns, c.end_ns);
@@ -268,9 +282,15 @@ fn devices_bus_and_calls_share_one_time_axis() {
         };
         assert!((x - x_of(c.start_ns, end)).abs() < 0.001);
     }
+    // The first call: the left motor's first direction pin, at 1 s.
     assert_eq!(
         title(calls[0]),
-        "drive 1.000000 s: db0a io low A1.B -> ok in 690us"
+        format!("drive 1.000000 s: {}", o.calls[0].text)
+    );
+    assert!(
+        o.calls[0].text.starts_with("db0a io low A1.B -> ok in "),
+        "{}",
+        o.calls[0].text
     );
     // The change dots on the same axis.
     let tl = Timeline::new(&world, &o);
@@ -327,7 +347,7 @@ fn the_page_is_self_contained_and_lists_every_change() {
             assert!(page.contains(&format!("<title>{text}</title>")), "{text}");
             let row = format!(
                 "<tr><td>{} s</td><td>{}</td><td>{}</td></tr>",
-                x10_sim::trace::timestamp(*t),
+                timestamp(*t),
                 d.device.name(),
                 d.words(s)
             );
