@@ -6,6 +6,7 @@
   var num = function (e, a) { return +e.getAttribute(a); };
   var L = num(svg, 'data-left'), R = num(svg, 'data-right'), end = num(svg, 'data-end-s');
   var ROW = num(svg, 'data-row'), SPACE = num(svg, 'data-space');
+  if (!(end > 0)) return;
   var W = R - L, k = 1, off = 0, NS = svg.namespaceURI;
   var px = function (x) { return L + (x - L) * k + off; };
 
