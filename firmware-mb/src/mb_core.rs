@@ -267,8 +267,25 @@ impl MbCore {
             self.with(|t| bump(&mut t.diag.status_errors));
             return Err(LinkError::Status(x10_microcode::Status::PortOutOfRange));
         }
-        let deadline = now().plus_us(timeout_us);
-        let (ticket, seq) = self.claim_slot(db, deadline).await?;
+        let t_now = now();
+        let deadline = t_now.plus_us(timeout_us);
+        // A free slot at once (the usual case) without the waiting machinery.
+        let free = self.with(|t| {
+            if t.slot_waiting > 0 {
+                return None;
+            }
+            let mut scratch = MbDiagnostics::new();
+            let (ticket, seq) = t.requests.alloc(db, t_now, &mut scratch).ok()?;
+            bump(&mut t.diag.requests);
+            if let Some(s) = self.done.get(ticket.index) {
+                s.reset();
+            }
+            Some((ticket, seq))
+        });
+        let (ticket, seq) = match free {
+            Some(claimed) => claimed,
+            None => self.claim_slot(db, deadline).await?,
+        };
         let guard = SlotGuard {
             mb: self,
             ticket,
