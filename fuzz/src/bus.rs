@@ -70,7 +70,8 @@ pub struct World {
     state: Vec<Board>,
     pub txns: Vec<Txn>,
     pub sent: Vec<Sent>,
-    to_mb: VecDeque<Vec<u8>>,
+    /// Events written to the MB and not yet received: (index in `sent`, bytes).
+    to_mb: VecDeque<(usize, Vec<u8>)>,
     listener: Option<Waker>,
     /// Events to write at a time: (at, bytes).
     schedule: Vec<(u64, Vec<u8>)>,
@@ -114,8 +115,10 @@ impl World {
         self.sent.push(Sent {
             at: now_us(),
             bytes: bytes.clone(),
+            delivered: None,
         });
-        self.to_mb.push_back(bytes);
+        let index = self.sent.len() - 1;
+        self.to_mb.push_back((index, bytes));
         if let Some(w) = self.listener.take() {
             w.wake();
         }
@@ -134,7 +137,12 @@ impl World {
         let bi = usize::from(template >> 3) % self.boards.len();
         let addr = self.boards[bi];
         let mut bytes = self.event(addr, template, mutation)?;
-        if mutation != 0 {
+        if mutation == 0xff {
+            // Sent without its check, whatever the board's PEC setting.
+            if let Some(n) = bytes.get(5).map(|&n| 6 + usize::from(n)) {
+                bytes.truncate(n);
+            }
+        } else if mutation != 0 {
             let bit = usize::from(mutation) % (bytes.len() * 8);
             bytes[bit / 8] ^= 1 << (bit % 8);
         }
@@ -157,7 +165,18 @@ impl World {
             1 => (0x02, 0x80, b.next_seq(), 0, vec![param, 0x02, param & 1]),
             2 => match b.pending.pop_front() {
                 Some((seq, pin, width)) => (0x03, pin, seq, 0, width.to_le_bytes().to_vec()),
-                None => (0x03, pin, b.last_seq, 0x0c, vec![]),
+                // None pending: one for the last request, on pin S1.A or S1.B, by
+                // `template >> 6`: status timeout, ok with 2 bytes, timeout with a payload,
+                // ok with 4 bytes.
+                None => {
+                    let pin = pins[usize::from(template >> 4) & 1];
+                    match template >> 6 {
+                        0 => (0x03, pin, b.last_seq, 0x0c, vec![]),
+                        1 => (0x03, pin, b.last_seq, 0, vec![param, 0]),
+                        2 => (0x03, pin, b.last_seq, 0x0c, vec![param]),
+                        _ => (0x03, pin, b.last_seq, 0, vec![param, 0, 0, 0]),
+                    }
+                }
             },
             3 => {
                 b.pec = false;
@@ -248,9 +267,15 @@ impl World {
             0x05 => (0, vec![0; 28]),
             0x10 => (0, vec![b.level]),
             0x13 | 0x14 => {
-                let width = 1_000 + u32::from(seq) * 7;
+                let width = 1_000 + (now / 100 % 10_000) as u32;
                 b.pending.push_back((seq, port, width));
-                deferred = Some((seq, port, width));
+                // The board's pulse timeout (data, else the default 1 s), and when within it
+                // the pulse ends: 1 ms + the next input byte x 4 ms, at most the timeout + 1 ms.
+                let timeout_ms = match *data {
+                    [lo, hi] => u64::from(u16::from_le_bytes([lo, hi])),
+                    _ => 1_000,
+                };
+                deferred = Some((seq, port, width, timeout_ms));
                 (0x01, vec![])
             }
             0x30 => (0, vec![seq, 0x01]),
@@ -264,8 +289,8 @@ impl World {
             _ => (0x03, vec![]),
         };
         let pec_now = b.pec;
-        if let Some((seq, port, width)) = deferred {
-            // The width, 1 ms after acceptance.
+        if let Some((seq, port, width, timeout_ms)) = deferred {
+            let after_us = (1 + 4 * u64::from(self.input.byte())).min(timeout_ms + 1) * 1_000;
             let mut frame = vec![addr, 0x03, port, seq, 0, 4];
             frame.extend(width.to_le_bytes());
             let ev = if pec_now {
@@ -276,7 +301,7 @@ impl World {
             if let Some(b) = self.board(addr) {
                 b.pending.retain(|p| p.0 != seq);
             }
-            self.schedule(now + 1_000, ev);
+            self.schedule(now + after_us, ev);
         }
         let mut frame = vec![seq, status, payload.len() as u8];
         frame.extend(payload);
@@ -288,7 +313,11 @@ impl World {
     }
 
     fn take_event(&mut self) -> Option<Vec<u8>> {
-        self.to_mb.pop_front()
+        let (index, bytes) = self.to_mb.pop_front()?;
+        if let Some(s) = self.sent.get_mut(index) {
+            s.delivered = Some(now_us());
+        }
+        Some(bytes)
     }
 }
 

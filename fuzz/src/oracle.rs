@@ -185,6 +185,15 @@ pub struct Txn {
 pub struct Sent {
     pub at: u64,
     pub bytes: Vec<u8>,
+    /// When the MB took it off the bus (listened), if it did.
+    pub delivered: Option<u64>,
+}
+
+impl Sent {
+    /// When the MB received it (when it was sent if never received).
+    pub fn received(&self) -> u64 {
+        self.delivered.unwrap_or(self.at)
+    }
 }
 
 /// One finished (or unfinished) call.
@@ -265,8 +274,8 @@ fn request_of(db: u8, op: &OpBytes, written: &[u8]) -> Option<(u8, bool)> {
 impl Record {
     /// The PEC state of board `db` at time `at` as the MB may know it: on from the end of a
     /// `set_pec(1)` transaction answered validly in the new mode (`ok`, or `pec_mismatch`
-    /// with a check), off from a well-formed `boot` event of the board or a confirmed
-    /// `set_pec(0)`.
+    /// with a check), off from a well-formed `boot` event of the board (when the MB received
+    /// it: events reach it in order, when it listens) or a confirmed `set_pec(0)`.
     fn pec_on_at(&self, db: u8, at: u64) -> bool {
         let mut changes: Vec<(u64, bool)> = Vec::new();
         for t in &self.txns {
@@ -288,12 +297,13 @@ impl Record {
             }
         }
         for e in &self.sent {
-            if e.at > at {
+            let Some(got) = e.delivered else { continue };
+            if got > at {
                 continue;
             }
             if let Some(ev) = parse_event(self.mb, &e.bytes) {
                 if ev.source == db && ev.kind == 0x07 {
-                    changes.push((e.at, false));
+                    changes.push((got, false));
                 }
             }
         }
@@ -302,11 +312,11 @@ impl Record {
     }
 
     /// The event sent at index `i`, if it is valid: well formed, and checked when its board
-    /// had PEC on when it was sent.
+    /// had PEC on when the MB received it.
     fn valid_event(&self, i: usize) -> Option<EventView> {
         let e = &self.sent[i];
         let ev = parse_event(self.mb, &e.bytes)?;
-        if !ev.checked && self.pec_on_at(ev.source, e.at) {
+        if !ev.checked && self.pec_on_at(ev.source, e.received()) {
             return None;
         }
         Some(ev)
@@ -465,10 +475,10 @@ impl Record {
                 }
                 (ReplyRule::Deferred, _) if rstatus == 0x01 => {
                     for (i, e) in self.sent.iter().enumerate() {
-                        if e.at < t.end || e.at > end {
+                        if e.delivered.is_none() || e.received() < t.end || e.received() > end {
                             continue;
                         }
-                        let Some(ev) = self.valid_event(i) else {
+                        let Some(ev) = parse_event(self.mb, &e.bytes) else {
                             continue;
                         };
                         if ev.kind != 0x03
@@ -477,6 +487,25 @@ impl Record {
                             || ev.port != op.port
                         {
                             continue;
+                        }
+                        let fits = match result {
+                            CallResult::Ok(p) => ev.status == 0 && ev.payload == *p,
+                            CallResult::Status(s) => ev.status == *s,
+                            CallResult::Other(_) => false,
+                        };
+                        if fits && !ev.checked && (checked || self.valid_event(i).is_none()) {
+                            let boot_between = self.sent.iter().enumerate().any(|(j, b)| {
+                                b.delivered
+                                    .is_some_and(|got| got >= t.start && got <= e.received())
+                                    && j != i
+                                    && parse_event(self.mb, &b.bytes)
+                                        .is_some_and(|b| b.source == c.db && b.kind == 0x07)
+                            });
+                            return if boot_between {
+                                "deferred-unchecked-after-boot"
+                            } else {
+                                "deferred-unchecked"
+                            };
                         }
                         match result {
                             CallResult::Ok(p) if ev.status == 0 && ev.payload == *p => {
@@ -556,7 +585,7 @@ impl Record {
         status: Option<u8>,
     ) -> bool {
         for (i, e) in self.sent.iter().enumerate() {
-            if e.at < t.end || e.at > end {
+            if e.delivered.is_none() || e.received() < t.end || e.received() > end {
                 continue;
             }
             let Some(ev) = self.valid_event(i) else {
@@ -598,37 +627,66 @@ impl Record {
     }
 
     fn check_waits(&self) -> Result<(), Violation> {
-        let mut tasks: Vec<usize> = self.waits.iter().map(|w| w.task).collect();
-        tasks.sort_unstable();
-        tasks.dedup();
-        for task in tasks {
-            // Events delivered to one task: a subsequence of the events sent, in order.
+        let mut keys: Vec<(usize, u8, u8)> =
+            self.waits.iter().map(|w| (w.task, w.db, w.pin)).collect();
+        keys.sort_unstable();
+        keys.dedup();
+        for (task, db, pin) in keys {
+            // The events one task got for one pin: a subsequence of those sent, in order.
             let mut next = 0usize;
-            for w in self.waits.iter().filter(|w| w.task == task) {
+            for w in self
+                .waits
+                .iter()
+                .filter(|w| (w.task, w.db, w.pin) == (task, db, pin))
+            {
+                let matches = |ev: &EventView| {
+                    (ev.kind == 0x01 || ev.kind == 0x02)
+                        && ev.source == w.db
+                        && ev.source == w.source
+                        && ev.port == w.pin
+                        && ev.port == w.got_pin
+                        && ev.kind == w.kind
+                        && ev.payload == w.value
+                };
                 let found = (next..self.sent.len()).find(|&i| {
-                    self.sent[i].at <= w.at
-                        && self.valid_event(i).is_some_and(|ev| {
-                            (ev.kind == 0x01 || ev.kind == 0x02)
-                                && ev.source == w.db
-                                && ev.source == w.source
-                                && ev.port == w.pin
-                                && ev.port == w.got_pin
-                                && ev.kind == w.kind
-                                && ev.payload == w.value
-                        })
+                    self.sent[i].delivered.is_some_and(|got| got <= w.at)
+                        && self.valid_event(i).is_some_and(|ev| matches(&ev))
                 });
                 match found {
                     Some(i) => next = i + 1,
                     None => {
+                        // Sent, but without the check its board had on: accepted unchecked.
+                        let unchecked = (next..self.sent.len()).any(|i| {
+                            self.sent[i].delivered.is_some_and(|got| got <= w.at)
+                                && parse_event(self.mb, &self.sent[i].bytes)
+                                    .is_some_and(|ev| matches(&ev))
+                        });
                         return Err(Violation {
-                            class: "event-not-sent",
+                            class: if unchecked {
+                                "event-unchecked-while-pec-on"
+                            } else {
+                                "event-not-sent"
+                            },
                             what: format!(
                                 "waiter task {} (board {:#04x}, pin {:#04x}) got an event that \
-                                 was not sent (or not after its previous one): at {} us, \
-                                 source {:#04x} kind {:#04x} pin {:#04x} value {:02x?}",
-                                task, w.db, w.pin, w.at, w.source, w.kind, w.got_pin, w.value
+                                 was not validly sent (or not after its previous one): at {} us, \
+                                 source {:#04x} kind {:#04x} pin {:#04x} value {:02x?}{}",
+                                task,
+                                w.db,
+                                w.pin,
+                                w.at,
+                                w.source,
+                                w.kind,
+                                w.got_pin,
+                                w.value,
+                                if unchecked {
+                                    "; it was sent without a check while the board had PEC on \
+                                     (confirmed by a valid set_pec(1) reply, no boot since)"
+                                } else {
+                                    ""
+                                }
                             ),
-                        })
+                        });
                     }
                 }
             }
