@@ -27,7 +27,9 @@ use x10_hal::ports::{EdgeCount, PortError, Ports};
 use x10_microcode::{Address, Edge, EventConfig, Level, Op, PinRef, Port};
 
 use crate::bus::{injector, FuzzBus, World};
-use crate::oracle::{CallRec, CallResult, OpBytes, Record, ReplyRule, Violation, WaitRec};
+use crate::oracle::{
+    CallRec, CallResult, OpBytes, Record, ReplyRule, Violation, WaitRec, WaitSpan,
+};
 use crate::vtime::{now_us, sleep_until, Executor, Stop};
 
 /// The MB's own address.
@@ -52,7 +54,19 @@ pub const PINS: [u8; 3] = [0x80, 0x81, 0x82];
 /// * 2: waiter task `a % 2` waits `1 + d % 4` times for an event of board `c & 1`, pin
 ///   `PINS[(c >> 1) % 3]`, each wait given up after `(1 + b)` ms;
 /// * 3: an event written to the MB at `(a | b << 8)` × 10 µs: template `c`, bit `d` flipped
-///   (0: none) ([`bus::World::event_for`]).
+///   (0: none; 0xff: the check left out) ([`bus::World::event_for`]). A template's bits 0..2
+///   are the kind (0 and 7 pin change, 1 analog threshold, 2 deferred reply, 3 boot,
+///   4 rejected, 5 failsafe tripped, 6 overflow), bit 3 the board (with two), bits 4..7 the pin
+///   (`PINS[(c >> 4) % 3]`); a deferred reply answers the board's oldest pulse-in still
+///   pending, else the last request, by `c >> 6`: timeout, ok with 2 bytes, timeout with a
+///   byte, ok with 4 bytes.
+///
+/// The bus's bytes ([`bus`]): one per transaction, `a`: `a & 7` 0 honest, 1 honest then
+/// mutated (2 more bytes: how, where), 2 raw reply (a length byte, the bytes), 3 NACK,
+/// 4 arbitration lost (and an event: 1 more byte, its template, and with bit 7 a mutation
+/// byte), 5 timeout, 6 bus error, 7 honest and an event (as 4); the transfer takes
+/// 60 + (a >> 3)² × 100 µs. An honest `pending` takes one more byte: its deferred reply comes
+/// 1 + 4 × that ms later (at most the pulse timeout + 1 ms). Used up: honest, at once.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Command(pub [u8; 5]);
 
@@ -289,6 +303,7 @@ pub fn run(input: &[u8]) -> (Record, Result<(), Violation>) {
     let world = World::new(MB, case.boards.clone(), &case.bus);
     let calls: Rc<RefCell<Vec<CallRec>>> = Rc::default();
     let waits: Rc<RefCell<Vec<WaitRec>>> = Rc::default();
+    let timeouts: Rc<RefCell<Vec<WaitSpan>>> = Rc::default();
     let busy: Rc<RefCell<usize>> = Rc::default();
 
     // Per task: its list of commands.
@@ -368,16 +383,27 @@ pub fn run(input: &[u8]) -> (Record, Result<(), Violation>) {
                 continue;
             }
             *busy.borrow_mut() += 1;
-            let (waits, busy, core) = (waits.clone(), busy.clone(), mb.core());
+            let (waits, timeouts, busy, core) =
+                (waits.clone(), timeouts.clone(), busy.clone(), mb.core());
             ex.spawn(async move {
                 for (board, pin, count, window) in list {
                     let addr = Address::external(board).expect("board addresses are external");
                     for _ in 0..count {
+                        let start = now_us();
                         let r = select(
                             core.wait_event(addr, PinRef::from_byte(pin)),
                             sleep_until(now_us() + window),
                         )
                         .await;
+                        if let Either::Second(()) = r {
+                            timeouts.borrow_mut().push(WaitSpan {
+                                task: CALLERS + wi,
+                                db: board,
+                                pin,
+                                start,
+                                end: now_us(),
+                            });
+                        }
                         if let Either::First(Ok(ev)) = r {
                             waits.borrow_mut().push(WaitRec {
                                 task: CALLERS + wi,
@@ -406,6 +432,7 @@ pub fn run(input: &[u8]) -> (Record, Result<(), Violation>) {
         sent: w.sent.clone(),
         calls: calls.borrow().clone(),
         waits: waits.borrow().clone(),
+        timeouts: timeouts.borrow().clone(),
     };
     let verdict = match stop {
         Stop::Livelock(at) => Err(Violation {

@@ -228,6 +228,16 @@ pub struct WaitRec {
     pub value: Vec<u8>,
 }
 
+/// A wait for a pin event that ended without one (its window passed).
+#[derive(Clone, Debug)]
+pub struct WaitSpan {
+    pub task: usize,
+    pub db: u8,
+    pub pin: u8,
+    pub start: u64,
+    pub end: u64,
+}
+
 /// A broken promise, with what the MB did and what the oracle expected.
 #[derive(Clone, Debug)]
 pub struct Violation {
@@ -251,6 +261,7 @@ pub struct Record {
     pub sent: Vec<Sent>,
     pub calls: Vec<CallRec>,
     pub waits: Vec<WaitRec>,
+    pub timeouts: Vec<WaitSpan>,
 }
 
 /// The request `written` carries `op` to `db`: its sequence number and whether it carried a
@@ -276,7 +287,7 @@ impl Record {
     /// `set_pec(1)` transaction answered validly in the new mode (`ok`, or `pec_mismatch`
     /// with a check), off from a well-formed `boot` event of the board (when the MB received
     /// it: events reach it in order, when it listens) or a confirmed `set_pec(0)`.
-    fn pec_on_at(&self, db: u8, at: u64) -> bool {
+    fn pec_on_at(&self, db: u8, at: u64, event: usize) -> bool {
         let mut changes: Vec<(u64, bool)> = Vec::new();
         for t in &self.txns {
             if t.addr != db || t.end > at || t.read_len.is_none() {
@@ -296,9 +307,11 @@ impl Record {
                 }
             }
         }
-        for e in &self.sent {
+        // Events the MB received before event `event` (at the same instant: in the order
+        // received, which is the order sent).
+        for (j, e) in self.sent.iter().enumerate() {
             let Some(got) = e.delivered else { continue };
-            if got > at {
+            if got > at || (got == at && j >= event) {
                 continue;
             }
             if let Some(ev) = parse_event(self.mb, &e.bytes) {
@@ -316,7 +329,7 @@ impl Record {
     fn valid_event(&self, i: usize) -> Option<EventView> {
         let e = &self.sent[i];
         let ev = parse_event(self.mb, &e.bytes)?;
-        if !ev.checked && self.pec_on_at(ev.source, e.received()) {
+        if !ev.checked && self.pec_on_at(ev.source, e.received(), i) {
             return None;
         }
         Some(ev)
@@ -627,6 +640,36 @@ impl Record {
     }
 
     fn check_waits(&self) -> Result<(), Violation> {
+        // A task that waited for a pin and got nothing: no valid pin event of that board and
+        // pin reached the MB while it waited.
+        for w in &self.timeouts {
+            let lost = (0..self.sent.len()).find(|&i| {
+                self.sent[i]
+                    .delivered
+                    .is_some_and(|got| got > w.start && got < w.end)
+                    && self.valid_event(i).is_some_and(|ev| {
+                        (ev.kind == 0x01 || ev.kind == 0x02)
+                            && ev.source == w.db
+                            && ev.port == w.pin
+                    })
+            });
+            if let Some(i) = lost {
+                return Err(Violation {
+                    class: "event-lost-while-waiting",
+                    what: format!(
+                        "waiter task {} waited for board {:#04x} pin {:#04x} from {} to {} us and \
+                         got nothing, though the MB received the valid event {:02x?} at {} us",
+                        w.task,
+                        w.db,
+                        w.pin,
+                        w.start,
+                        w.end,
+                        self.sent[i].bytes,
+                        self.sent[i].received()
+                    ),
+                });
+            }
+        }
         let mut keys: Vec<(usize, u8, u8)> =
             self.waits.iter().map(|w| (w.task, w.db, w.pin)).collect();
         keys.sort_unstable();
@@ -719,6 +762,12 @@ impl Record {
             s += &format!(
                 "task {} call {:#04x} {:02x?}: {} .. {:?} -> {:?}\n",
                 c.task, c.db, c.op, c.start, c.end, c.result
+            );
+        }
+        for w in &self.timeouts {
+            s += &format!(
+                "task {} wait {:#04x}/{:#04x} {} .. {}: nothing\n",
+                w.task, w.db, w.pin, w.start, w.end
             );
         }
         for w in &self.waits {
