@@ -704,9 +704,16 @@ impl Record {
                                 && parse_event(self.mb, &self.sent[i].bytes)
                                     .is_some_and(|ev| matches(&ev))
                         });
+                        // Sent and valid, but before the previous one this task got.
+                        let reordered = (0..next).any(|i| {
+                            self.sent[i].delivered.is_some_and(|got| got <= w.at)
+                                && self.valid_event(i).is_some_and(|ev| matches(&ev))
+                        });
                         return Err(Violation {
                             class: if unchecked {
                                 "event-unchecked-while-pec-on"
+                            } else if reordered {
+                                "event-out-of-order"
                             } else {
                                 "event-not-sent"
                             },
