@@ -15,6 +15,10 @@
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")"
 secs=${FUZZ_SECS:-45}
+if ! command -v c++ >/dev/null 2>&1; then
+    echo "fuzz/run.sh: no C++ compiler (libfuzzer-sys builds libFuzzer): install one (Debian/Ubuntu: sudo apt-get install g++), then run it again" >&2
+    exit 1
+fi
 target=x86_64-unknown-linux-gnu
 export RUSTFLAGS="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
 -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
