@@ -603,3 +603,36 @@ mod checked_in {
         }
     }
 }
+
+#[cfg(test)]
+mod regressions {
+    /// The regression inputs, as fuzz/run.sh replays them: `regressions/*` clean,
+    /// `regressions/open/CLASS--name` failing with exactly CLASS.
+    #[test]
+    fn replay() {
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/regressions");
+        let mut seen = 0;
+        for sub in ["", "/open"] {
+            for entry in std::fs::read_dir(format!("{dir}{sub}")).expect("regressions/ exists") {
+                let path = entry.expect("entry").path();
+                if !path.is_file() {
+                    continue;
+                }
+                seen += 1;
+                let name = path
+                    .file_name()
+                    .expect("a name")
+                    .to_string_lossy()
+                    .into_owned();
+                let (record, verdict) = super::run(&std::fs::read(&path).expect("readable"));
+                match (sub, verdict) {
+                    ("", Ok(())) => {}
+                    ("", Err(v)) => panic!("{name}: {v}\n{}", record.dump()),
+                    (_, Err(v)) if name.starts_with(&format!("{}--", v.class)) => {}
+                    (_, other) => panic!("{name}: {other:?}\n{}", record.dump()),
+                }
+            }
+        }
+        assert!(seen > 0);
+    }
+}
