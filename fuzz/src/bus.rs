@@ -182,8 +182,11 @@ impl World {
                 b.pec = false;
                 b.ev_seq = 1;
                 b.pending.clear();
-                let bytes = [addr, 0x07, 0, 0, 0, 10, 1, 0, 1, 0, 1, 2, 2, 0xff, 0x01, 12];
-                return Some(bytes.to_vec());
+                // Identity, then the reset reason (power-on); always with its check.
+                let frame = [
+                    addr, 0x07, 0, 0, 0, 11, 1, 0, 1, 0, 1, 2, 2, 0xff, 0x01, 12, 0,
+                ];
+                return Some(with_check(mb << 1, &frame));
             }
             4 => (0x05, b.last_port, b.last_seq, 0x08, vec![]),
             5 => (0x04, 0, b.next_seq(), 0, vec![0x2c, 0x01]),

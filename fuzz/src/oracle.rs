@@ -285,8 +285,8 @@ fn request_of(db: u8, op: &OpBytes, written: &[u8]) -> Option<(u8, bool)> {
 impl Record {
     /// The PEC state of board `db` at time `at` as the MB may know it: on from the end of a
     /// `set_pec(1)` transaction answered validly in the new mode (`ok`, or `pec_mismatch`
-    /// with a check), off from a well-formed `boot` event of the board (when the MB received
-    /// it: events reach it in order, when it listens) or a confirmed `set_pec(0)`.
+    /// with a check), off from a `boot` event of the board with its check (when the MB
+    /// received it: events reach it in order, when it listens) or a confirmed `set_pec(0)`.
     fn pec_on_at(&self, db: u8, at: u64, event: usize) -> bool {
         let mut changes: Vec<(u64, bool)> = Vec::new();
         for t in &self.txns {
@@ -315,7 +315,8 @@ impl Record {
                 continue;
             }
             if let Some(ev) = parse_event(self.mb, &e.bytes) {
-                if ev.source == db && ev.kind == 0x07 {
+                // A boot event always carries its check (protocol.md, "PEC").
+                if ev.source == db && ev.kind == 0x07 && ev.checked {
                     changes.push((got, false));
                 }
             }
@@ -511,8 +512,9 @@ impl Record {
                                 b.delivered
                                     .is_some_and(|got| got >= t.start && got <= e.received())
                                     && j != i
-                                    && parse_event(self.mb, &b.bytes)
-                                        .is_some_and(|b| b.source == c.db && b.kind == 0x07)
+                                    && parse_event(self.mb, &b.bytes).is_some_and(|b| {
+                                        b.source == c.db && b.kind == 0x07 && b.checked
+                                    })
                             });
                             return if boot_between {
                                 "deferred-unchecked-after-boot"
