@@ -289,6 +289,22 @@ impl World {
                     .unwrap_or_default(),
             ),
             0x60 => (0, vec![2, b.level, 0, 0x10, 0, 0x20, 0]),
+            0x50 => {
+                // One result per item: io input, analog read, outputs; others refused.
+                let mut results = Vec::new();
+                let mut items = data;
+                while let [fn_op, _port, n, ref rest @ ..] = *items {
+                    let n = usize::from(n).min(rest.len());
+                    match fn_op {
+                        0x10 => results.extend([0, 1, b.level]),
+                        0x30 => results.extend([0, 2, seq, 0x01]),
+                        0x11 | 0x12 | 0x20 => results.extend([0, 0]),
+                        _ => results.extend([0x03, 0]),
+                    }
+                    items = &rest[n..];
+                }
+                (0, results)
+            }
             _ => (0x03, vec![]),
         };
         let pec_now = b.pec;

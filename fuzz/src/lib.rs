@@ -50,7 +50,7 @@ pub const PINS: [u8; 3] = [0x80, 0x81, 0x82];
 /// One script command `[kind, a, b, c, d]`; `kind % 4`:
 ///
 /// * 0, 1: a call by caller task `a % 4`, after a pause of `b` × 200 µs, to board `c & 1`,
-///   operation `d % 16` with parameter `c >> 1` ([`op_of`]);
+///   operation `d % 16` with parameter `c >> 1` ([`op_of`]; 15 is a batch);
 /// * 2: waiter task `a % 2` waits `1 + d % 4` times for an event of board `c & 1`, pin
 ///   `PINS[(c >> 1) % 3]`, each wait given up after `(1 + b)` ms;
 /// * 3: an event written to the MB at `(a | b << 8)` × 10 µs: template `c`, bit `d` flipped
@@ -140,7 +140,13 @@ pub fn op_of(sel: u8, p: u8) -> (OpBytes, usize) {
             ReplyRule::Exact(0),
         ),
         13 => mk(0x06, 0, vec![], ReplyRule::Write),
-        _ => mk(0x02, 0, vec![], ReplyRule::Write),
+        // A batch: io input S1.A, analog read S1, PWM duty on A1.A.
+        _ => mk(
+            0x50,
+            0,
+            vec![0x10, 0x80, 0, 0x30, 0x80, 0, 0x20, 0x00, 1, p],
+            ReplyRule::Batch(&[ReplyRule::Level, ReplyRule::Exact(2), ReplyRule::Write]),
+        ),
     };
     let times = if sel % 16 == 14 {
         2 + usize::from(p) * 2
@@ -191,6 +197,10 @@ fn runtime_op(o: &OpBytes) -> Op<'_> {
         0x20 => Op::PwmDuty(pin, o.data[0]),
         0x30 => Op::AnalogRead(port),
         0x41 => Op::SerialRead(port, o.data[0]),
+        0x50 => match x10_microcode::Batch::new_checked(&o.data) {
+            Ok(b) => Op::Batch(b),
+            Err(_) => Op::Ping,
+        },
         _ => Op::Scan,
     }
 }

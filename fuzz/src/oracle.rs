@@ -123,20 +123,51 @@ pub enum ReplyRule {
     Scan,
     /// Pulse-in: `pending` with no payload, then a deferred reply of 4 bytes.
     Deferred,
+    /// A batch: one result per item, in order, each `status, n, value`: for `ok` a value
+    /// the item's rule allows, else no value (protocol.md, "Batch items and results").
+    Batch(&'static [ReplyRule]),
 }
 
 impl ReplyRule {
     /// True when `payload` is an `ok` payload this rule allows.
     pub fn allows(self, payload: &[u8]) -> bool {
+        self.allows_with(payload, true)
+    }
+
+    /// As [`ReplyRule::allows`], a level of any value when not `strict_level`.
+    pub fn allows_with(self, payload: &[u8], strict_level: bool) -> bool {
         match self {
             ReplyRule::Write => payload.is_empty(),
             ReplyRule::Exact(n) => payload.len() == n,
-            ReplyRule::Level => payload == [0] || payload == [1],
+            ReplyRule::Level => {
+                payload == [0] || payload == [1] || (!strict_level && payload.len() == 1)
+            }
             ReplyRule::UpTo(n) => payload.len() <= n,
             ReplyRule::Scan => payload
                 .first()
                 .is_some_and(|&k| k <= 8 && payload.len() == 3 + 2 * usize::from(k)),
             ReplyRule::Deferred => payload.len() == 4,
+            ReplyRule::Batch(items) => {
+                let mut rest = payload;
+                for item in items {
+                    let [status, n, ref tail @ ..] = *rest else {
+                        return false;
+                    };
+                    let Some(value) = tail.get(..usize::from(n)) else {
+                        return false;
+                    };
+                    let fits = if status == 0 {
+                        item.allows_with(value, strict_level)
+                    } else {
+                        value.is_empty()
+                    };
+                    if !fits {
+                        return false;
+                    }
+                    rest = &tail[usize::from(n)..];
+                }
+                rest.is_empty()
+            }
         }
     }
 }
@@ -543,6 +574,13 @@ impl Record {
                 (ReplyRule::Level, CallResult::Ok(p)) if rstatus == 0 && rpayload == *p => {
                     return "level-out-of-domain";
                 }
+                (ReplyRule::Batch(_), CallResult::Ok(p)) if rstatus == 0 && rpayload == *p => {
+                    return if op.rule.allows_with(p, false) {
+                        "level-out-of-domain"
+                    } else {
+                        "batch-results"
+                    };
+                }
                 (_, CallResult::Ok(p)) if rstatus == 0 && rpayload == *p => {
                     return "reply-length";
                 }
@@ -838,5 +876,12 @@ mod tests {
         // issue 22 item 14: 9 bytes that claim 5 ports.
         assert!(!ReplyRule::Scan.allows(&[5, 0, 0, 1, 0, 2, 0, 3, 0]));
         assert!(!ReplyRule::Level.allows(&[2]));
+        let batch = ReplyRule::Batch(&[ReplyRule::Level, ReplyRule::Exact(2), ReplyRule::Write]);
+        assert!(batch.allows(&[0, 1, 1, 0, 2, 5, 1, 0, 0]));
+        assert!(batch.allows(&[0, 1, 1, 0x05, 0, 0, 0]));
+        assert!(!batch.allows(&[0, 1, 1, 0, 2, 5, 1]));
+        assert!(!batch.allows(&[0, 1, 1, 0, 2, 5, 1, 0, 0, 0]));
+        assert!(!batch.allows(&[0, 1, 2, 0, 2, 5, 1, 0, 0]));
+        assert!(!batch.allows(&[0, 1, 1, 0x05, 1, 0, 0, 0]));
     }
 }
