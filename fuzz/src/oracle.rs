@@ -671,12 +671,28 @@ impl Record {
                     && u.written[2] == c.op.port
                     && u.written[3] == seq
                     && u.start + pulse_deadline_us(&u.written) >= e.at
+                    && !self.ended_before(c.db, seq, c.op.port, u, t.start)
             });
             if !ambiguous {
                 return true;
             }
         }
         false
+    }
+
+    /// True when the board can no longer answer the pulse-in `u` (number `seq`, pin `port`)
+    /// after time `by`: a deferred reply for it came (a board sends one per request), or a
+    /// checked `boot` of the board (it lost its measurements), received after `u` and
+    /// before `by`.
+    fn ended_before(&self, db: u8, seq: u8, port: u8, u: &Txn, by: u64) -> bool {
+        self.sent.iter().enumerate().any(|(i, e)| {
+            e.delivered.is_some_and(|got| got >= u.end && got <= by)
+                && self.valid_event(i).is_some_and(|ev| {
+                    ev.source == db
+                        && ((ev.kind == 0x03 && ev.seq == seq && ev.port == port)
+                            || (ev.kind == 0x07 && ev.checked))
+                })
+        })
     }
 
     fn check_waits(&self) -> Result<(), Violation> {
