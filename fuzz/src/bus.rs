@@ -11,7 +11,7 @@ use std::task::{Poll, Waker};
 
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 
-use crate::oracle::{check_of, with_check, Sent, Txn};
+use crate::oracle::{check_of, with_check, with_crc16, Sent, Txn};
 use crate::vtime::{now_us, sleep_until, wake_at};
 
 /// Reads the input from the front; zeros once used up.
@@ -324,10 +324,13 @@ impl World {
         }
         let mut frame = vec![seq, status, payload.len() as u8];
         frame.extend(payload);
-        Some(if mode {
-            with_check(addr << 1 | 1, &frame)
-        } else {
+        Some(if !mode {
             frame
+        } else if matches!(fn_op, 0x41 | 0x50 | 0x60) {
+            // A reply whose length varies: always a CRC-16.
+            with_crc16(addr << 1 | 1, &frame)
+        } else {
+            with_check(addr << 1 | 1, &frame)
         })
     }
 

@@ -69,6 +69,53 @@ pub fn parse_reply(db: u8, pec: bool, read: &[u8]) -> Option<(u8, u8, Vec<u8>)> 
     Some((frame[0], frame[1], frame[3..].to_vec()))
 }
 
+/// A reply read with the always-CRC-16 check: the frame, then two CRC-16 bytes.
+fn parse_reply16(db: u8, read: &[u8]) -> Option<(u8, u8, Vec<u8>)> {
+    let n = usize::from(*read.get(2)?);
+    if n > MAX_PAYLOAD {
+        return None;
+    }
+    let frame = read.get(..3 + n)?;
+    let mut d = CRC16.digest();
+    d.update(&[db << 1 | 1]);
+    d.update(frame);
+    if read.get(3 + n..5 + n)? != d.finalize().to_le_bytes().as_slice() {
+        return None;
+    }
+    Some((frame[0], frame[1], frame[3..].to_vec()))
+}
+
+/// A reply to an operation of rule `rule`: with PEC, an operation whose reply length varies
+/// (`scan`, `serial read`, `batch`) is answered with a CRC-16 whatever its length
+/// (protocol.md, "Reply lengths"); a status-only reply with a PEC byte (from a board that could
+/// not tell the operation) is read too, but never as `ok`.
+pub fn parse_reply_for(
+    db: u8,
+    pec: bool,
+    read: &[u8],
+    rule: ReplyRule,
+) -> Option<(u8, u8, Vec<u8>)> {
+    let varies = matches!(
+        rule,
+        ReplyRule::Scan | ReplyRule::UpTo(_) | ReplyRule::Batch(_)
+    );
+    if !pec || !varies {
+        return parse_reply(db, pec, read);
+    }
+    parse_reply16(db, read)
+        .or_else(|| parse_reply(db, true, read).filter(|r| r.1 != 0 && r.2.is_empty()))
+}
+
+/// `frame` with a CRC-16 (low byte first) appended, whatever its length.
+pub fn with_crc16(addr_byte: u8, frame: &[u8]) -> Vec<u8> {
+    let mut d = CRC16.digest();
+    d.update(&[addr_byte]);
+    d.update(frame);
+    let mut v = frame.to_vec();
+    v.extend(d.finalize().to_le_bytes());
+    v
+}
+
 /// An event frame, exactly the bytes written to the MB.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct EventView {
@@ -457,7 +504,7 @@ impl Record {
                 continue;
             }
             let mode = op.set_pec.unwrap_or(checked);
-            let Some((rseq, rstatus, rpayload)) = parse_reply(c.db, mode, read) else {
+            let Some((rseq, rstatus, rpayload)) = parse_reply_for(c.db, mode, read, op.rule) else {
                 continue;
             };
             if rseq != seq {
@@ -508,7 +555,7 @@ impl Record {
             };
             let Ok(read) = &t.result else { continue };
             let mode = op.set_pec.unwrap_or(checked);
-            let Some((rseq, rstatus, rpayload)) = parse_reply(c.db, mode, read) else {
+            let Some((rseq, rstatus, rpayload)) = parse_reply_for(c.db, mode, read, op.rule) else {
                 continue;
             };
             if rseq != seq {
