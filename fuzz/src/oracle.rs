@@ -176,6 +176,25 @@ pub enum ReplyRule {
 }
 
 impl ReplyRule {
+    /// The longest `ok` payload the rule allows (the reply capacity, protocol.md's table).
+    pub fn capacity(self) -> usize {
+        match self {
+            ReplyRule::Write | ReplyRule::Deferred => 0,
+            ReplyRule::Exact(n) | ReplyRule::UpTo(n) => n,
+            ReplyRule::Level => 1,
+            ReplyRule::Scan => 3 + 2 * 8,
+            ReplyRule::Batch(items) => items.iter().map(|i| 2 + i.capacity()).sum(),
+        }
+    }
+
+    /// True when the reply's length varies: with PEC it always ends in a CRC-16.
+    pub fn varies(self) -> bool {
+        matches!(
+            self,
+            ReplyRule::Scan | ReplyRule::UpTo(_) | ReplyRule::Batch(_)
+        )
+    }
+
     /// True when `payload` is an `ok` payload this rule allows.
     pub fn allows(self, payload: &[u8]) -> bool {
         self.allows_with(payload, true)
@@ -442,9 +461,39 @@ impl Record {
                 ),
             });
         }
+        // Every read of the request takes the longest reply it may have, with its check.
+        for t in &self.txns {
+            if t.addr != c.db || t.start < c.start || t.end > end {
+                continue;
+            }
+            let (Some((_, checked)), Some(n)) = (request_of(c.db, &c.op, &t.written), t.read_len)
+            else {
+                continue;
+            };
+            let frame = 3 + c.op.rule.capacity();
+            let check = match c.op.set_pec.unwrap_or(checked) {
+                false => 0,
+                true if c.op.rule.varies() || frame > 13 => 2,
+                true => 1,
+            };
+            if n < frame + check {
+                return Err(Violation {
+                    class: "read-too-short",
+                    what: format!(
+                        "the MB read {n} bytes for {:02x?} (wrote {:02x?}); its longest valid \
+                         reply is {} bytes: {frame} and a {}-byte check",
+                        c.op,
+                        t.written,
+                        frame + check,
+                        check
+                    ),
+                });
+            }
+        }
         let justified = match result {
             CallResult::Ok(payload) => self.justify(c, end, Some(payload), None),
             CallResult::Status(s) => self.justify(c, end, None, Some(*s)),
+            CallResult::Other(e) if e == "BadReply" => return self.check_bad_reply(c, end),
             CallResult::Other(_) => return Ok(()),
         };
         if justified {
@@ -482,6 +531,9 @@ impl Record {
         let op = &c.op;
         if let Some(s) = status {
             if self.preparation_refused(c, end, s) {
+                return true;
+            }
+            if s == 0x05 && self.port_known_missing(c, end) {
                 return true;
             }
         }
@@ -540,6 +592,53 @@ impl Record {
             }
         }
         false
+    }
+
+    /// A `BadReply` while the last transaction of the call read a valid `ok` answer to it
+    /// (its number, a payload length the operation allows, the right check): the MB refused
+    /// a valid reply. Not judged for a scan (the MB also compares its port count with the
+    /// board's, which the oracle does not follow) nor a pulse-in (its outcome is the event's).
+    fn check_bad_reply(&self, c: &CallRec, end: u64) -> Result<(), Violation> {
+        let op = &c.op;
+        if matches!(
+            op.rule,
+            ReplyRule::Scan | ReplyRule::Deferred | ReplyRule::Write
+        ) {
+            return Ok(());
+        }
+        let last = self
+            .txns
+            .iter()
+            .filter(|t| t.addr == c.db && t.start >= c.start && t.end <= end)
+            .rfind(|t| request_of(c.db, op, &t.written).is_some());
+        let Some(t) = last else { return Ok(()) };
+        let (Some((seq, checked)), Ok(read)) = (request_of(c.db, op, &t.written), &t.result) else {
+            return Ok(());
+        };
+        if t.read_len.is_none() || t.end != end {
+            return Ok(());
+        }
+        let mode = op.set_pec.unwrap_or(checked);
+        match parse_reply_for(c.db, mode, read, op.rule) {
+            Some((rseq, 0, payload)) if rseq == seq && op.rule.allows(&payload) => Err(Violation {
+                class: "valid-reply-refused",
+                what: format!(
+                    "BadReply for a valid answer: task {} op {:02x?} to board {:#04x}, call {} .. {} us; \
+                     the MB wrote {:02x?} and read {:02x?} ({} bytes), a valid ok reply with \
+                     payload {:02x?}",
+                    c.task,
+                    op,
+                    c.db,
+                    c.start,
+                    end,
+                    t.written,
+                    read,
+                    read.len(),
+                    payload
+                ),
+            }),
+            _ => Ok(()),
+        }
     }
 
     /// What an unjustified result was, as far as the oracle can tell: the known defects of
@@ -638,6 +737,57 @@ impl Record {
             }
         }
         "unjustified"
+    }
+
+    /// The MB knows each board's ports from its `identify` replies and checked `boot` events
+    /// (docs/protocol.md, issue 22 item 11) and refuses an operation on a port the board lacks
+    /// with `port_out_of_range` without sending it: true when the latest identity the board
+    /// gave by `end` has fewer ports of the operation's kind than its port needs.
+    fn port_known_missing(&self, c: &CallRec, end: u64) -> bool {
+        let port = c.op.port;
+        if port == 0 && c.op.fn_op >> 4 != 1 && c.op.fn_op >> 4 != 2 && c.op.fn_op >> 4 != 3 {
+            return false;
+        }
+        let mut latest: Option<(u64, Vec<u8>)> = None;
+        for t in &self.txns {
+            let w = &t.written;
+            if t.addr != c.db || t.end > end || w.len() < 4 || w[0] != 0x01 || w[1] != c.db {
+                continue;
+            }
+            let Ok(read) = &t.result else { continue };
+            let pec = w.len() > 4;
+            if let Some((seq, 0, payload)) = parse_reply(c.db, pec, read) {
+                if seq == w[3]
+                    && payload.len() == 10
+                    && latest.as_ref().is_none_or(|l| l.0 <= t.end)
+                {
+                    latest = Some((t.end, payload));
+                }
+            }
+        }
+        for (i, e) in self.sent.iter().enumerate() {
+            let Some(got) = e.delivered.filter(|&g| g <= end) else {
+                continue;
+            };
+            if let Some(ev) = self.valid_event(i) {
+                if ev.source == c.db
+                    && ev.kind == 0x07
+                    && ev.checked
+                    && ev.payload.len() >= 10
+                    && latest.as_ref().is_none_or(|l| l.0 <= got)
+                {
+                    latest = Some((got, ev.payload[..10].to_vec()));
+                }
+            }
+        }
+        let Some((_, id)) = latest else { return false };
+        let (sensors, actuators) = (id[5], id[6]);
+        let index = (port >> 1) & 0x3f;
+        if port & 0x80 != 0 {
+            index >= sensors
+        } else {
+            index >= actuators
+        }
     }
 
     /// With the safe defaults the MB prepares a board (`set_pec(1)`, `set_failsafe`) before
