@@ -744,8 +744,21 @@ impl Record {
     /// with `port_out_of_range` without sending it: true when the latest identity the board
     /// gave by `end` has fewer ports of the operation's kind than its port needs.
     fn port_known_missing(&self, c: &CallRec, end: u64) -> bool {
-        let port = c.op.port;
-        if port == 0 && c.op.fn_op >> 4 != 1 && c.op.fn_op >> 4 != 2 && c.op.fn_op >> 4 != 3 {
+        // The ports the request names: its own (io, PWM, analog, serial), or its batch items'.
+        let on_port = |fn_op: u8| (1..=4).contains(&(fn_op >> 4));
+        let mut ports = Vec::new();
+        if c.op.fn_op == 0x50 {
+            let mut items = c.op.data.as_slice();
+            while let [fn_op, port, n, ref rest @ ..] = *items {
+                if on_port(fn_op) {
+                    ports.push(port);
+                }
+                items = rest.get(usize::from(n)..).unwrap_or(&[]);
+            }
+        } else if on_port(c.op.fn_op) {
+            ports.push(c.op.port);
+        }
+        if ports.is_empty() {
             return false;
         }
         let mut latest: Option<(u64, Vec<u8>)> = None;
@@ -782,12 +795,14 @@ impl Record {
         }
         let Some((_, id)) = latest else { return false };
         let (sensors, actuators) = (id[5], id[6]);
-        let index = (port >> 1) & 0x3f;
-        if port & 0x80 != 0 {
-            index >= sensors
-        } else {
-            index >= actuators
-        }
+        ports.iter().any(|&port| {
+            let index = (port >> 1) & 0x3f;
+            if port & 0x80 != 0 {
+                index >= sensors
+            } else {
+                index >= actuators
+            }
+        })
     }
 
     /// With the safe defaults the MB prepares a board (`set_pec(1)`, `set_failsafe`) before
