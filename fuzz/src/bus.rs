@@ -260,7 +260,10 @@ impl World {
         let mut mode = checked;
         let mut deferred = None;
         let (status, payload): (u8, Vec<u8>) = match fn_op {
-            0x00 | 0x03 | 0x04 | 0x06 => (0, vec![]),
+            // Ping, the system writes and every output (read back: ok, no payload).
+            0x00 | 0x02 | 0x03 | 0x04 | 0x06 | 0x11 | 0x12 | 0x20 | 0x21 | 0x22 | 0x40 | 0x42 => {
+                (0, vec![])
+            }
             0x07 => {
                 mode = data.first() == Some(&1);
                 b.pec = mode;

@@ -545,14 +545,12 @@ impl Record {
                 continue;
             };
             let Ok(read) = &t.result else { continue };
-            if op.rule == ReplyRule::Write {
-                // An output: acknowledged (a write, nothing read), `Ok` and empty.
-                if t.read_len.is_none() && payload.is_some_and(|p| p.is_empty()) {
+            if t.read_len.is_none() {
+                // An output written alone: acknowledged, `Ok` and empty. (Read back, it is
+                // judged as a reply below: `ok` with no payload.)
+                if op.rule == ReplyRule::Write && payload.is_some_and(|p| p.is_empty()) {
                     return true;
                 }
-                continue;
-            }
-            if t.read_len.is_none() {
                 continue;
             }
             let mode = op.set_pec.unwrap_or(checked);
@@ -600,10 +598,7 @@ impl Record {
     /// board's, which the oracle does not follow) nor a pulse-in (its outcome is the event's).
     fn check_bad_reply(&self, c: &CallRec, end: u64) -> Result<(), Violation> {
         let op = &c.op;
-        if matches!(
-            op.rule,
-            ReplyRule::Scan | ReplyRule::Deferred | ReplyRule::Write
-        ) {
+        if matches!(op.rule, ReplyRule::Scan | ReplyRule::Deferred) {
             return Ok(());
         }
         let last = self
