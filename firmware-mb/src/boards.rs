@@ -12,8 +12,12 @@ use crate::keepalive::Keepalives;
 
 /// The per-board state.
 pub(crate) struct Boards {
-    /// PEC negotiated.
+    /// PEC negotiated: requests to the board carry their check.
     pec: BoardSet,
+    /// Events from the board must carry their check: set when a checked reply showed PEC on,
+    /// cleared only by what is itself trustworthy (a checked `boot` event, a confirmed
+    /// `set_pec(0)`), never by an unchecked sign that the board lost PEC.
+    events_checked: BoardSet,
     /// Boards the dispatcher has prepared (PEC on, failsafe set) since their last boot.
     ready: BoardSet,
     /// The failsafes the motherboard keeps alive.
@@ -31,6 +35,7 @@ impl Boards {
     pub(crate) const fn new() -> Boards {
         Boards {
             pec: BoardSet::new(),
+            events_checked: BoardSet::new(),
             ready: BoardSet::new(),
             keepalive: Keepalives::new(),
             keepalive_changed: false,
@@ -103,8 +108,25 @@ impl Boards {
         self.pec.contains(board_index(board))
     }
 
+    /// PEC is on (`on`, shown by a checked reply) or off (a checked `boot` event, a confirmed
+    /// `set_pec(0)`) on `board`, for its requests and its events.
     pub(crate) fn set_pec(&mut self, board: Address, on: bool) {
         self.pec.set(board_index(board), on);
+        self.events_checked.set(board_index(board), on);
+    }
+
+    /// An unchecked sign that `board` lost PEC (it restarted and its `boot` event was lost):
+    /// requests go without a check (and with the safe defaults the board is prepared again
+    /// first), but its events must still carry theirs until something checked says
+    /// otherwise.
+    pub(crate) fn pec_lost_unchecked(&mut self, board: Address) {
+        self.pec.set(board_index(board), false);
+        self.set_ready(board, false);
+    }
+
+    /// True when `board`'s events must carry their check.
+    pub(crate) fn events_checked(&self, board: Address) -> bool {
+        self.events_checked.contains(board_index(board))
     }
 
     /// True when the dispatcher has prepared `board` since its last boot.

@@ -241,7 +241,10 @@ impl MbCore {
             let (frame, pec) = self.frame_to_send(job);
             // A reply to `set_pec(1)` comes in the new mode, with PEC.
             let pec_read = pec || switches_pec_on;
-            let read_len = meta.read.map(|cap| reply_read_len(cap, pec_read));
+            let op = request_op(&job.frame);
+            let read_len = meta
+                .read
+                .map(|cap| reply_read_len(op.as_ref(), cap, pec_read));
             match self.attempt(bus, addr, &frame, read_len, &mut read).await {
                 Ok(bytes) => {
                     self.finish_transfer(job, pec, Ok(bytes));
@@ -451,7 +454,7 @@ impl MbCore {
         loop {
             let (tx, pec) = self.frame_to_send(&job);
             let pec_read = pec || pec_change(&op) == Some(true);
-            let read_len = reads.then(|| reply_read_len(op.reply_capacity(), pec_read));
+            let read_len = reads.then(|| reply_read_len(Some(&op), op.reply_capacity(), pec_read));
             match self.attempt(bus, db.get(), &tx, read_len, &mut read).await {
                 Ok(None) => {
                     let t_now = now();
@@ -491,14 +494,17 @@ impl MbCore {
     }
 }
 
-/// How many bytes to read for a reply of up to `capacity` payload bytes: the header, the
-/// payload and, with the check on, the check of the longest such reply (a shorter reply ends
-/// earlier, with its own check; the rest is padding).
-fn reply_read_len(capacity: usize, pec: bool) -> usize {
+/// How many bytes to read for a reply to `op` (of up to `capacity` payload bytes): the
+/// header, the payload and, with the check on, the check of the longest such reply (a shorter
+/// reply ends earlier, with its own check; the rest is padding). A reply whose length varies
+/// always ends in a CRC-16 (`Reply::emit_for`).
+fn reply_read_len(op: Option<&Op<'_>>, capacity: usize, pec: bool) -> usize {
     let frame = REPLY_HEADER_LEN + capacity;
-    if pec {
-        frame + x10_microcode::pec::check_len(frame)
-    } else {
+    if !pec {
         frame
+    } else if op.is_some_and(|op| !op.reply_len().is_exact()) {
+        frame + 2
+    } else {
+        frame + x10_microcode::pec::check_len(frame)
     }
 }

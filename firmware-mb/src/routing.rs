@@ -59,7 +59,13 @@ impl MbCore {
     /// only ever leads to that preparation, never to a value or an output.
     pub(crate) fn route_event_bytes(&self, bytes: &[u8]) {
         let source = bytes.first().and_then(|&b| Address::new(b).ok());
-        let pec_on = source.is_some_and(|source| self.with(|t| t.boards.pec(source)));
+        // With the safe defaults every external board's events carry their check; otherwise
+        // once a checked reply showed the board has PEC on (an unchecked sign that it lost
+        // PEC does not lift this: only a checked boot event or a confirmed `set_pec(0)`).
+        let pec_on = source.is_some_and(|source| {
+            !source.is_internal()
+                && (self.config.pec || self.with(|t| t.boards.events_checked(source)))
+        });
         let with_pec = || Event::parse_with_pec(self.config.address, bytes);
         let unchecked = || {
             Event::parse(bytes).and_then(|ev| match ev.kind {
@@ -78,12 +84,20 @@ impl MbCore {
                 warn!("bad event ({} bytes)", bytes.len());
                 self.with(|t| bump(&mut t.diag.bad_events));
                 match source {
-                    Some(board) if pec_on && self.lost_pec_sign(board, bytes) => {
+                    Some(board)
+                        if pec_on
+                            && self.with(|t| t.boards.pec(board))
+                            && self.lost_pec_sign(board, bytes) =>
+                    {
                         warn!("board {} refuses our PEC: it restarted", board.get());
                         let t_now = now();
                         self.with(|t| {
                             bump(&mut t.diag.pec_resyncs);
-                            t.boards.booted(board, t_now);
+                            t.boards.pec_lost_unchecked(board);
+                            // Its failsafe is off too: set it again at once.
+                            if t.boards.keepalive.booted(board, t_now) {
+                                t.boards.keepalive_changed_now();
+                            }
                         });
                         self.notify_keepalive();
                     }

@@ -222,8 +222,9 @@ impl MbCore {
 
     /// A reply that failed its PEC check but reads, without PEC, as `bad_length`: the board
     /// took our PEC byte for data, so it has PEC off (it restarted and its boot event was
-    /// lost). `Some(false)` then (unchecked, so it only ever leads to switching PEC on
-    /// again, never to accepting a value).
+    /// lost). Recorded here as unchecked ([`crate::boards::Boards::pec_lost_unchecked`]): it
+    /// only ever leads to switching PEC on again, never to accepting a value or an unchecked
+    /// event. Always `None`.
     fn pec_off_sign(&self, meta: &JobMeta, pec: bool, op: &Op<'_>, read: &[u8]) -> Option<bool> {
         if !pec {
             return None;
@@ -231,8 +232,13 @@ impl MbCore {
         match Reply::parse_read_for(meta.db, false, read, op) {
             Ok(reply) if reply.seq == meta.seq && reply.status == Status::BadLength => {
                 warn!("board {} has PEC off", meta.db.get());
-                self.with(|t| bump(&mut t.diag.pec_resyncs));
-                Some(false)
+                // Unchecked: requests go without PEC (prepared again first with the safe
+                // defaults), events must still be checked.
+                self.with(|t| {
+                    bump(&mut t.diag.pec_resyncs);
+                    t.boards.pec_lost_unchecked(meta.db);
+                });
+                None
             }
             _ => None,
         }

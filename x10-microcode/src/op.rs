@@ -643,7 +643,8 @@ impl<'a> Op<'a> {
     /// Checks a reply payload against this operation: `ok` must carry a length
     /// [`Op::reply_len`] allows (for a batch: one well-formed result per item, each of a
     /// length its item allows), every other status an empty payload. A deferred operation is
-    /// never answered `ok` at once (it answers `pending`; see [`Op::check_deferred`]).
+    /// never answered `ok` at once (it answers `pending`; see [`Op::check_deferred`]); a
+    /// digital level is 0 or 1; a scan is as long as the number of ports it reports says.
     ///
     /// # Errors
     /// [`Error::BadLength`] when the payload does not fit.
@@ -665,6 +666,18 @@ impl<'a> Op<'a> {
         };
         if !self.reply_len().allows(len) {
             return Err(Error::BadLength);
+        }
+        match (self, payload) {
+            // A level is 0 or 1.
+            (Op::DigitalRead(_), [level]) if *level > 1 => return Err(Error::BadArgument),
+            // A scan's length follows from the number of ports it reports.
+            (Op::Scan, [n, ..]) => {
+                let ports = usize::from(*n);
+                if ports > crate::ScanResult::MAX_PORTS || payload.len() != 3 + 2 * ports {
+                    return Err(Error::BadLength);
+                }
+            }
+            _ => {}
         }
         if let Op::Batch(b) = self {
             let mut results = crate::BatchResults::new(payload);

@@ -600,7 +600,8 @@ mod tests {
             e.to_string(),
             "unknown image `mb-uno`\n\
              usage: cargo xtask size [--no-build]\n       \
-             cargo xtask image NAME [ARGS...]   (NAME: mb-pico, db-pico, mb-g431, db-g431, db-c011)"
+             cargo xtask image NAME [ARGS...]   (NAME: mb-pico, db-pico, mb-g431, db-g431, db-c011)\n       \
+             cargo xtask emu [--list] [--check-docs | --write-docs] [SCENARIO...]"
         );
     }
 
