@@ -201,8 +201,10 @@ pub struct Daughterboard<M: RawMutex, P: Ports> {
     pub(crate) stamped: Channel<M, PulseJob, DEFERRED_QUEUE_LEN>,
     /// Signalled after every transaction addressed to the board (failsafe).
     pub(crate) heard: Signal<M, ()>,
-    /// Signalled when event enables change (sampler).
-    pub(crate) watch_changed: Signal<M, ()>,
+    /// Wakes the sampler when it may have work other than a latched edge: event enables
+    /// changed, an event left the queue (a pin's carried edges may go out; after a deferred
+    /// reply, its pin is free to read again).
+    pub(crate) wake: Signal<M, ()>,
 }
 
 impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
@@ -228,7 +230,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             jobs: Channel::new(),
             stamped: Channel::new(),
             heard: Signal::new(),
-            watch_changed: Signal::new(),
+            wake: Signal::new(),
         }
     }
 
@@ -354,7 +356,9 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         ev
     }
 
-    /// A `pin_change` event left the queue: the pin may queue its next one.
+    /// An event left the queue: a `pin_change` lets its pin queue the next one, and any
+    /// makes room. The sampler is woken so that edges carried meanwhile go out without
+    /// waiting for another edge of the pin.
     fn taken_out(&self, ev: &OutEvent) {
         if ev.kind == EventKind::PinChange {
             self.with(|s| {
@@ -363,6 +367,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 }
             });
         }
+        self.wake.signal(());
     }
 
     /// The next event, if one is queued (see [`Daughterboard::next_event`]).
@@ -457,6 +462,12 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             }
             true
         })
+    }
+
+    /// True when [`Daughterboard::push_event`] would queue an event now (with a pending
+    /// overflow report, room for both).
+    pub(crate) fn has_room(&self, s: &State) -> bool {
+        self.events.free_capacity() > usize::from(s.overflow_pending > 0)
     }
 
     /// Queues an event that must not be lost (a deferred reply): waits for room.
@@ -691,7 +702,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 },
             }
         });
-        self.watch_changed.signal(());
+        self.wake.signal(());
         Done::status(status)
     }
 
