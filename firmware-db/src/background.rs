@@ -177,10 +177,11 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
 
     /// One sample of a pin with edge events: adds the edges latched by the port (`latched`)
     /// or, without a latch, the level change the sample shows, to the pin's count; queues a
-    /// `pin_change` event when an edge in an enabled direction was counted, the pin's last
-    /// event has left the queue and the queue has room (otherwise the edges are carried to
-    /// a later sample). The event carries the level and every edge counted since the pin's
-    /// previous event, rising and falling.
+    /// `pin_change` event when an edge in an enabled direction was counted and the pin's last
+    /// event has left the queue (otherwise the edges are carried: when it leaves, the
+    /// sampler is woken). The event carries the level and every edge counted since the
+    /// pin's previous event, rising and falling; one dropped on a full queue is counted and
+    /// its edges carried to the pin's next event.
     ///
     /// `read` is the level the sample read, `None` when the read failed (a pulse-in holds
     /// the pin: `Busy`). A latched pin's level then follows from its last level and the
@@ -195,7 +196,6 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         latched: Option<EdgeCount>,
     ) {
         let fire = self.with(|s| {
-            let room = self.has_room(s);
             let w = s
                 .watches
                 .iter_mut()
@@ -229,8 +229,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             w.edges = w.edges.plus(seen);
             let due =
                 (w.cfg.rising && w.edges.rising > 0) || (w.cfg.falling && w.edges.falling > 0);
-            (due && !w.queued && room)
-                .then(|| (core::mem::replace(&mut w.edges, EdgeCount::NONE), high))
+            (due && !w.queued).then(|| (core::mem::replace(&mut w.edges, EdgeCount::NONE), high))
         });
         if let Some((n, high)) = fire {
             let [r0, r1] = n.rising.to_le_bytes();

@@ -358,7 +358,8 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
 
     /// An event left the queue: a `pin_change` lets its pin queue the next one, and any
     /// makes room. The sampler is woken so that edges carried meanwhile go out without
-    /// waiting for another edge of the pin.
+    /// waiting for another edge of the pin. (Not inlined: 56 B less on the C011.)
+    #[inline(never)]
     fn taken_out(&self, ev: &OutEvent) {
         if ev.kind == EventKind::PinChange {
             self.with(|s| {
@@ -462,12 +463,6 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             }
             true
         })
-    }
-
-    /// True when [`Daughterboard::push_event`] would queue an event now (with a pending
-    /// overflow report, room for both).
-    pub(crate) fn has_room(&self, s: &State) -> bool {
-        self.events.free_capacity() > usize::from(s.overflow_pending > 0)
     }
 
     /// Queues an event that must not be lost (a deferred reply): waits for room.
