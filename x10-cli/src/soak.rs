@@ -639,8 +639,18 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
             let clock = clock.clone();
             let node = b.checked_sub(1).and_then(|i| nodes.get(i).copied());
             let pec = cfg.pec;
+            let mut rng = Rng::new(cfg.seed ^ (0xe7ab_0000 + b as u64));
             ex.spawn(format!("enable {}", board_name(b)), async move {
                 let db = board_addr(b);
+                let events = if b == BOARDS {
+                    EventConfig::OFF
+                } else {
+                    EventConfig {
+                        rising: true,
+                        falling: true,
+                        ..EventConfig::OFF
+                    }
+                };
                 loop {
                     let generation = node.map_or(0, |n| bus.reset_generation(n));
                     if let Some(n) = node {
@@ -656,16 +666,6 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
                                 clock.sleep_ns(1_000_000).await;
                             }
                         }
-                        let events = EventConfig {
-                            rising: true,
-                            falling: true,
-                            ..EventConfig::OFF
-                        };
-                        let events = if b == BOARDS {
-                            EventConfig::OFF
-                        } else {
-                            events
-                        };
                         while x10
                             .call(db, Op::EventEnable(event_pin, events))
                             .await
@@ -685,11 +685,22 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
                     if let embassy_futures::select::Either::First(()) =
                         select(&mut setup, reset).await
                     {
-                        if let Some(n) = node {
-                            bus.wait_reset(n, generation).await;
-                        } else {
-                            core::future::pending::<()>().await;
-                        }
+                        // Events on: enable them again now and then (the counts restart
+                        // there; edges around each enable are checked), until a reset.
+                        let again = async {
+                            loop {
+                                clock.sleep_ns((300 + rng.below(400)) * 1_000_000).await;
+                                let _ = x10.call(db, Op::EventEnable(event_pin, events)).await;
+                            }
+                        };
+                        let reset = async {
+                            if let Some(n) = node {
+                                bus.wait_reset(n, generation).await;
+                            } else {
+                                core::future::pending::<()>().await;
+                            }
+                        };
+                        select(again, reset).await;
                     }
                     if done.get() {
                         break;
@@ -1001,7 +1012,7 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
             }
         };
         row.events
-            .add(&edges::ledger(&s2.a, &epochs, got, EVENT_GUARD_NS));
+            .add(&edges::ledger(&s2.a, &epochs, got, EVENT_GUARD_NS, end_ns));
     }
     row.events.wrong_delivered += rec.bad_payloads;
     Ok(row)
@@ -1071,20 +1082,20 @@ pub fn table(rows: &[Row]) -> String {
         let e = &r.events;
         let _ = writeln!(
             s,
-            "  edges of pec {} at {}%: {} after the latches: {} delivered; lost and counted: {} on the bus, {} in the mb ({} events, mb events_dropped {}); excused: {} at a reset or the end, {} at a new enable; silent: {} never written by the board, {} on the bus, {} in the mb; wrong events: {} written, {} returned",
+            "  edges of pec {} at {}%: {} after the latches: {} delivered; lost and counted: {} on the bus, {} in the mb; excused: {} at a reset or the end, {} at a new enable; silent: {} never written by the board, {} on the bus, {} in the mb ({} events lost there, mb events_dropped {}); wrong events: {} written, {} returned",
             r.pec.map_or("?", PecMode::name),
             f64::from(r.corrupt_ppm) / 10_000.0,
             e.edges,
             e.delivered,
             e.lost_bus_counted,
-            e.lost_mb,
-            e.lost_mb_events,
-            r.mb.events_dropped,
+            r.events_counted_lost() - e.lost_bus_counted,
             e.excused_end,
             e.excused_reenable,
             e.unsent,
             e.lost_bus_silent,
             r.events_lost_silently() - e.unsent - e.lost_bus_silent,
+            e.lost_mb_events,
+            r.mb.events_dropped,
             e.wrong_sent,
             e.wrong_delivered,
         );
@@ -1204,7 +1215,8 @@ mod tests {
         .unwrap();
         assert!(default.clean(), "{default:?}");
         assert_eq!((a.ok_not_applied, default.ok_not_applied), (0, 0));
-        assert_eq!(a.events.edges, a.events.delivered + a.events.excused_end);
+        let e = &a.events;
+        assert_eq!(e.edges, e.delivered + e.excused_end + e.excused_reenable);
         assert!(a.events.delivered > 0);
         // PEC off at 5 %: corruption reaches the outputs, and the soak sees it.
         let noisy = run(SoakConfig::new(3_000, PecMode::Off, 50_000, 3)).unwrap();

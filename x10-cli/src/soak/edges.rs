@@ -131,8 +131,9 @@ pub fn script_edges(script: &Digital, from: Nanos, to: Nanos) -> Vec<(Nanos, boo
 }
 
 /// The ledger of one board's event pin: its boots (with what it wrote) and what
-/// `wait_event` returned for it, in order. Edges within `guard` ns before a reset, the end,
-/// or a later enable may be missing without blame.
+/// `wait_event` returned for it, in order. Edges within `guard` ns before a reset, the end of
+/// the run (`run_end`) or a later enable may be missing without blame, and so may events
+/// that reached the motherboard within `guard` of the end of the run.
 ///
 /// The board's events must carry the script's edges in order: after a latch at `l`, the
 /// `n`-th edge counted is the `n`-th edge of the script after `l`; each event carries the
@@ -140,7 +141,13 @@ pub fn script_edges(script: &Digital, from: Nanos, to: Nanos) -> Vec<(Nanos, boo
 /// reports the level they leave. An event that fits only from a later latch restarts
 /// there (the edges skipped were discarded by that enable). `wait_event` must return the
 /// events that reached the motherboard intact, in order, each once.
-pub fn ledger(script: &Digital, epochs: &[Epoch], got: &[PinEv], guard: Nanos) -> EdgeCounts {
+pub fn ledger(
+    script: &Digital,
+    epochs: &[Epoch],
+    got: &[PinEv],
+    guard: Nanos,
+    run_end: Nanos,
+) -> EdgeCounts {
     let mut c = EdgeCounts::default();
     // Which sent events wait_event returned: (epoch, index) in arrival order.
     let mut arrived: Vec<(Nanos, usize, usize)> = epochs
@@ -172,7 +179,7 @@ pub fn ledger(script: &Digital, epochs: &[Epoch], got: &[PinEv], guard: Nanos) -
         }
     }
     for (ep, delivered) in epochs.iter().zip(&delivered) {
-        c.add(&epoch_ledger(script, ep, delivered, guard));
+        c.add(&epoch_ledger(script, ep, delivered, guard, run_end));
     }
     c
 }
@@ -186,62 +193,159 @@ enum Skipped {
     ReEnabled(Nanos),
 }
 
-fn epoch_ledger(script: &Digital, ep: &Epoch, delivered: &[bool], guard: Nanos) -> EdgeCounts {
+/// One boot's events laid over the script's edges.
+struct Walk<'a> {
+    ep: &'a Epoch,
+    edges: Vec<(Nanos, bool)>,
+    /// The level at the first latch.
+    start_level: bool,
+    guard: Nanos,
+}
+
+/// Where the events of a boot have been laid so far.
+#[derive(Clone)]
+struct Laid {
+    /// Per edge: the event that carries it.
+    owner: Vec<Option<usize>>,
+    skipped: Vec<Skipped>,
+    /// Events the script does not explain.
+    wrong: u64,
+    /// The next edge to carry, and the latch counted from.
+    pos: usize,
+    latch: usize,
+    /// The last event was laid after the one before although it fitted from a later enable
+    /// too (it was queued before that enable): the next one restarts if it can (a pin has
+    /// one event in the queue at a time).
+    crossed: bool,
+}
+
+impl Walk<'_> {
+    /// Does `ev` carry the edges from index `p` on (all before it was written, as many
+    /// rising and falling, leaving the level it reports)?
+    fn fits(&self, p: usize, ev: &PinEv) -> bool {
+        let Some(span) = self.edges.get(p..p + ev.edges()) else {
+            return false;
+        };
+        let before = p
+            .checked_sub(1)
+            .map_or(self.start_level, |i| self.edges[i].1);
+        let rising = span.iter().filter(|e| e.1).count();
+        let level = span.last().map_or(before, |e| e.1);
+        rising == usize::from(ev.rising) && span.iter().all(|e| e.0 <= ev.t) && level == ev.level
+    }
+
+    fn first_after(&self, t: Nanos) -> usize {
+        self.edges.partition_point(|e| e.0 <= t)
+    }
+
+    /// Edges a laying leaves unexplained (not carried, not excused), and its wrong events:
+    /// the lower the better.
+    fn score(&self, l: &Laid) -> u64 {
+        let unexplained = (0..self.edges.len())
+            .filter(|&j| l.owner[j].is_none() && !self.excused(l, j))
+            .count() as u64;
+        l.wrong * 1_000 + unexplained
+    }
+
+    fn excused(&self, l: &Laid, j: usize) -> bool {
+        let t = self.edges[j].0;
+        matches!(l.skipped[j], Skipped::ReEnabled(at) if t + self.guard > at)
+            || t + self.guard > self.ep.end
+    }
+
+    /// Lays events `from..` in order. An event that fits both after the previous one and
+    /// from a later enable is either the one event of the pin queued before that enable and
+    /// written after it, or the first counted from it: with `choose`, each way is laid to
+    /// the end and the one that explains more is kept.
+    fn lay(&self, l: &mut Laid, from: usize, choose: bool) {
+        for i in from..self.ep.sent.len() {
+            let ev = &self.ep.sent[i].ev;
+            // The latest later enable the event fits from, if any.
+            let restart = (l.latch + 1..self.ep.latches.len())
+                .rev()
+                .filter(|&k| self.ep.latches[k] <= ev.t)
+                .map(|k| (k, self.first_after(self.ep.latches[k])))
+                .find(|&(_, p)| p >= l.pos && self.fits(p, ev));
+            let mut go_on = self.fits(l.pos, ev) && !(l.crossed && restart.is_some());
+            if go_on && restart.is_some() && choose {
+                let mut a = l.clone();
+                self.step(&mut a, i, None);
+                self.lay(&mut a, i + 1, false);
+                let mut b = l.clone();
+                self.step(&mut b, i, restart);
+                self.lay(&mut b, i + 1, false);
+                go_on = self.score(&a) <= self.score(&b);
+            }
+            match (go_on, restart) {
+                (true, r) => {
+                    self.step(l, i, None);
+                    l.crossed = r.is_some();
+                }
+                (false, Some(r)) => {
+                    self.step(l, i, Some(r));
+                    l.crossed = false;
+                }
+                (false, None) => l.wrong += 1,
+            }
+        }
+    }
+
+    /// Lays event `i` after the previous one, or from enable `k` at edge `p`.
+    fn step(&self, l: &mut Laid, i: usize, restart: Option<(usize, usize)>) {
+        if let Some((k, p)) = restart {
+            for slot in l.skipped.iter_mut().take(p).skip(l.pos) {
+                *slot = Skipped::ReEnabled(self.ep.latches[k]);
+            }
+            l.latch = k;
+            l.pos = p;
+        }
+        let n = self.ep.sent[i].ev.edges();
+        for slot in l.owner.iter_mut().skip(l.pos).take(n) {
+            *slot = Some(i);
+        }
+        l.pos += n;
+    }
+}
+
+fn epoch_ledger(
+    script: &Digital,
+    ep: &Epoch,
+    delivered: &[bool],
+    guard: Nanos,
+    run_end: Nanos,
+) -> EdgeCounts {
     let mut c = EdgeCounts::default();
     let Some(&first) = ep.latches.first() else {
         c.wrong_sent += ep.sent.len() as u64;
         return c;
     };
-    let edges = script_edges(script, first, ep.end);
-    c.edges = edges.len() as u64;
-    let level_at = |p: usize| match p.checked_sub(1) {
-        Some(i) => edges[i].1,
-        None => script.level_at(first),
+    let walk = Walk {
+        ep,
+        edges: script_edges(script, first, ep.end),
+        start_level: script.level_at(first),
+        guard,
     };
-    // Does `ev` carry the edges from index `p` on? Its level then is the level before `p`
-    // when it carries none.
-    let fits = |p: usize, ev: &PinEv| {
-        let n = ev.edges();
-        let Some(span) = edges.get(p..p + n) else {
-            return false;
-        };
-        let rising = span.iter().filter(|e| e.1).count();
-        let level = span.last().map_or_else(|| level_at(p), |e| e.1);
-        rising == usize::from(ev.rising) && span.iter().all(|e| e.0 <= ev.t) && level == ev.level
+    let n = walk.edges.len();
+    c.edges = n as u64;
+    let mut l = Laid {
+        owner: vec![None; n],
+        skipped: vec![Skipped::No; n],
+        wrong: 0,
+        pos: 0,
+        latch: 0,
+        crossed: false,
     };
-    let first_after = |t: Nanos| edges.partition_point(|e| e.0 <= t);
-    let mut owner: Vec<Option<usize>> = vec![None; edges.len()];
-    let mut skipped = vec![Skipped::No; edges.len()];
-    let mut pos = 0usize;
-    let mut latch = 0usize;
-    for (i, s) in ep.sent.iter().enumerate() {
-        let restart = (latch + 1..ep.latches.len())
-            .take_while(|&k| ep.latches[k] <= s.ev.t)
-            .find(|&k| fits(first_after(ep.latches[k]), &s.ev));
-        let start = if fits(pos, &s.ev) {
-            pos
-        } else if let Some(k) = restart {
-            let p = first_after(ep.latches[k]);
-            for slot in skipped.iter_mut().take(p).skip(pos) {
-                *slot = Skipped::ReEnabled(ep.latches[k]);
-            }
-            latch = k;
-            p
-        } else {
-            c.wrong_sent += 1;
-            continue;
-        };
-        let n = s.ev.edges();
-        for slot in owner.iter_mut().skip(start).take(n) {
-            *slot = Some(i);
-        }
-        pos = start + n;
-    }
+    walk.lay(&mut l, 0, true);
+    c.wrong_sent = l.wrong;
     let mut mb_events = vec![false; ep.sent.len()];
-    for (j, &(t, _)) in edges.iter().enumerate() {
+    for (j, &(t, _)) in walk.edges.iter().enumerate() {
         let near_end = t + guard > ep.end;
-        match owner[j] {
+        match l.owner[j] {
             Some(i) if delivered[i] => c.delivered += 1,
+            // Reached the motherboard when the run was ending: no time to deliver it.
+            Some(i) if ep.sent[i].intact_at.is_some_and(|a| a + guard > run_end) => {
+                c.excused_end += 1;
+            }
             Some(i) if ep.sent[i].intact_at.is_some() => {
                 c.lost_mb += 1;
                 mb_events[i] = true;
@@ -249,7 +353,7 @@ fn epoch_ledger(script: &Digital, ep: &Epoch, delivered: &[bool], guard: Nanos) 
             Some(i) if ep.sent[i].counted => c.lost_bus_counted += 1,
             Some(_) if near_end => c.excused_end += 1,
             Some(_) => c.lost_bus_silent += 1,
-            None => match skipped[j] {
+            None => match l.skipped[j] {
                 Skipped::ReEnabled(at) if t + guard > at => c.excused_reenable += 1,
                 _ if near_end => c.excused_end += 1,
                 _ => c.unsent += 1,
@@ -310,7 +414,7 @@ mod tests {
             sent: evs.iter().map(|&e| sent(e, Some(1))).collect(),
         };
         let got: Vec<PinEv> = evs.iter().map(|&e| at(e, 2)).collect();
-        let c = ledger(&script(), &[ep], &got, 20 * MS);
+        let c = ledger(&script(), &[ep], &got, 20 * MS, 1_000 * MS);
         assert_eq!(
             c,
             EdgeCounts {
@@ -340,7 +444,7 @@ mod tests {
             ],
         };
         let got = [ev(63, false, 0, 1)];
-        let c = ledger(&script(), &[ep], &got, 20 * MS);
+        let c = ledger(&script(), &[ep], &got, 20 * MS, 1_000 * MS);
         assert_eq!(
             c,
             EdgeCounts {
@@ -370,8 +474,41 @@ mod tests {
             ],
         };
         let got = [ev(30, true, 5, 5)];
-        let c = ledger(&script(), &[ep], &got, 20 * MS);
+        let c = ledger(&script(), &[ep], &got, 20 * MS, 1_000 * MS);
         assert_eq!((c.wrong_sent, c.wrong_delivered, c.unsent), (2, 1, 10));
+    }
+
+    #[test]
+    fn an_event_queued_before_an_enable_and_written_after_it_is_told_apart() {
+        // Latched at 5 ms and again at 62 ms (50 and 60 ms are discarded). Events: 10+20,
+        // then 30+40 (queued before the second enable, written at 85 ms), then 70+80 and
+        // 90+100: each of the last three fits after the one before as well as from the
+        // enable (one rising and one falling edge, low after), but only one way explains
+        // every edge.
+        let evs = [
+            ev(21, false, 1, 1),
+            ev(85, false, 1, 1),
+            ev(86, false, 1, 1),
+            ev(101, false, 1, 1),
+        ];
+        let ep = Epoch {
+            start: 0,
+            end: 200 * MS,
+            latches: vec![5 * MS, 62 * MS],
+            sent: evs.iter().map(|&e| sent(e, Some(1))).collect(),
+        };
+        let got: Vec<PinEv> = evs.iter().map(|&e| at(e, 2)).collect();
+        let c = ledger(&script(), &[ep], &got, 20 * MS, 1_000 * MS);
+        assert_eq!(
+            (
+                c.edges,
+                c.delivered,
+                c.excused_reenable,
+                c.unsent,
+                c.wrong_sent
+            ),
+            (10, 8, 2, 0, 0)
+        );
     }
 
     #[test]
@@ -388,7 +525,7 @@ mod tests {
             ],
         };
         let got = [ev(23, false, 1, 1), ev(57, true, 1, 1)];
-        let c = ledger(&script(), &[ep], &got, 20 * MS);
+        let c = ledger(&script(), &[ep], &got, 20 * MS, 1_000 * MS);
         assert_eq!(
             (c.edges, c.delivered, c.excused_reenable, c.unsent),
             (10, 4, 1, 5)
