@@ -16,9 +16,13 @@
 //! * **What each output really held**: the [`ActuatorLog`] of every board, with the instants
 //!   at which a board's firmware applied its safe state ([`ActuatorLog::safe_states`]) and the
 //!   board resets ([`x10_sim::bus::SimBus`] records each injected reset).
+//! * **What each board reported**: every event frame it wrote, as written and as received
+//!   (the bus keeps every transaction to the motherboard), and when it started latching its
+//!   event pin ([`ActuatorLog::latches`]); [`edges::ledger`] lays them over the script.
 //!
 //! The invariants (see [`Row`] for each count): no `Ok` with a wrong value, no uncommanded
-//! actuator change, no call that never ends, no event lost silently.
+//! actuator change, no call that never ends, no event-pin edge lost silently, no event the
+//! script does not explain.
 
 use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
@@ -34,13 +38,13 @@ use x10_microcode::{
 
 use x10_sim::board::{DbBoard, Notes, PecLog};
 use x10_sim::bus::{BusConfig, BusRecord, BusStats, FaultConfig, NodeConfig, Outcome, SimBus};
-
-pub mod edges;
-use edges::{EdgeCounts, Epoch, PinEv, SentEv};
 use x10_sim::exec::{Executor, Nanos, Rng, SimClock};
 use x10_sim::ports::{ActuatorLog, Analog, Change, Digital, SensorScript, SimPorts};
 use x10_sim::sim::MB_ADDRESS;
 use x10_sim::timing::Speed;
+
+pub mod edges;
+use edges::{EdgeCounts, Epoch, PinEv, SentEv};
 
 /// How the soak sets PEC on the daughterboards. The mode is the soak's own setting, whatever
 /// the runtime's default is: `On` and `Off` send `set_pec` to each board at its every boot.
