@@ -238,10 +238,11 @@ impl Walk<'_> {
         self.edges.partition_point(|e| e.0 <= t)
     }
 
-    /// Edges a laying leaves unexplained (not carried, not excused), and its wrong events:
-    /// the lower the better.
-    fn score(&self, l: &Laid) -> u64 {
+    /// Edges before `until` a laying leaves unexplained (not carried, not excused), and its
+    /// wrong events: the lower the better.
+    fn score(&self, l: &Laid, until: Nanos) -> u64 {
         let unexplained = (0..self.edges.len())
+            .take_while(|&j| self.edges[j].0 < until)
             .filter(|&j| l.owner[j].is_none() && !self.excused(l, j))
             .count() as u64;
         l.wrong * 1_000 + unexplained
@@ -253,13 +254,17 @@ impl Walk<'_> {
             || t + self.guard > self.ep.end
     }
 
-    /// Lays events `from..` in order. An event that fits both after the previous one and
-    /// from a later enable is either the one event of the pin queued before that enable and
-    /// written after it, or the first counted from it: with `choose`, each way is laid to
-    /// the end and the one that explains more is kept.
-    fn lay(&self, l: &mut Laid, from: usize, choose: bool) {
+    /// Lays events `from..` in order (those written before `until`). An event that fits
+    /// both after the previous one and from a later enable is either the one event of the
+    /// pin queued before that enable and written after it, or the first counted from it:
+    /// with `choose`, the events up to the next enable are laid each way and the way that
+    /// explains more edges before it is kept.
+    fn lay(&self, l: &mut Laid, from: usize, until: Nanos, choose: bool) {
         for i in from..self.ep.sent.len() {
             let ev = &self.ep.sent[i].ev;
+            if ev.t >= until {
+                return;
+            }
             // The latest later enable the event fits from, if any.
             let restart = (l.latch + 1..self.ep.latches.len())
                 .rev()
@@ -267,14 +272,16 @@ impl Walk<'_> {
                 .map(|k| (k, self.first_after(self.ep.latches[k])))
                 .find(|&(_, p)| p >= l.pos && self.fits(p, ev));
             let mut go_on = self.fits(l.pos, ev) && !(l.crossed && restart.is_some());
-            if go_on && restart.is_some() && choose {
+            if let (true, Some((k, _)), true) = (go_on, restart, choose) {
+                let next = self.ep.latches.get(k + 1).copied().unwrap_or(self.ep.end);
                 let mut a = l.clone();
                 self.step(&mut a, i, None);
-                self.lay(&mut a, i + 1, false);
+                a.crossed = true;
+                self.lay(&mut a, i + 1, next, false);
                 let mut b = l.clone();
                 self.step(&mut b, i, restart);
-                self.lay(&mut b, i + 1, false);
-                go_on = self.score(&a) <= self.score(&b);
+                self.lay(&mut b, i + 1, next, false);
+                go_on = self.score(&a, next) < self.score(&b, next);
             }
             match (go_on, restart) {
                 (true, r) => {
@@ -335,7 +342,7 @@ fn epoch_ledger(
         latch: 0,
         crossed: false,
     };
-    walk.lay(&mut l, 0, true);
+    walk.lay(&mut l, 0, Nanos::MAX, true);
     c.wrong_sent = l.wrong;
     let mut mb_events = vec![false; ep.sent.len()];
     for (j, &(t, _)) in walk.edges.iter().enumerate() {
