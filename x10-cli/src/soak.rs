@@ -517,7 +517,8 @@ fn written_events(
         if ev.source != db || !counted_kind {
             continue;
         }
-        let epoch = resets.partition_point(|&t| t <= r.start_ns);
+        // A reset is injected into a transaction: one starting at its instant is the old boot's.
+        let epoch = resets.partition_point(|&t| t < r.start_ns);
         let intact =
             r.addr == MB_ADDRESS.get() && r.outcome == Outcome::Ok && r.received == r.written;
         let corrupted =

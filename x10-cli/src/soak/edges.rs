@@ -184,15 +184,6 @@ pub fn ledger(
     c
 }
 
-/// Why an edge of a boot was not carried by any event.
-#[derive(Clone, Copy, PartialEq, Eq)]
-enum Skipped {
-    /// Not reached by the events (yet).
-    No,
-    /// Skipped when an event restarted at the later latch `at`.
-    ReEnabled(Nanos),
-}
-
 /// One boot's events laid over the script's edges.
 struct Walk<'a> {
     ep: &'a Epoch,
@@ -207,7 +198,6 @@ struct Walk<'a> {
 struct Laid {
     /// Per edge: the event that carries it.
     owner: Vec<Option<usize>>,
-    skipped: Vec<Skipped>,
     /// Events the script does not explain.
     wrong: u64,
     /// The next edge to carry, and the latch counted from.
@@ -243,15 +233,24 @@ impl Walk<'_> {
     fn score(&self, l: &Laid, until: Nanos) -> u64 {
         let unexplained = (0..self.edges.len())
             .take_while(|&j| self.edges[j].0 < until)
-            .filter(|&j| l.owner[j].is_none() && !self.excused(l, j))
+            .filter(|&j| l.owner[j].is_none() && !self.excused(j))
             .count() as u64;
         l.wrong * 1_000 + unexplained
     }
 
-    fn excused(&self, l: &Laid, j: usize) -> bool {
+    fn excused(&self, j: usize) -> bool {
+        self.excused_by_enable(j) || self.edges[j].0 + self.guard > self.ep.end
+    }
+
+    /// An edge not carried within `guard` before an enable: the enable restarted the counts
+    /// (edges latched but not yet reported are not reported, by the protocol).
+    fn excused_by_enable(&self, j: usize) -> bool {
         let t = self.edges[j].0;
-        matches!(l.skipped[j], Skipped::ReEnabled(at) if t + self.guard > at)
-            || t + self.guard > self.ep.end
+        let next = self.ep.latches.partition_point(|&at| at < t);
+        self.ep
+            .latches
+            .get(next)
+            .is_some_and(|&at| t + self.guard > at)
     }
 
     /// Lays events `from..` in order (those written before `until`). An event that fits
@@ -300,9 +299,6 @@ impl Walk<'_> {
     /// Lays event `i` after the previous one, or from enable `k` at edge `p`.
     fn step(&self, l: &mut Laid, i: usize, restart: Option<(usize, usize)>) {
         if let Some((k, p)) = restart {
-            for slot in l.skipped.iter_mut().take(p).skip(l.pos) {
-                *slot = Skipped::ReEnabled(self.ep.latches[k]);
-            }
             l.latch = k;
             l.pos = p;
         }
@@ -336,7 +332,6 @@ fn epoch_ledger(
     c.edges = n as u64;
     let mut l = Laid {
         owner: vec![None; n],
-        skipped: vec![Skipped::No; n],
         wrong: 0,
         pos: 0,
         latch: 0,
@@ -360,11 +355,9 @@ fn epoch_ledger(
             Some(i) if ep.sent[i].counted => c.lost_bus_counted += 1,
             Some(_) if near_end => c.excused_end += 1,
             Some(_) => c.lost_bus_silent += 1,
-            None => match l.skipped[j] {
-                Skipped::ReEnabled(at) if t + guard > at => c.excused_reenable += 1,
-                _ if near_end => c.excused_end += 1,
-                _ => c.unsent += 1,
-            },
+            None if walk.excused_by_enable(j) => c.excused_reenable += 1,
+            None if near_end => c.excused_end += 1,
+            None => c.unsent += 1,
         }
     }
     c.lost_mb_events = mb_events.iter().filter(|&&m| m).count() as u64;
@@ -515,6 +508,25 @@ mod tests {
                 c.wrong_sent
             ),
             (10, 8, 2, 0, 0)
+        );
+    }
+
+    #[test]
+    fn edges_an_enable_discarded_are_excused_without_a_later_event() {
+        // Latched at 5 ms and again at 45 ms; the board sends 10+20, then nothing: 30 and
+        // 40 ms lie within 20 ms before the second enable (excused), 50 .. 100 ms were never
+        // sent (unsent).
+        let ep = Epoch {
+            start: 0,
+            end: 200 * MS,
+            latches: vec![5 * MS, 45 * MS],
+            sent: vec![sent(ev(21, false, 1, 1), Some(1))],
+        };
+        let got = [ev(23, false, 1, 1)];
+        let c = ledger(&script(), &[ep], &got, 20 * MS, 1_000 * MS);
+        assert_eq!(
+            (c.edges, c.delivered, c.excused_reenable, c.unsent),
+            (10, 2, 2, 6)
         );
     }
 
