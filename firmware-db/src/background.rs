@@ -134,7 +134,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 })
             }) else {
                 next = None;
-                self.watch_changed.wait().await;
+                self.wake.wait().await;
                 continue;
             };
             let mut at = match next {
@@ -145,11 +145,13 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             clock.sleep_until(at).await;
             if !sampled {
                 // Only latched pins: pass as soon as an edge is latched (at once if one is
-                // waiting), so an isolated edge is reported without waiting for the grid.
-                match select(self.ports().wait_edge(), self.watch_changed.wait()).await {
-                    Either::First(()) => at = clock.now(),
-                    Either::Second(()) => continue,
-                }
+                // waiting), so an isolated edge is reported without waiting for the grid, or
+                // when woken: an event left the queue (a `pin_change`, so the pin may queue
+                // its next one; a pulse-in's deferred reply, so its pin is free to read
+                // again), so the edges a pin carries go out without waiting for another edge;
+                // the enables changed (the pass reads the new ones).
+                select(self.ports().wait_edge(), self.wake.wait()).await;
+                at = clock.now();
             }
             next = Some(at.plus_us(interval));
             let watches: Vec<(PinRef, EventConfig, u16), MAX_EVENT_PINS> = self.with(|s| {
@@ -160,10 +162,9 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             });
             for (pin, cfg, generation) in watches {
                 if cfg.rising || cfg.falling {
-                    let edges = self.ports().take_edges(pin);
-                    if let Ok(level) = self.ports().digital_read(pin).await {
-                        self.sampled_level(pin, generation, level.is_high(), edges.ok());
-                    }
+                    let edges = self.ports().take_edges(pin).ok();
+                    let level = self.ports().digital_read(pin).await;
+                    self.sampled_level(pin, generation, level.ok().map(|l| l.is_high()), edges);
                 }
                 if cfg.analog_window {
                     if let Ok(v) = self.ports().analog_read(pin.port).await {
@@ -177,14 +178,39 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// One sample of a pin with edge events: adds the edges latched by the port (`latched`)
     /// or, without a latch, the level change the sample shows, to the pin's count; queues a
     /// `pin_change` event when an edge in an enabled direction was counted and the pin's last
-    /// event has left the queue. The event carries the level and every edge counted since the
-    /// pin's previous event, rising and falling.
-    fn sampled_level(&self, pin: PinRef, generation: u16, high: bool, latched: Option<EdgeCount>) {
+    /// event has left the queue (otherwise the edges are carried: when it leaves, the
+    /// sampler is woken). The event carries the level and every edge counted since the
+    /// pin's previous event, rising and falling; one dropped on a full queue is counted and
+    /// its edges carried to the pin's next event.
+    ///
+    /// `read` is the level the sample read, `None` when the read failed (a pulse-in holds
+    /// the pin: `Busy`). A latched pin's level then follows from its last level and the
+    /// parity of the edges latched since (every edge is latched exactly once); with no
+    /// level known yet, the latched edges are carried to the next sample. Taken edges are
+    /// never dropped.
+    fn sampled_level(
+        &self,
+        pin: PinRef,
+        generation: u16,
+        read: Option<bool>,
+        latched: Option<EdgeCount>,
+    ) {
         let fire = self.with(|s| {
             let w = s
                 .watches
                 .iter_mut()
                 .find(|w| w.pin == pin && w.generation == generation)?;
+            let taken = latched.unwrap_or(EdgeCount::NONE);
+            let high = match (read, w.level) {
+                (Some(high), _) => high,
+                (None, Some(last)) if latched.is_some() => {
+                    last ^ ((taken.rising ^ taken.falling) & 1 == 1)
+                }
+                _ => {
+                    w.edges = w.edges.plus(taken);
+                    return None;
+                }
+            };
             let prev = w.level.replace(high);
             let seen = match latched {
                 Some(n) => n,
@@ -203,9 +229,9 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             w.edges = w.edges.plus(seen);
             let due =
                 (w.cfg.rising && w.edges.rising > 0) || (w.cfg.falling && w.edges.falling > 0);
-            (due && !w.queued).then(|| core::mem::replace(&mut w.edges, EdgeCount::NONE))
+            (due && !w.queued).then(|| (core::mem::replace(&mut w.edges, EdgeCount::NONE), high))
         });
-        if let Some(n) = fire {
+        if let Some((n, high)) = fire {
             let [r0, r1] = n.rising.to_le_bytes();
             let [f0, f1] = n.falling.to_le_bytes();
             let payload = [high as u8, r0, r1, f0, f1];

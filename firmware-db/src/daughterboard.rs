@@ -201,8 +201,10 @@ pub struct Daughterboard<M: RawMutex, P: Ports> {
     pub(crate) stamped: Channel<M, PulseJob, DEFERRED_QUEUE_LEN>,
     /// Signalled after every transaction addressed to the board (failsafe).
     pub(crate) heard: Signal<M, ()>,
-    /// Signalled when event enables change (sampler).
-    pub(crate) watch_changed: Signal<M, ()>,
+    /// Wakes the sampler when it may have work other than a latched edge: event enables
+    /// changed, an event left the queue (a pin's carried edges may go out; after a deferred
+    /// reply, its pin is free to read again).
+    pub(crate) wake: Signal<M, ()>,
 }
 
 impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
@@ -228,7 +230,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             jobs: Channel::new(),
             stamped: Channel::new(),
             heard: Signal::new(),
-            watch_changed: Signal::new(),
+            wake: Signal::new(),
         }
     }
 
@@ -354,7 +356,10 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         ev
     }
 
-    /// A `pin_change` event left the queue: the pin may queue its next one.
+    /// An event left the queue: a `pin_change` lets its pin queue the next one, and any
+    /// makes room. The sampler is woken so that edges carried meanwhile go out without
+    /// waiting for another edge of the pin. (Not inlined: 56 B less on the C011.)
+    #[inline(never)]
     fn taken_out(&self, ev: &OutEvent) {
         if ev.kind == EventKind::PinChange {
             self.with(|s| {
@@ -363,6 +368,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 }
             });
         }
+        self.wake.signal(());
     }
 
     /// The next event, if one is queued (see [`Daughterboard::next_event`]).
@@ -691,7 +697,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 },
             }
         });
-        self.watch_changed.signal(());
+        self.wake.signal(());
         Done::status(status)
     }
 

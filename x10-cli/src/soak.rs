@@ -16,9 +16,13 @@
 //! * **What each output really held**: the [`ActuatorLog`] of every board, with the instants
 //!   at which a board's firmware applied its safe state ([`ActuatorLog::safe_states`]) and the
 //!   board resets ([`x10_sim::bus::SimBus`] records each injected reset).
+//! * **What each board reported**: every event frame it wrote, as written and as received
+//!   (the bus keeps every transaction to the motherboard), and when it started latching its
+//!   event pin ([`ActuatorLog::latches`]); [`edges::ledger`] lays them over the script.
 //!
 //! The invariants (see [`Row`] for each count): no `Ok` with a wrong value, no uncommanded
-//! actuator change, no call that never ends, no event lost silently.
+//! actuator change, no call that never ends, no event-pin edge lost silently, no event the
+//! script does not explain.
 
 use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
@@ -28,14 +32,19 @@ use std::rc::Rc;
 use embassy_futures::select::select;
 use firmware_mb::{MbConfig, MbDiagnostics, Motherboard};
 use x10_devices::LinkError;
-use x10_microcode::{Address, EventConfig, Level, Op, Pin, PinRef, Port, Request};
+use x10_microcode::{
+    Address, Edge, Event, EventConfig, EventKind, Level, Op, Pin, PinRef, Port, Request, ScanResult,
+};
 
-use x10_sim::board::{DbBoard, DiagnosticsCell, Notes, PecLog};
+use x10_sim::board::{DbBoard, Notes, PecLog};
 use x10_sim::bus::{BusConfig, BusRecord, BusStats, FaultConfig, NodeConfig, Outcome, SimBus};
 use x10_sim::exec::{Executor, Nanos, Rng, SimClock};
 use x10_sim::ports::{ActuatorLog, Analog, Change, Digital, SensorScript, SimPorts};
 use x10_sim::sim::MB_ADDRESS;
 use x10_sim::timing::Speed;
+
+pub mod edges;
+use edges::{EdgeCounts, Epoch, PinEv, SentEv};
 
 /// How the soak sets PEC on the daughterboards. The mode is the soak's own setting, whatever
 /// the runtime's default is: `On` and `Off` send `set_pec` to each board at its every boot.
@@ -127,8 +136,14 @@ pub struct Row {
     /// Virtual time the run took (ns).
     pub virtual_ns: Nanos,
     /// Reads that returned `Ok` with a value the scripted input did not hold at any instant
-    /// between the call's start and its end, or with a payload of the wrong length.
+    /// between the call's start and its end, or with a payload of the wrong length: single
+    /// reads, scans (every pin and analog input of both sensor ports), and pulse-ins on the
+    /// event pin (a width other than that of a whole pulse of the script within the call).
     pub wrong_reads: u64,
+    /// Pulse-ins on the event pin that returned `Ok` (each width checked).
+    pub pulse_ins_ok: u64,
+    /// Scans that returned `Ok` (each value checked).
+    pub scans_ok: u64,
     /// Writes that returned `Ok` whose frame reached the board corrupted into another
     /// well-formed request for that board (its PEC, if it has one, matching).
     pub wrong_writes: u64,
@@ -142,14 +157,9 @@ pub struct Row {
     /// (reported, not an invariant: an output is `Ok` once acknowledged, a board's refusal
     /// comes later as a `rejected` event).
     pub ok_not_applied: u64,
-    /// Event-pin edges the boards should have reported (edges of the script while events
-    /// were enabled, 20 ms after the enable to 20 ms before a reset or the end).
-    pub events_generated: u64,
-    /// Those edges for which `wait_event` returned an event.
-    pub events_delivered: u64,
-    /// Events the motherboard counted as lost: gaps in the boards' event counters
-    /// (`event_gaps`) and its own `events_dropped`.
-    pub events_counted_lost: u64,
+    /// Every edge of the event pins' scripts after the boards started latching them, by
+    /// outcome ([`edges::ledger`]).
+    pub events: EdgeCounts,
     /// Calls per outcome: `ok` and each typed error.
     pub outcomes: BTreeMap<String, u64>,
     /// Board resets injected.
@@ -161,12 +171,36 @@ pub struct Row {
 }
 
 impl Row {
-    /// Edges not delivered beyond those the runtimes counted as lost: generated minus
-    /// delivered minus counted lost, or 0 when more were counted than are missing.
+    /// Event-pin edges lost with nobody counting the loss: never written by their board
+    /// (not excused by a reset, the end or a new enable), lost on the bus where the
+    /// motherboard cannot notice, or lost in the motherboard beyond the events it counted
+    /// as dropped (`MbDiagnostics::events_dropped`).
     pub fn events_lost_silently(&self) -> u64 {
-        self.events_generated
-            .saturating_sub(self.events_delivered)
-            .saturating_sub(self.events_counted_lost)
+        let e = &self.events;
+        let mb = if e.lost_mb_events > u64::from(self.mb.events_dropped) {
+            e.lost_mb
+        } else {
+            0
+        };
+        e.unsent + e.lost_bus_silent + mb
+    }
+
+    /// Edges whose loss was counted: on the bus (the motherboard refused the event or saw
+    /// the gap) or in the motherboard (within its `events_dropped`).
+    pub fn events_counted_lost(&self) -> u64 {
+        let e = &self.events;
+        let mb = if e.lost_mb_events > u64::from(self.mb.events_dropped) {
+            0
+        } else {
+            e.lost_mb
+        };
+        e.lost_bus_counted + mb
+    }
+
+    /// Events the script does not explain: written by a board with counts or a level the
+    /// pin did not have, or returned by `wait_event` without a board having written them.
+    pub fn events_wrong(&self) -> u64 {
+        self.events.wrong_sent + self.events.wrong_delivered
     }
 
     /// True when every invariant holds.
@@ -176,6 +210,7 @@ impl Row {
             && self.uncommanded == 0
             && self.never_ended == 0
             && self.events_lost_silently() == 0
+            && self.events_wrong() == 0
     }
 }
 
@@ -184,7 +219,8 @@ const FIRST_DB: u8 = 0x10;
 const TASKS: usize = 12;
 /// A write counts as in flight until this long after its end (ns).
 const SLACK_NS: Nanos = 2_000_000;
-/// Events: edges this close to an enable, a reset or the end are not counted (ns).
+/// Events: edges this close before a reset, the end of the run or a new enable may be
+/// missing without blame (ns).
 const EVENT_GUARD_NS: Nanos = 20_000_000;
 /// Analog inputs hold each value this long (µs).
 const ANALOG_STEP_US: u64 = 50_000;
@@ -207,8 +243,32 @@ fn analog_value(board: usize, t_ns: Nanos) -> u16 {
     (r.next_u64() % 1024) as u16
 }
 
+/// The event pin's pulses: one every `EVENT_PERIOD_US + 250 µs × b`, in bursts of
+/// [`EVENT_BURST_US`] every `EVENT_CYCLE_US + 17 ms × b`; each pulse 400 µs to 400 µs short of
+/// its period wide (from the seed of the board and the pulse), none between bursts.
+const EVENT_PERIOD_US: u64 = 3_000;
+/// See [`EVENT_PERIOD_US`].
+const EVENT_BURST_US: u64 = 40_000;
+/// See [`EVENT_PERIOD_US`].
+const EVENT_CYCLE_US: u64 = 240_000;
+/// Pulse-in timeout of the callers (ms).
+const PULSE_TIMEOUT_MS: u16 = 10;
+
+fn event_pulse_width_us(board: usize, t_us: u64) -> u16 {
+    let b = board as u64;
+    let period = EVENT_PERIOD_US + 250 * b;
+    let first = 1_000 * b;
+    let phase = t_us.saturating_sub(first) % (EVENT_CYCLE_US + 17_000 * b);
+    if phase >= EVENT_BURST_US {
+        return 0;
+    }
+    let mut r = Rng::new((b << 48) ^ (t_us / period) ^ 0xed6e);
+    (400 + r.next_u64() % (period - 800)) as u16
+}
+
 /// The input scripts of board `b`: S1.A and S1.B slow square waves, S1 analog a new value
-/// every 50 ms, S2.A the event pin (toggles every 23 to 44 ms).
+/// every 50 ms, S2.A the event pin (bursts of pulses 3 ms apart, then nothing for 200 ms
+/// or more: every burst ends with a pin that stops toggling).
 fn scripts(b: usize) -> (SensorScript, SensorScript) {
     let bu = b as u64;
     let s1 = SensorScript {
@@ -224,12 +284,11 @@ fn scripts(b: usize) -> (SensorScript, SensorScript) {
         },
         analog: Analog::Func(Rc::new(move |t_us| analog_value(b, t_us * 1_000))),
     };
-    let half = 23_000 + 3_000 * bu;
     let s2 = SensorScript {
-        a: Digital::Train {
+        a: Digital::Pulses {
             first_us: 1_000 * bu,
-            period_us: 2 * half,
-            width_us: half,
+            period_us: EVENT_PERIOD_US + 250 * bu,
+            width_us: Analog::Func(Rc::new(move |t_us| event_pulse_width_us(b, t_us))),
         },
         ..SensorScript::default()
     };
@@ -252,6 +311,10 @@ enum ReadKind {
     S1B,
     S1Analog,
     S2A,
+    /// `scan`: every pin and analog input of both sensor ports.
+    Scan,
+    /// A rising pulse-in on S2.A (the event pin).
+    PulseIn,
 }
 
 /// One output channel: a board's pin, digital or PWM.
@@ -274,16 +337,15 @@ struct Write {
 struct Record {
     ops: u64,
     wrong_reads: u64,
+    pulse_ins_ok: u64,
+    scans_ok: u64,
     outcomes: BTreeMap<String, u64>,
     writes: BTreeMap<Channel, Vec<Write>>,
     in_flight: Vec<Option<Nanos>>,
-    /// Per board: (enabled from, until) windows of the event pin.
-    windows: Vec<Vec<(Nanos, Nanos)>>,
-    /// Per board: instants at which `wait_event` returned, and how many edges the event
-    /// reported (its rising plus falling counts; 1 for an event that carries only the level).
-    delivered: Vec<Vec<(Nanos, u32)>>,
-    /// Per board: events dropped by earlier boots.
-    dropped: Vec<u64>,
+    /// Per board: the events `wait_event` returned, when.
+    delivered: Vec<Vec<PinEv>>,
+    /// Events `wait_event` returned whose payload is not a `pin_change` payload.
+    bad_payloads: u64,
 }
 
 fn outcome_name(r: &Result<x10_microcode::Payload, LinkError>) -> String {
@@ -304,25 +366,63 @@ fn read_ok(
     started: Nanos,
     ended: Nanos,
 ) -> bool {
+    let level_ok = |d: &Digital, v: bool| {
+        let changes = d.next_change_after(started).is_some_and(|c| c <= ended);
+        changes || v == d.level_at(started)
+    };
     let digital = |d: &Digital| match payload {
-        [v @ (0 | 1)] => {
-            let changes = d.next_change_after(started).is_some_and(|c| c <= ended);
-            changes || (*v == 1) == d.level_at(started)
-        }
+        [v @ (0 | 1)] => level_ok(d, *v == 1),
         _ => false,
+    };
+    let analog_ok = |a: &Analog, v: u16| match a {
+        // S1's input: a new value every 50 ms step.
+        Analog::Func(_) => {
+            let (a, b) = (
+                started / 1_000 / ANALOG_STEP_US,
+                ended / 1_000 / ANALOG_STEP_US,
+            );
+            (a..=b).any(|s| analog_value(board, s * ANALOG_STEP_US * 1_000) == v)
+        }
+        a => a.value_at(started) == v,
     };
     match kind {
         ReadKind::S1A => digital(&ports.0.a),
         ReadKind::S1B => digital(&ports.0.b),
         ReadKind::S2A => digital(&ports.1.a),
         ReadKind::S1Analog => match payload {
-            [lo, hi] => {
-                let v = u16::from_le_bytes([*lo, *hi]);
-                let (a, b) = (
-                    started / 1_000 / ANALOG_STEP_US,
-                    ended / 1_000 / ANALOG_STEP_US,
-                );
-                (a..=b).any(|s| analog_value(board, s * ANALOG_STEP_US * 1_000) == v)
+            [lo, hi] => analog_ok(&ports.0.analog, u16::from_le_bytes([*lo, *hi])),
+            _ => false,
+        },
+        ReadKind::Scan => {
+            let Ok(scan) = ScanResult::parse(payload) else {
+                return false;
+            };
+            let sensors = [&ports.0, &ports.1];
+            scan.ports == 2
+                && (1..=2u8).all(|n| {
+                    let s = sensors[usize::from(n - 1)];
+                    scan.digital(n, 0).is_some_and(|v| level_ok(&s.a, v))
+                        && scan.digital(n, 1).is_some_and(|v| level_ok(&s.b, v))
+                        && scan.analog(n).is_some_and(|v| analog_ok(&s.analog, v))
+                })
+        }
+        // The width of a whole high pulse of the script that rose and fell within the call.
+        ReadKind::PulseIn => match payload {
+            [a, b, c, d] => {
+                let width_ns = u64::from(u32::from_le_bytes([*a, *b, *c, *d])) * 1_000;
+                let pin = &ports.1.a;
+                let mut t = started;
+                while let Some(edge) = pin.next_change_after(t).filter(|&e| e <= ended) {
+                    if pin.level_at(edge)
+                        && pin
+                            .next_change_after(edge)
+                            .is_some_and(|fall| fall <= ended && fall - edge == width_ns)
+                    {
+                        return true;
+                    }
+                    t = edge;
+                }
+                false
             }
             _ => false,
         },
@@ -372,6 +472,97 @@ fn corrupted_into_other(
         .count() as u64
 }
 
+/// A counted event (`pin_change`, `analog_threshold`, `failsafe_tripped`, `overflow`,
+/// `boot`) a board wrote on the bus: every attempt of one event number.
+struct Written {
+    /// The board's boot (0 before its first reset).
+    epoch: usize,
+    seq: u8,
+    kind: EventKind,
+    pin: PinRef,
+    payload: Vec<u8>,
+    /// First attempt (START, ns).
+    first: Nanos,
+    /// End of the first attempt that reached the motherboard as written.
+    intact_at: Option<Nanos>,
+    /// Lost, and the motherboard counts it (see [`SentEv::counted`]).
+    counted: bool,
+}
+
+/// Every counted event board `db` (bus node `node`) wrote, from the bus's records, with the
+/// fate of its attempts; `resets` are the board's reset instants, in order.
+fn written_events(
+    records: &[BusRecord],
+    node: usize,
+    db: Address,
+    mb_node: usize,
+    resets: &[Nanos],
+) -> Vec<Written> {
+    let mut out: Vec<Written> = Vec::new();
+    let mut corrupted_at_mb: Vec<bool> = Vec::new();
+    for r in records.iter().filter(|r| r.master == node) {
+        let Ok(ev) =
+            Event::parse_with_pec(MB_ADDRESS, &r.written).or_else(|_| Event::parse(&r.written))
+        else {
+            continue;
+        };
+        let counted_kind = matches!(
+            ev.kind,
+            EventKind::PinChange
+                | EventKind::AnalogThreshold
+                | EventKind::FailsafeTripped
+                | EventKind::Overflow
+                | EventKind::Boot
+        );
+        if ev.source != db || !counted_kind {
+            continue;
+        }
+        // A reset is injected into a transaction: one starting at its instant is the old boot's.
+        let epoch = resets.partition_point(|&t| t < r.start_ns);
+        let intact =
+            r.addr == MB_ADDRESS.get() && r.outcome == Outcome::Ok && r.received == r.written;
+        let corrupted =
+            r.target == Some(mb_node) && r.outcome == Outcome::Ok && r.received != r.written;
+        let same = out.last().is_some_and(|w| {
+            (w.epoch, w.seq, w.kind, w.pin, w.payload.as_slice())
+                == (epoch, ev.seq, ev.kind, ev.pin, ev.payload)
+        });
+        if !same {
+            out.push(Written {
+                epoch,
+                seq: ev.seq,
+                kind: ev.kind,
+                pin: ev.pin,
+                payload: ev.payload.to_vec(),
+                first: r.start_ns,
+                intact_at: None,
+                counted: false,
+            });
+            corrupted_at_mb.push(false);
+        }
+        if let (Some(w), Some(c)) = (out.last_mut(), corrupted_at_mb.last_mut()) {
+            if intact && w.intact_at.is_none() {
+                w.intact_at = Some(r.end_ns);
+            }
+            *c |= corrupted;
+        }
+    }
+    // A lost event is counted when an attempt reached the motherboard corrupted (a bad
+    // event) or a later event of the same boot reached it (a gap in the board's counter).
+    let mut later_intact = vec![false; out.len()];
+    let mut seen: Vec<usize> = Vec::new();
+    for (i, w) in out.iter().enumerate().rev() {
+        later_intact[i] = seen.contains(&w.epoch);
+        if w.intact_at.is_some() && !seen.contains(&w.epoch) {
+            seen.push(w.epoch);
+        }
+    }
+    for ((w, corrupted), later) in out.iter_mut().zip(corrupted_at_mb).zip(later_intact) {
+        w.counted = w.intact_at.is_none() && (corrupted || later);
+    }
+    out
+}
+
 /// Runs one soak and measures it.
 ///
 /// # Errors
@@ -393,6 +584,8 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
     bus_cfg.faults = cfg.faults;
     bus_cfg.record_wire = false;
     bus_cfg.keep_clean_records = false;
+    // Every event the boards write (the ground truth of the event ledger).
+    bus_cfg.keep_records_to = Some(MB_ADDRESS.get());
     let bus = SimBus::new(clock.clone(), bus_cfg);
     let mb_node = bus.add_node(NodeConfig::new("mb", Some(MB_ADDRESS.get())));
     let boards: Vec<DbBoard> = (1..=BOARDS)
@@ -406,7 +599,6 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
         .iter()
         .map(|b| bus.add_node(b.node_config()))
         .collect();
-    let diags: Vec<DiagnosticsCell> = boards.iter().map(|b| b.diagnostics.clone()).collect();
     let mut mb_cfg = match cfg.pec {
         PecMode::Default => MbConfig::new(MB_ADDRESS),
         PecMode::Off | PecMode::On => MbConfig::thesis_compatible(MB_ADDRESS),
@@ -417,9 +609,7 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
     let x10 = mb.handle();
     let rec = RefCell::new(Record {
         in_flight: vec![None; TASKS],
-        windows: vec![Vec::new(); BOARDS + 1],
         delivered: vec![Vec::new(); BOARDS + 1],
-        dropped: vec![0; BOARDS + 1],
         ..Record::default()
     });
     let done = Cell::new(false);
@@ -450,13 +640,22 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
         }
         // Per board: PEC as the mode says, then events on the event pin, at every boot.
         for b in 0..=BOARDS {
-            let (bus, ev_clock, rec, done, diags) =
-                (bus.clone(), clock.clone(), &rec, &done, &diags);
+            let (bus, ev_clock, rec, done) = (bus.clone(), clock.clone(), &rec, &done);
             let clock = clock.clone();
             let node = b.checked_sub(1).and_then(|i| nodes.get(i).copied());
             let pec = cfg.pec;
+            let mut rng = Rng::new(cfg.seed ^ (0xe7ab_0000 + b as u64));
             ex.spawn(format!("enable {}", board_name(b)), async move {
                 let db = board_addr(b);
+                let events = if b == BOARDS {
+                    EventConfig::OFF
+                } else {
+                    EventConfig {
+                        rising: true,
+                        falling: true,
+                        ..EventConfig::OFF
+                    }
+                };
                 loop {
                     let generation = node.map_or(0, |n| bus.reset_generation(n));
                     if let Some(n) = node {
@@ -472,16 +671,6 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
                                 clock.sleep_ns(1_000_000).await;
                             }
                         }
-                        let events = EventConfig {
-                            rising: true,
-                            falling: true,
-                            ..EventConfig::OFF
-                        };
-                        let events = if b == BOARDS {
-                            EventConfig::OFF
-                        } else {
-                            events
-                        };
                         while x10
                             .call(db, Op::EventEnable(event_pin, events))
                             .await
@@ -489,7 +678,6 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
                         {
                             clock.sleep_ns(1_000_000).await;
                         }
-                        clock.now_ns()
                     };
                     let reset = async {
                         if let Some(n) = node {
@@ -499,24 +687,25 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
                         }
                     };
                     let mut setup = core::pin::pin!(setup);
-                    let enabled = match select(&mut setup, reset).await {
-                        embassy_futures::select::Either::First(at) => Some(at),
-                        embassy_futures::select::Either::Second(()) => None,
-                    };
-                    if let Some(at) = enabled {
-                        rec.borrow_mut().windows[b].push((at, Nanos::MAX));
-                        if let Some(n) = node {
-                            bus.wait_reset(n, generation).await;
-                        } else {
-                            core::future::pending::<()>().await;
-                        }
-                        let now = clock.now_ns();
-                        if let Some(w) = rec.borrow_mut().windows[b].last_mut() {
-                            w.1 = now;
-                        }
-                    }
-                    if let Some(d) = b.checked_sub(1).and_then(|i| diags.get(i)) {
-                        rec.borrow_mut().dropped[b] += u64::from(d.get().events_dropped);
+                    if let embassy_futures::select::Either::First(()) =
+                        select(&mut setup, reset).await
+                    {
+                        // Events on: enable them again now and then (the counts restart
+                        // there; edges around each enable are checked), until a reset.
+                        let again = async {
+                            loop {
+                                clock.sleep_ns((300 + rng.below(400)) * 1_000_000).await;
+                                let _ = x10.call(db, Op::EventEnable(event_pin, events)).await;
+                            }
+                        };
+                        let reset = async {
+                            if let Some(n) = node {
+                                bus.wait_reset(n, generation).await;
+                            } else {
+                                core::future::pending::<()>().await;
+                            }
+                        };
+                        select(again, reset).await;
                     }
                     if done.get() {
                         break;
@@ -531,14 +720,11 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
                             core::future::pending::<()>().await;
                         }
                         if let Ok(ev) = x10.wait_event(board_addr(b), event_pin).await {
-                            let edges = match ev.value.as_slice() {
-                                [_, r0, r1, f0, f1, ..] => {
-                                    u32::from(u16::from_le_bytes([*r0, *r1]))
-                                        + u32::from(u16::from_le_bytes([*f0, *f1]))
-                                }
-                                _ => 1,
-                            };
-                            rec.borrow_mut().delivered[b].push((ev_clock.now_ns(), edges.max(1)));
+                            let mut r = rec.borrow_mut();
+                            match PinEv::parse(ev_clock.now_ns(), ev.value.as_slice()) {
+                                Some(e) => r.delivered[b].push(e),
+                                None => r.bad_payloads += 1,
+                            }
                         } else {
                             ev_clock.sleep_ns(1_000_000).await;
                         }
@@ -599,11 +785,24 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
                             });
                     } else {
                         let b = rng.below(BOARDS as u64 + 1) as usize;
-                        let (kind, op) = match rng.below(4) {
-                            0 => (ReadKind::S1A, Op::DigitalRead(sensor(1, Pin::A))),
-                            1 => (ReadKind::S1B, Op::DigitalRead(sensor(1, Pin::B))),
-                            2 => (ReadKind::S2A, Op::DigitalRead(event_pin)),
-                            _ => (ReadKind::S1Analog, Op::AnalogRead(sensor(1, Pin::A).port)),
+                        // 1 in 50 a pulse-in on the event pin, 4 in 50 a scan, else a single
+                        // read of one input.
+                        let (kind, op) = match rng.below(50) {
+                            0 => (
+                                ReadKind::PulseIn,
+                                Op::PulseIn {
+                                    pin: event_pin,
+                                    edge: Edge::Rising,
+                                    timeout_ms: Some(PULSE_TIMEOUT_MS),
+                                },
+                            ),
+                            1..=4 => (ReadKind::Scan, Op::Scan),
+                            _ => match rng.below(4) {
+                                0 => (ReadKind::S1A, Op::DigitalRead(sensor(1, Pin::A))),
+                                1 => (ReadKind::S1B, Op::DigitalRead(sensor(1, Pin::B))),
+                                2 => (ReadKind::S2A, Op::DigitalRead(event_pin)),
+                                _ => (ReadKind::S1Analog, Op::AnalogRead(sensor(1, Pin::A).port)),
+                            },
                         };
                         let result = x10.call(board_addr(b), op).await;
                         let ended = clock.now_ns();
@@ -611,6 +810,11 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
                         r.in_flight[t] = None;
                         *r.outcomes.entry(outcome_name(&result)).or_default() += 1;
                         if let Ok(p) = &result {
+                            match kind {
+                                ReadKind::PulseIn => r.pulse_ins_ok += 1,
+                                ReadKind::Scan => r.scans_ok += 1,
+                                _ => {}
+                            }
                             if !read_ok(&scripts[b], b, kind, p.as_slice(), started, ended) {
                                 r.wrong_reads += 1;
                             }
@@ -631,11 +835,7 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
 
     let records = bus.records();
     let bus_stats: BusStats = bus.stats();
-    let mut rec = rec.into_inner();
-    for (i, d) in diags.iter().enumerate() {
-        rec.dropped[i + 1] += u64::from(d.get().events_dropped);
-    }
-    rec.dropped[0] += u64::from(mb.internal().diagnostics().events_dropped);
+    let rec = rec.into_inner();
     let mb_diag = mb.diagnostics();
 
     // Resets, from the bus's records: (board index, instant).
@@ -656,6 +856,8 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
         ops: rec.ops,
         virtual_ns: end_ns,
         wrong_reads: rec.wrong_reads,
+        pulse_ins_ok: rec.pulse_ins_ok,
+        scans_ok: rec.scans_ok,
         outcomes: rec.outcomes.clone(),
         resets: bus_stats.resets,
         injected: bus_stats.injected,
@@ -754,53 +956,70 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
             }
         }
     }
-    // Events.
-    let last = end_ns.saturating_sub(EVENT_GUARD_NS + 1_000_000_000);
+    // Events: every edge of every event pin, from the boards' latches to what the waiters
+    // got, through every event the boards wrote on the bus.
+    let latches = log.latches();
     for (b, (_, s2)) in all_scripts.iter().enumerate().take(BOARDS) {
-        let script = &s2.a;
-        let mut edges: Vec<(Nanos, bool)> = Vec::new();
-        for &(from, until) in &rec.windows[b] {
-            let (from, until) = (
-                from + EVENT_GUARD_NS,
-                until.min(last).saturating_sub(EVENT_GUARD_NS),
-            );
-            let mut t = from;
-            while let Some(e) = script.next_change_after(t).filter(|&e| e < until) {
-                edges.push((e, false));
-                t = e;
+        let name = board_name(b);
+        let latches_in = |from: Nanos, to: Nanos| -> Vec<Nanos> {
+            latches
+                .iter()
+                .filter(|l| l.board == name && l.pin == event_pin && from <= l.t_ns && l.t_ns < to)
+                .map(|l| l.t_ns)
+                .collect()
+        };
+        let got = &rec.delivered[b];
+        let epochs = match b.checked_sub(1).and_then(|i| nodes.get(i)) {
+            // The internal board sends no frame: what it queued is what the waiter got.
+            None => vec![Epoch {
+                start: 0,
+                end: end_ns,
+                latches: latches_in(0, end_ns),
+                sent: got
+                    .iter()
+                    .map(|&ev| SentEv {
+                        ev,
+                        intact_at: Some(ev.t),
+                        counted: false,
+                    })
+                    .collect(),
+            }],
+            Some(&node) => {
+                let mut resets_b: Vec<Nanos> = resets
+                    .iter()
+                    .filter(|&&(rb, _)| rb == b)
+                    .map(|&(_, t)| t)
+                    .collect();
+                resets_b.sort_unstable();
+                let sent = written_events(&records, node, board_addr(b), mb_node, &resets_b);
+                (0..=resets_b.len())
+                    .map(|k| {
+                        let start = k.checked_sub(1).map_or(0, |i| resets_b[i]);
+                        let end = resets_b.get(k).copied().unwrap_or(end_ns);
+                        Epoch {
+                            start,
+                            end,
+                            latches: latches_in(start, end),
+                            sent: sent
+                                .iter()
+                                .filter(|e| e.epoch == k && e.pin == event_pin)
+                                .filter_map(|e| {
+                                    Some(SentEv {
+                                        ev: PinEv::parse(e.first, &e.payload)?,
+                                        intact_at: e.intact_at,
+                                        counted: e.counted,
+                                    })
+                                })
+                                .collect(),
+                        }
+                    })
+                    .collect()
             }
-        }
-        // Every edge of the script, to find which one an event reports.
-        let mut all = Vec::new();
-        let mut t = 0;
-        while let Some(e) = script.next_change_after(t).filter(|&e| e <= end_ns) {
-            all.push(e);
-            t = e;
-        }
-        row.events_generated += edges.len() as u64;
-        // An event reports the `n` edges since the pin's previous event (coalescing): the
-        // latest `n` edges of the script at or before it.
-        for &(td, n) in &rec.delivered[b] {
-            let k = all.partition_point(|&e| e <= td);
-            for back in 1..=n as usize {
-                let Some(&te) = k.checked_sub(back).and_then(|k| all.get(k)) else {
-                    break;
-                };
-                if let Ok(i) = edges.binary_search_by_key(&te, |e| e.0) {
-                    if !edges[i].1 {
-                        edges[i].1 = true;
-                        row.events_delivered += 1;
-                    }
-                }
-            }
-        }
-        let _ = rec.dropped[b];
+        };
+        row.events
+            .add(&edges::ledger(&s2.a, &epochs, got, EVENT_GUARD_NS, end_ns));
     }
-    // What the motherboard knows it lost: gaps in the boards' event counters (an event a
-    // board dropped, or one the motherboard refused as corrupted, takes a number) and events
-    // its own unclaimed queue dropped. (The boards' own drop counters and the refused frames
-    // are in the gaps already: adding them would count one loss twice.)
-    row.events_counted_lost += u64::from(mb_diag.event_gaps) + u64::from(mb_diag.events_dropped);
+    row.events.wrong_delivered += rec.bad_payloads;
     Ok(row)
 }
 
@@ -809,7 +1028,7 @@ pub fn table(rows: &[Row]) -> String {
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "{:<8} {:>7} {:>9} {:>8} {:>9} {:>9} {:>11} {:>11} {:>9} {:>9} {:>9} {:>9} {:>9}",
+        "{:<8} {:>7} {:>9} {:>8} {:>9} {:>9} {:>11} {:>11} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
         "pec",
         "corrupt",
         "ops",
@@ -818,16 +1037,18 @@ pub fn table(rows: &[Row]) -> String {
         "(writes)",
         "uncommanded",
         "never-ended",
-        "ev-gen",
+        "ev-edges",
         "ev-deliv",
         "ev-count",
+        "ev-excuse",
         "ev-silent",
+        "ev-wrong",
         "ok-unappl"
     );
     for r in rows {
         let _ = writeln!(
             s,
-            "{:<8} {:>6}% {:>9} {:>7.0}s {:>9} {:>9} {:>11} {:>11} {:>9} {:>9} {:>9} {:>9} {:>9}",
+            "{:<8} {:>6}% {:>9} {:>7.0}s {:>9} {:>9} {:>11} {:>11} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
             r.pec.map_or("?", PecMode::name),
             format!("{}", f64::from(r.corrupt_ppm) / 10_000.0),
             r.ops,
@@ -836,10 +1057,12 @@ pub fn table(rows: &[Row]) -> String {
             r.wrong_writes,
             r.uncommanded,
             r.never_ended,
-            r.events_generated,
-            r.events_delivered,
-            r.events_counted_lost,
+            r.events.edges,
+            r.events.delivered,
+            r.events_counted_lost(),
+            r.events.excused_end + r.events.excused_reenable,
             r.events_lost_silently(),
+            r.events_wrong(),
             r.ok_not_applied,
         );
     }
@@ -847,10 +1070,12 @@ pub fn table(rows: &[Row]) -> String {
         let outcomes: Vec<String> = r.outcomes.iter().map(|(k, v)| format!("{k} {v}")).collect();
         let _ = writeln!(
             s,
-            "pec {} at {}%: {}; {} resets, {} faults injected; mb: rejected {}, pec_resyncs {}, late {}, unknown {}, bad_replies {}",
+            "pec {} at {}%: {}; checked Ok: {} pulse-ins, {} scans; {} resets, {} faults injected; mb: rejected {}, pec_resyncs {}, late {}, unknown {}, bad_replies {}",
             r.pec.map_or("?", PecMode::name),
             f64::from(r.corrupt_ppm) / 10_000.0,
             outcomes.join(", "),
+            r.pulse_ins_ok,
+            r.scans_ok,
             r.resets,
             r.injected,
             r.mb.rejected,
@@ -858,6 +1083,26 @@ pub fn table(rows: &[Row]) -> String {
             r.mb.late_replies,
             r.mb.unknown_replies,
             r.mb.bad_replies,
+        );
+        let e = &r.events;
+        let _ = writeln!(
+            s,
+            "  edges of pec {} at {}%: {} after the latches: {} delivered; lost and counted: {} on the bus, {} in the mb; excused: {} at a reset or the end, {} at a new enable; silent: {} never written by the board, {} on the bus, {} in the mb ({} events lost there, mb events_dropped {}); wrong events: {} written, {} returned",
+            r.pec.map_or("?", PecMode::name),
+            f64::from(r.corrupt_ppm) / 10_000.0,
+            e.edges,
+            e.delivered,
+            e.lost_bus_counted,
+            r.events_counted_lost() - e.lost_bus_counted,
+            e.excused_end,
+            e.excused_reenable,
+            e.unsent,
+            e.lost_bus_silent,
+            r.events_lost_silently() - e.unsent - e.lost_bus_silent,
+            e.lost_mb_events,
+            r.mb.events_dropped,
+            e.wrong_sent,
+            e.wrong_delivered,
         );
     }
     s
@@ -930,14 +1175,15 @@ pub fn soak_main(args: &SoakArgs) -> std::process::ExitCode {
     for r in rows.iter().filter(|r| !r.clean()) {
         let must = r.pec.is_some_and(PecMode::must_be_clean);
         println!(
-            "{} pec {} at {}%: {} wrong Ok, {} uncommanded, {} never ended, {} events lost silently",
+            "{} pec {} at {}%: {} wrong Ok, {} uncommanded, {} never ended, {} edges lost silently, {} wrong events",
             if must { "FAIL" } else { "reported (this mode need not be clean)" },
             r.pec.map_or("?", PecMode::name),
             f64::from(r.corrupt_ppm) / 10_000.0,
             r.wrong_reads + r.wrong_writes,
             r.uncommanded,
             r.never_ended,
-            r.events_lost_silently()
+            r.events_lost_silently(),
+            r.events_wrong()
         );
     }
     if failed.is_empty() {
@@ -974,8 +1220,9 @@ mod tests {
         .unwrap();
         assert!(default.clean(), "{default:?}");
         assert_eq!((a.ok_not_applied, default.ok_not_applied), (0, 0));
-        assert_eq!(a.events_generated, a.events_delivered);
-        assert!(a.events_generated > 0);
+        let e = &a.events;
+        assert_eq!(e.edges, e.delivered + e.excused_end + e.excused_reenable);
+        assert!(a.events.delivered > 0);
         // PEC off at 5 %: corruption reaches the outputs, and the soak sees it.
         let noisy = run(SoakConfig::new(3_000, PecMode::Off, 50_000, 3)).unwrap();
         assert!(noisy.uncommanded > 0 && noisy.wrong_reads + noisy.wrong_writes > 0);

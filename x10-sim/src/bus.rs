@@ -195,6 +195,10 @@ pub struct BusConfig {
     /// injected fault, a lost transfer) are kept, so a long soak keeps its memory bounded by
     /// its faults. [`BusStats`] counts every transaction either way.
     pub keep_clean_records: bool,
+    /// Keep the record of every transaction addressed to this address, clean or not, even
+    /// when `keep_clean_records` is false (the soak keeps every event written to the
+    /// motherboard).
+    pub keep_records_to: Option<u8>,
 }
 
 impl BusConfig {
@@ -208,6 +212,7 @@ impl BusConfig {
             seed: 0,
             record_wire: true,
             keep_clean_records: true,
+            keep_records_to: None,
         }
     }
 }
@@ -539,7 +544,10 @@ impl BusInner {
             self.stats.lost_transfers += 1;
         }
         self.closed_txn = Some(rec.txn);
-        if self.cfg.keep_clean_records || !rec.faults.is_empty() {
+        if self.cfg.keep_clean_records
+            || !rec.faults.is_empty()
+            || self.cfg.keep_records_to == Some(rec.addr)
+        {
             self.records.push(rec);
         }
     }

@@ -178,12 +178,12 @@ impl Digital {
                 period_us,
                 width_us,
             } => PulseTrain::new(*first_us, *period_us)
-                .level_at(t_ns, |start| u64::from(width_us.value_at(start)) * 1_000),
+                .level_at(t_ns, &|start| u64::from(width_us.value_at(start)) * 1_000),
             Digital::Train {
                 first_us,
                 period_us,
                 width_us,
-            } => PulseTrain::new(*first_us, *period_us).level_at(t_ns, |_| width_us * 1_000),
+            } => PulseTrain::new(*first_us, *period_us).level_at(t_ns, &|_| width_us * 1_000),
             Digital::Echo { .. } => false,
         }
     }
@@ -200,18 +200,15 @@ impl Digital {
                 first_us,
                 period_us,
                 width_us,
-            } => Some(
-                PulseTrain::new(*first_us, *period_us)
-                    .next_change_after(t_ns, |start| u64::from(width_us.value_at(start)) * 1_000),
-            ),
+            } => PulseTrain::new(*first_us, *period_us)
+                .next_change_after(t_ns, |start| u64::from(width_us.value_at(start)) * 1_000),
             Digital::Train {
                 first_us,
                 period_us,
                 width_us,
-            } => Some(
-                PulseTrain::new(*first_us, *period_us)
-                    .next_change_after(t_ns, |_| width_us * 1_000),
-            ),
+            } => {
+                PulseTrain::new(*first_us, *period_us).next_change_after(t_ns, |_| width_us * 1_000)
+            }
             Digital::Echo { .. } => None,
         }
     }
@@ -225,6 +222,9 @@ struct PulseTrain {
 }
 
 impl PulseTrain {
+    /// Periods without a pulse [`PulseTrain::next_change_after`] looks through.
+    const MAX_QUIET: usize = 10_000;
+
     fn new(first_us: u64, period_us: u64) -> PulseTrain {
         PulseTrain {
             first: first_us * 1_000,
@@ -237,7 +237,7 @@ impl PulseTrain {
         self.first + (t_ns - self.first) / self.period * self.period
     }
 
-    fn level_at(&self, t_ns: Nanos, width_ns: impl Fn(Nanos) -> Nanos) -> bool {
+    fn level_at(&self, t_ns: Nanos, width_ns: &impl Fn(Nanos) -> Nanos) -> bool {
         if t_ns < self.first {
             return false;
         }
@@ -245,17 +245,28 @@ impl PulseTrain {
         t_ns < start + width_ns(start).min(self.period)
     }
 
-    fn next_change_after(&self, t_ns: Nanos, width_ns: impl Fn(Nanos) -> Nanos) -> Nanos {
-        if t_ns < self.first {
-            return self.first;
-        }
-        let start = self.start(t_ns);
-        let width = width_ns(start).min(self.period);
-        if width > 0 && t_ns < start + width {
-            start + width
+    /// The first instant after `t_ns` at which the level changes: a rise at the start of a
+    /// period whose pulse has a width (unless the previous pulse filled its period), a fall
+    /// at the end of a pulse narrower than its period (unless the next one starts at once).
+    /// Periods with no pulse (width 0) are skipped, up to [`PulseTrain::MAX_QUIET`] of them
+    /// in a row (then `None`: the train has stopped).
+    fn next_change_after(&self, t_ns: Nanos, width_ns: impl Fn(Nanos) -> Nanos) -> Option<Nanos> {
+        let level = |t: Nanos| self.level_at(t, &width_ns);
+        let mut start = if t_ns < self.first {
+            self.first
         } else {
-            start + self.period
+            self.start(t_ns)
+        };
+        for _ in 0..Self::MAX_QUIET {
+            let width = width_ns(start).min(self.period);
+            for at in [start, start + width] {
+                if at > t_ns && at > 0 && level(at) != level(at - 1) {
+                    return Some(at);
+                }
+            }
+            start += self.period;
         }
+        None
     }
 }
 
@@ -365,6 +376,19 @@ pub struct SafeStateApplied {
 pub struct ActuatorLog {
     changes: Rc<RefCell<Vec<OutputChange>>>,
     safe: Rc<RefCell<Vec<SafeStateApplied>>>,
+    latches: Rc<RefCell<Vec<EdgeLatch>>>,
+}
+
+/// The firmware started latching a pin's edges ([`Ports::latch_edges`]: the counts start from
+/// zero here, edges after `t_ns` are counted).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EdgeLatch {
+    /// When (ns).
+    pub t_ns: Nanos,
+    /// Board name.
+    pub board: String,
+    /// The pin.
+    pub pin: PinRef,
 }
 
 impl ActuatorLog {
@@ -381,6 +405,12 @@ impl ActuatorLog {
     /// the changes it made then are commanded by design (boot, failsafe), not by a caller.
     pub fn safe_states(&self) -> Vec<SafeStateApplied> {
         self.safe.borrow().clone()
+    }
+
+    /// Every time a board's firmware started latching a pin's edges (events enabled on it),
+    /// in time order.
+    pub fn latches(&self) -> Vec<EdgeLatch> {
+        self.latches.borrow().clone()
     }
 
     /// All changes so far, in time order.
@@ -896,6 +926,11 @@ impl Ports for SimPorts {
             Some(l) => l.1 = now,
             None => st.latched.push((pin, now)),
         }
+        self.log.latches.borrow_mut().push(EdgeLatch {
+            t_ns: now,
+            board: self.board.clone(),
+            pin,
+        });
         Ok(())
     }
 
@@ -1007,6 +1042,32 @@ mod tests {
         assert_eq!(blink.next_change_after(0), Some(100_000_000));
         assert_eq!(blink.next_change_after(100_000_000), Some(300_000_000));
         assert_eq!(blink.next_change_after(300_000_000), Some(800_000_000));
+        // Periods without a pulse (width 0) and pulses that fill their period make no edge:
+        // high 300 us from 1 ms, none at 2 and 3 ms, then the whole period at 4 and 5 ms.
+        let bursts = Digital::Pulses {
+            first_us: 1_000,
+            period_us: 1_000,
+            width_us: Analog::Steps {
+                initial: 300,
+                steps: vec![(2, 0), (4, 1_000), (6, 0)],
+            },
+        };
+        let mut edges = Vec::new();
+        let mut t = 0;
+        while let Some(at) = bursts.next_change_after(t) {
+            edges.push((at / 1_000, bursts.level_at(at)));
+            t = at;
+        }
+        assert_eq!(
+            edges,
+            [(1_000, true), (1_300, false), (4_000, true), (6_000, false)]
+        );
+        let never = Digital::Train {
+            first_us: 0,
+            period_us: 10,
+            width_us: 0,
+        };
+        assert_eq!(never.next_change_after(0), None);
     }
 
     #[test]
