@@ -438,6 +438,7 @@ pub fn run(input: &[u8]) -> (Record, Result<(), Violation>) {
     let w = world.borrow();
     let record = Record {
         mb: MB,
+        safe: case.safe,
         txns: w.txns.clone(),
         sent: w.sent.clone(),
         calls: calls.borrow().clone(),
