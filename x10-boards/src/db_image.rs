@@ -16,9 +16,11 @@
 use defmt::{info, unwrap};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
+use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{Daughterboard, DbConfig, TargetConfig};
 use static_cell::StaticCell;
+use x10_boards::watchdog::{self, Crash};
 use x10_boards::{address, BusConfig, EmbassyClock};
 use x10_microcode::Address;
 
@@ -43,15 +45,18 @@ const BASE: u8 = match address::build_base(option_env!("X10_DB_ADDR"), JUMPERS a
     ),
 };
 
-/// A panic logs "panic" and stops the core with a HardFault (`udf`), which `probe-rs run` turns
-/// into a backtrace: the file and line of every frame, the panicking one first, from the debug
-/// info on the host. Nothing of the `PanicInfo` is read, not even its location: with the
-/// handler ignoring it, link-time optimisation drops what every panic site builds for it (its
-/// message, its file name and line, and the `core::fmt` code that would format them). Reading
-/// the location alone kept all of that: 6.5 KiB of flash on db-pico, 6.6 KiB on db-g431
-/// (issue 12).
+/// A panic first puts every actuator pin in its safe state and records the panic for the next
+/// boot's reset reason ([`watchdog::crashed`]), then logs "panic" and stops the core with a
+/// HardFault (`udf`): `probe-rs run` turns it into a backtrace (the file and line of every
+/// frame, the panicking one first, from the debug info on the host); without a debugger the
+/// HardFault handler (`x10_boards::watchdog`) resets the chip. Nothing of the `PanicInfo` is
+/// read, not even its location: with the handler ignoring it, link-time optimisation drops
+/// what every panic site builds for it (its message, its file name and line, and the
+/// `core::fmt` code that would format them). Reading the location alone kept all of that:
+/// 6.5 KiB of flash on db-pico, 6.6 KiB on db-g431 (issue 12).
 #[panic_handler]
 fn panic(_info: &core::panic::PanicInfo) -> ! {
+    watchdog::crashed(Crash::Panic);
     defmt::error!("panic");
     cortex_m::asm::udf()
 }
@@ -59,6 +64,7 @@ fn panic(_info: &core::panic::PanicInfo) -> ! {
 /// `defmt::panic!` and `unwrap!` (their message is logged by defmt before this is called).
 #[defmt::panic_handler]
 fn defmt_panic() -> ! {
+    watchdog::crashed(Crash::Panic);
     cortex_m::asm::udf()
 }
 
@@ -68,13 +74,23 @@ static DB: StaticCell<Db> = StaticCell::new();
 
 #[embassy_executor::task]
 async fn daughterboard(db: &'static Db, bus: Bus, target: TargetConfig) -> ! {
-    firmware_db::run(db, bus, EmbassyClock, target).await
+    // The watchdog is fed while the executor polls this task (see `watchdog::keep_fed`).
+    match select(
+        firmware_db::run(db, bus, EmbassyClock, target),
+        watchdog::keep_fed(),
+    )
+    .await
+    {
+        Either::First(never) | Either::Second(never) => never,
+    }
 }
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     let mut own = Address::INTERNAL;
-    let board = Board::new(init(), |jumpers| {
+    let p = init();
+    watchdog::start();
+    let board = Board::new(p, |jumpers| {
         // BASE + 0..2^JUMPERS was checked at build time, so this cannot fail.
         own = unwrap!(address::address(BASE, jumpers).ok());
         BusConfig::for_build(own.get())

@@ -39,6 +39,7 @@
 #[macro_use]
 pub mod pins;
 pub mod address;
+pub mod crash;
 pub mod i2c_v2;
 // Raw-pointer loops behind the images' memcpy/memset (see the module): the one place of
 // this crate that needs `unsafe`.
@@ -80,6 +81,9 @@ pub mod g431;
 
 #[cfg(feature = "stm32c011")]
 pub mod c011;
+
+#[cfg(any(feature = "rp2040", feature = "stm32g431", feature = "stm32c011"))]
+pub mod watchdog;
 
 /// How a board's bus adapter is set up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
