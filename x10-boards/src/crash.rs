@@ -17,34 +17,7 @@
 //! * **The watchdog's timeout** ([`WATCHDOG_MS`], [`FEED_MS`], [`rp2040_load`], [`iwdg`]).
 
 use x10_hal::ports::SafeState;
-use x10_microcode::Level;
-
-/// TEMPORARY (until main has `x10_microcode::ResetReason`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[allow(missing_docs)]
-pub enum ResetReason {
-    PowerOn,
-    Watchdog,
-    Panic,
-    Fault,
-    ResetPin,
-    Software,
-    Unknown(u8),
-}
-impl From<ResetReason> for u8 {
-    fn from(r: ResetReason) -> u8 {
-        match r {
-            ResetReason::PowerOn => 0,
-            ResetReason::Watchdog => 1,
-            ResetReason::Panic => 2,
-            ResetReason::Fault => 3,
-            ResetReason::ResetPin => 4,
-            ResetReason::Software => 5,
-            ResetReason::Unknown(b) => b,
-        }
-    }
-}
+use x10_microcode::{Level, ResetReason};
 
 use crate::pins::BoardMap;
 
@@ -280,11 +253,14 @@ pub const RP2040_HAD_PSM_RESTART: u32 = 1 << 20;
 ///
 /// The watchdog block (REASON and the SCRATCH registers) is reset only by a chip-level reset
 /// (power-on, brown-out, the RUN pin, the debug port), which clears both; a watchdog reset
-/// keeps them (datasheet §4.7). So REASON not 0 means the watchdog reset the chip: a crash
-/// marker in SCRATCH0 names the crash (the crash paths trigger the watchdog, or it ran out
-/// while they were stuck), else a timeout is a hang ([`ResetReason::Watchdog`]) and a forced
-/// reset someone else's ([`ResetReason::Software`]: the bootrom's reboot, picotool). REASON 0
-/// is a chip-level reset, told apart by CHIP_RESET.
+/// keeps them (datasheet §4.7.1, §4.7.4). So REASON not 0 means the watchdog reset the chip: a
+/// crash marker in SCRATCH0 names the crash (the crash paths trigger the watchdog, or it ran
+/// out while they were stuck), else a timeout is a hang ([`ResetReason::Watchdog`]) and a
+/// forced reset one that software asked for ([`ResetReason::Software`]: picotool, the
+/// bootrom's reboot; the images force one only in their crash paths). REASON 0 is a
+/// chip-level reset, told apart by CHIP_RESET: the RUN pin or the debug port (a probe) is
+/// [`ResetReason::ResetPin`], anything else [`ResetReason::PowerOn`] (also what a board
+/// reports that cannot tell).
 #[must_use]
 pub const fn rp2040_reset_reason(reason: u32, chip_reset: u32, scratch: u32) -> ResetReason {
     let reason = reason & (RP2040_REASON_TIMER | RP2040_REASON_FORCE);
@@ -298,14 +274,12 @@ pub const fn rp2040_reset_reason(reason: u32, chip_reset: u32, scratch: u32) -> 
             ResetReason::Software
         };
     }
-    if chip_reset & RP2040_HAD_POR != 0 {
-        ResetReason::PowerOn
-    } else if chip_reset & RP2040_HAD_RUN != 0 {
+    if chip_reset & (RP2040_HAD_RUN | RP2040_HAD_PSM_RESTART) != 0
+        && chip_reset & RP2040_HAD_POR == 0
+    {
         ResetReason::ResetPin
-    } else if chip_reset & RP2040_HAD_PSM_RESTART != 0 {
-        ResetReason::Software
     } else {
-        ResetReason::Unknown(0)
+        ResetReason::PowerOn
     }
 }
 
@@ -483,9 +457,12 @@ pub const STM32_LPWRRSTF: u32 = 1 << 31;
 ///
 /// A power-on or brown-out wins: the RAM word is whatever the SRAM woke up as. Otherwise a
 /// marker names the crash whose path reset the board (`SYSRESETREQ`) or hung until the
-/// watchdog did; without one, the watchdog, a software reset (a debugger's), the NRST pin,
-/// in that order, since every internal reset also drives NRST. Anything else is
-/// [`ResetReason::Unknown`] with the flags' top byte.
+/// watchdog did; without one, the watchdog is [`ResetReason::Watchdog`], and a software reset
+/// or the NRST pin [`ResetReason::ResetPin`]: the images request a software reset only in
+/// their crash paths (with a marker), so one without a marker is a debug probe's
+/// (`SYSRESETREQ` is how probe-rs resets a Cortex-M). Every internal reset also drives NRST,
+/// so PINRSTF comes last. Anything else (option-byte loading, an illegal low-power entry, no
+/// flag) is [`ResetReason::PowerOn`], what a board reports that cannot tell.
 #[must_use]
 pub const fn stm32_reset_reason(csr: u32, word: u32) -> ResetReason {
     if csr & STM32_BORRSTF != 0 {
@@ -498,12 +475,10 @@ pub const fn stm32_reset_reason(csr: u32, word: u32) -> ResetReason {
     }
     if csr & (STM32_IWDGRSTF | STM32_WWDGRSTF) != 0 {
         ResetReason::Watchdog
-    } else if csr & STM32_SFTRSTF != 0 {
-        ResetReason::Software
-    } else if csr & STM32_PINRSTF != 0 {
+    } else if csr & (STM32_SFTRSTF | STM32_PINRSTF) != 0 {
         ResetReason::ResetPin
     } else {
-        ResetReason::Unknown((csr >> 24) as u8)
+        ResetReason::PowerOn
     }
 }
 
@@ -653,8 +628,8 @@ mod tests {
         assert_eq!(after_fault(0), marker(Crash::Fault));
         assert_eq!(after_fault(0x1234_5678), marker(Crash::Fault));
         // The marker's low byte is the reason's wire byte.
-        assert_eq!(u8::from(of_crash(Crash::Panic)), marker(Crash::Panic) as u8);
-        assert_eq!(u8::from(of_crash(Crash::Fault)), marker(Crash::Fault) as u8);
+        assert_eq!(of_crash(Crash::Panic).to_byte(), marker(Crash::Panic) as u8);
+        assert_eq!(of_crash(Crash::Fault).to_byte(), marker(Crash::Fault) as u8);
     }
 
     #[test]
@@ -665,8 +640,11 @@ mod tests {
         // Chip-level resets clear SCRATCH and REASON: CHIP_RESET tells them apart.
         assert_eq!(rp2040_reset_reason(0, RP2040_HAD_POR, 0), PowerOn);
         assert_eq!(rp2040_reset_reason(0, RP2040_HAD_RUN, 0), ResetPin);
-        assert_eq!(rp2040_reset_reason(0, RP2040_HAD_PSM_RESTART, 0), Software);
-        assert_eq!(rp2040_reset_reason(0, 0, 0), Unknown(0));
+        assert_eq!(rp2040_reset_reason(0, RP2040_HAD_PSM_RESTART, 0), ResetPin);
+        // Nothing to tell by: power-on. The rig's rp2040js reads 0xffffffff for a block it
+        // lacks: HAD_POR with the others is power-on too.
+        assert_eq!(rp2040_reset_reason(0, 0, 0), PowerOn);
+        assert_eq!(rp2040_reset_reason(0, 0xffff_ffff, 0), PowerOn);
         // A marker without a watchdog reset is not believed (REASON 0: chip-level reset).
         assert_eq!(rp2040_reset_reason(0, RP2040_HAD_POR, panic), PowerOn);
         // The crash paths force a watchdog reset after leaving their marker.
@@ -704,7 +682,9 @@ mod tests {
         assert_eq!(stm32_reset_reason(pin, panic), ResetPin);
         assert_eq!(stm32_reset_reason(STM32_SFTRSTF | pin, panic), Panic);
         assert_eq!(stm32_reset_reason(STM32_SFTRSTF | pin, fault), Fault);
-        assert_eq!(stm32_reset_reason(STM32_SFTRSTF | pin, 0), Software);
+        // A software reset without a marker: a debug probe's SYSRESETREQ.
+        assert_eq!(stm32_reset_reason(STM32_SFTRSTF | pin, 0), ResetPin);
+        assert_eq!(stm32_reset_reason(STM32_SFTRSTF, 0x5831_3001), ResetPin);
         assert_eq!(
             stm32_reset_reason(STM32_IWDGRSTF | pin, 0x5831_3001),
             Watchdog
@@ -712,9 +692,10 @@ mod tests {
         assert_eq!(stm32_reset_reason(STM32_IWDGRSTF | pin, panic), Panic);
         assert_eq!(stm32_reset_reason(STM32_WWDGRSTF | pin, 0), Watchdog);
         assert_eq!(stm32_reset_reason(STM32_OBLRSTF | pin, 0), ResetPin);
-        assert_eq!(stm32_reset_reason(STM32_LPWRRSTF, 0), Unknown(0x80));
-        assert_eq!(stm32_reset_reason(STM32_OBLRSTF, 0), Unknown(0x02));
-        assert_eq!(stm32_reset_reason(0, 0), Unknown(0));
+        // Nothing else to tell by: power-on.
+        assert_eq!(stm32_reset_reason(STM32_LPWRRSTF, panic), PowerOn);
+        assert_eq!(stm32_reset_reason(STM32_OBLRSTF, 0), PowerOn);
+        assert_eq!(stm32_reset_reason(0, panic), PowerOn);
     }
 
     #[test]

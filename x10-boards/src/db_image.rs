@@ -88,6 +88,8 @@ async fn daughterboard(db: &'static Db, bus: Bus, target: TargetConfig) -> ! {
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     let mut own = Address::INTERNAL;
+    // Before anything else: the record of a crash and the chip's reset flags.
+    let reset_reason = watchdog::reset_reason();
     let p = init();
     watchdog::start();
     let board = Board::new(p, |jumpers| {
@@ -105,7 +107,9 @@ async fn main(spawner: Spawner) {
         board.jumpers,
         mb.get()
     );
-    let db = DB.init(Daughterboard::new(board.ports, DbConfig::new(own, KIND)));
+    let mut config = DbConfig::new(own, KIND);
+    config.reset_reason = reset_reason;
+    let db = DB.init(Daughterboard::new(board.ports, config));
     // One task, spawned once: the pool (size 1) cannot be exhausted.
     spawner.spawn(unwrap!(daughterboard(db, board.bus, TargetConfig::new(mb))));
 }

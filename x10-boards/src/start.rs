@@ -69,6 +69,7 @@ macro_rules! motherboard_starter {
             mut config: firmware_mb::MbConfig,
         ) -> Result<firmware_mb::X10, crate::start::StartError> {
             let address = config.address.get();
+            config.internal.reset_reason = crate::watchdog::reset_reason();
             crate::watchdog::start();
             let board = Board::new(p, |_jumpers| crate::BusConfig::for_build(address));
             config.internal.board = $kind;

@@ -5,7 +5,9 @@
 use embassy_rp::pac;
 use x10_hal::ports::SafeState;
 
-use crate::crash::{self, PicoPlan, ResetReason, WATCHDOG_MS};
+use x10_microcode::ResetReason;
+
+use crate::crash::{self, PicoPlan, WATCHDOG_MS};
 use crate::pico::ACTUATORS;
 use crate::pins::PICO;
 

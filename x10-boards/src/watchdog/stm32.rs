@@ -8,7 +8,9 @@ use embassy_stm32::pac;
 use pac::iwdg::vals::{Key, Pr};
 use x10_hal::ports::SafeState;
 
-use crate::crash::{self, GpioWrite, Iwdg, ResetReason, WATCHDOG_MS};
+use x10_microcode::ResetReason;
+
+use crate::crash::{self, GpioWrite, Iwdg, WATCHDOG_MS};
 #[cfg(feature = "stm32c011")]
 use crate::pins::C011 as MAP;
 #[cfg(feature = "stm32g431")]
