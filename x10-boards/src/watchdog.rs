@@ -56,12 +56,17 @@ unsafe fn HardFault() -> ! {
 }
 
 /// The motherboard images' panic handler: outputs safe and the panic recorded first, then the
-/// panic's message logged (as panic-probe did), then `udf`: a HardFault, which `probe-rs run`
-/// turns into a backtrace and which otherwise resets the chip.
+/// panic's message logged, then `udf`: a HardFault, which `probe-rs run` turns into a
+/// backtrace (every frame's file and line) and which otherwise resets the chip. The message
+/// only, not the location (panic-probe printed both): the backtrace has it, and without it
+/// link-time optimisation drops every panic site's file path.
 #[cfg(feature = "motherboard")]
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     crashed(Crash::Panic);
-    defmt::error!("{}", defmt::Display2Format(info));
+    match info.message().as_str() {
+        Some(m) => defmt::error!("panic: {=str}", m),
+        None => defmt::error!("panic (formatted message not kept: see the backtrace)"),
+    }
     cortex_m::asm::udf()
 }
