@@ -13,6 +13,8 @@ const SPIN = 0xe7fe;
  * RAM changes.
  */
 export const HANG_AT = 0x20041000;
+/** 64 zero bytes in SRAM4, where `injectPanic`'s `PanicInfo` pointer (r0) points. */
+export const ZEROS_AT = 0x20041100;
 
 /** Runs `chip` instruction by instruction until its core is in thread mode (IPSR 0). */
 function toThreadMode(chip) {
@@ -35,13 +37,17 @@ export function panicHandler(chip) {
 
 /**
  * A panic in a task: the core jumps to the image's panic handler in thread mode, interrupts as
- * they were, as `core::panicking::panic_fmt` calls it (r0, the `PanicInfo`, is not read by the
- * images' handlers). Returns the handler's address.
+ * they were, as `core::panicking::panic_fmt` calls it. r0, the `&PanicInfo`, points to zeros
+ * (ZEROS_AT): the DB image's handler does not read it; the MB images' reads its message, and
+ * every pointer in it is null, every length 0 (address 0 reads as zeros here): an empty
+ * literal message. Returns the handler's address.
  */
 export function injectPanic(chip) {
   toThreadMode(chip);
   const core = chip.rp.core;
   const at = panicHandler(chip);
+  chip.rp.sram.fill(0, ZEROS_AT - SRAM, ZEROS_AT - SRAM + 64);
+  core.registers[0] = ZEROS_AT;
   core.waiting = false;
   core.PC = at;
   return at;

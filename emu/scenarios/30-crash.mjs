@@ -138,4 +138,57 @@ export default [
       rebooted(ctx, rig, vmb, WATCHDOG, 'watchdog');
     },
   },
+  {
+    name: 'mb-panic',
+    about: 'issue 21 item 2 on the motherboard: the real mb-pico-doorbell with db-pico 9; with the chime (the MB\'s A1.A, GP4) on, a panic injected into the MB drops its actuator pins low before it resets; it boots again and logs "board 0 booted (panic)"; then a panic injected into DB 9 is logged as "board 9 booted (panic)"',
+    run(ctx) {
+      if (!ctx.mbDoorbellElf) {
+        ctx.check('the doorbell image was given (--mb-doorbell)', false);
+        return;
+      }
+      const S1A = 14, CHIME = 4;
+      const rig = ctx.rig();
+      rig.addChip('mb', ctx.mbDoorbellElf, { watch: PINS });
+      rig.addChip('db09', ctx.dbElf, { inputs: { ...JUMPERS_OPEN, [S1A]: 0 }, watch: PINS });
+      rig.run(100e6); // boot, prepare DB 9, enable its events
+      const mbLog = () => ctx.defmt(rig.chips[0]).map((l) => l.text).join('\n');
+      const boots = () => mbLog().split('\n').filter((l) => /booted/.test(l)).join(' | ');
+      ctx.check('the MB logs "board 0 booted (power_on)" (its own) and "board 9 booted (power_on)"',
+        /board 0 booted \(power_on\)/.test(mbLog()) && /board 9 booted \(power_on\)/.test(mbLog()), boots());
+      // The chime on, then a panic on the MB.
+      rig.chips[1].setPin(S1A, true);
+      rig.run(rig.now() + 100e6, () => rig.chips[0].pinState(CHIME) === 'high');
+      const mb = rig.chips[0];
+      ctx.check('the chime is on (the MB\'s GP4 high)', mb.pinState(CHIME) === 'high');
+      const t = rig.now();
+      injectPanic(mb);
+      rig.run(t + 5e6, () => rig.chips[0] !== mb);
+      const reset = rig.chips[0].resets?.[0];
+      ctx.check('the MB resets through its watchdog (REASON FORCE) with the panic recorded in SCRATCH0',
+        !!reset && reset.reason === REASON_FORCE && reset.scratch0 === PANIC_MARKER,
+        reset ? `REASON ${reset.reason}, SCRATCH0 0x${reset.scratch0.toString(16)}, ${((reset.t - t) / 1e3).toFixed(1)} µs after the jump` : 'no reset in 5 ms');
+      if (!reset) return;
+      const atReset = outputs(mb);
+      ctx.check('before the MB\'s reset: every actuator pin of its internal board low (the chime too), every PWM slice stopped at compare 0',
+        allLow(atReset) && stopped(atReset) && levelsAt(mb, reset.t).every((v) => v === 'low'), show(atReset));
+      ctx.figure('mb-panic: injection to reset (µs)', ((reset.t - t) / 1e3).toFixed(1));
+      rig.run(rig.now() + 100e6);
+      const afterBoot = rig.chips[0].pinState(CHIME);
+      // The button released and pressed again: the rebooted MB's task rings.
+      rig.chips[1].setPin(S1A, false);
+      rig.run(rig.now() + 50e6);
+      rig.chips[1].setPin(S1A, true);
+      rig.run(rig.now() + 100e6, () => rig.chips[0].pinState(CHIME) === 'high');
+      const robot = mbLog().split('\n').filter((l) => /robot program/.test(l)).length;
+      ctx.check('the rebooted MB logs its own board\'s reason: "board 0 booted (panic)"', /board 0 booted \(panic\)/.test(mbLog()), boots());
+      ctx.check('the MB boots again (its start-up line twice in its log), its chime low after the boot, then following the button again',
+        robot === 2 && afterBoot === 'low' && rig.chips[0].pinState(CHIME) === 'high',
+        `${robot} start-up lines, chime ${afterBoot} after the boot, ${rig.chips[0].pinState(CHIME)} after the next press`);
+      // A panic on DB 9.
+      const db = rig.chips[1];
+      injectPanic(db);
+      rig.run(rig.now() + 100e6, () => /board 9 booted \(panic\)/.test(mbLog()));
+      ctx.check('DB 9 panics, resets and boots; the MB logs "board 9 booted (panic)"', rig.chips[1] !== db && /board 9 booted \(panic\)/.test(mbLog()), boots());
+    },
+  },
 ];
