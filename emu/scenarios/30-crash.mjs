@@ -91,6 +91,7 @@ function rebooted(ctx, rig, vmb, reason, name) {
 export default [
   {
     name: 'panic',
+    resets: true,
     about: 'issue 21 item 2: a panic injected into db-pico (the core jumps to its panic handler) puts every actuator pin low and stops the PWM slices before the watchdog resets the chip; the boot event says panic',
     run(ctx) {
       const { rig, vmb } = setup(ctx);
@@ -114,6 +115,7 @@ export default [
   },
   {
     name: 'hang',
+    resets: true,
     about: 'issue 21 item 2: a healthy db-pico never lets its watchdog fire; a hang injected into it (the core spins in thread mode, interrupts on) stops the feeding, and the watchdog resets the chip 150 to 200 ms later; the boot event says watchdog and the outputs are low',
     run(ctx) {
       const { rig, vmb } = setup(ctx);
@@ -140,6 +142,7 @@ export default [
   },
   {
     name: 'mb-panic',
+    resets: true,
     about: 'issue 21 item 2 on the motherboard: the real mb-pico-doorbell with db-pico 9; with the chime (the MB\'s A1.A, GP4) on, a panic injected into the MB drops its actuator pins low before it resets; it boots again and logs "board 0 booted (panic)"; then a panic injected into DB 9 is logged as "board 9 booted (panic)"',
     run(ctx) {
       if (!ctx.mbDoorbellElf) {

@@ -1,7 +1,7 @@
 //! What the crash paths and the watchdog of the images write and read, decided here as pure
-//! functions of the pin tables and of register values, tested on the host. The chip modules
-//! (`pico_watchdog.rs`, `stm32_watchdog.rs`, as `watchdog` of an RP2040 or STM32 build) only
-//! read and write the registers.
+//! functions of the pin tables and of register values, tested on the host. The chip code
+//! (`watchdog.rs` with `watchdog/rp2040.rs` or `watchdog/stm32.rs`) only reads and writes the
+//! registers.
 //!
 //! * **Safe outputs through raw registers** ([`pico_plan`], [`stm32_plan`]): the panic and
 //!   HardFault handlers drive every actuator pin (PWM A and B, digital A and B of every port) to
