@@ -162,16 +162,14 @@ const fn actuator_levels(
 // RP2040
 // ---------------------------------------------------------------------------------------
 
-/// What an RP2040 crash path writes: SIO output levels and output enables, the GPIOs whose
-/// function becomes SIO, the PWM slices it stops.
+/// What an RP2040 crash path writes: SIO output levels and output enables, and the GPIOs whose
+/// function becomes SIO (a PWM pin leaves its slice, which runs on, disconnected).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PicoPlan {
     /// GPIOs driven low (`SIO.GPIO_OUT_CLR`).
     pub low: u32,
     /// GPIOs driven high (`SIO.GPIO_OUT_SET`).
     pub high: u32,
-    /// PWM slices stopped (`PWM.EN` bits cleared, their compare values set to 0).
-    pub slices: u32,
 }
 
 impl PicoPlan {
@@ -197,11 +195,7 @@ pub const fn pico_plan(map: &BoardMap, safe: &[SafeState]) -> Result<PicoPlan, P
         Ok(n) => n,
         Err(e) => return Err(e),
     };
-    let mut plan = PicoPlan {
-        low: 0,
-        high: 0,
-        slices: 0,
-    };
+    let mut plan = PicoPlan { low: 0, high: 0 };
     let mut i = 0;
     while i < n {
         let (gpio, high) = pins[i];
@@ -211,16 +205,6 @@ pub const fn pico_plan(map: &BoardMap, safe: &[SafeState]) -> Result<PicoPlan, P
             plan.low |= 1 << gpio;
         }
         i += 1;
-    }
-    // The PWM slice of GPIO n is (n / 2) mod 8 (RP2040 datasheet §4.5.2, table 525).
-    let mut p = 0;
-    while p < map.actuators.len() {
-        let a = &map.actuators[p];
-        let Some(g) = pico_gpio(a.pwm_a) else {
-            return Err(PlanError::NotAPin);
-        };
-        plan.slices |= 1 << ((g / 2) % 8);
-        p += 1;
     }
     Ok(plan)
 }
@@ -258,9 +242,9 @@ pub const RP2040_HAD_PSM_RESTART: u32 = 1 << 20;
 /// out while they were stuck), else a timeout is a hang ([`ResetReason::Watchdog`]) and a
 /// forced reset one that software asked for ([`ResetReason::Software`]: picotool, the
 /// bootrom's reboot; the images force one only in their crash paths). REASON 0 is a
-/// chip-level reset, told apart by CHIP_RESET: the RUN pin or the debug port (a probe) is
-/// [`ResetReason::ResetPin`], anything else [`ResetReason::PowerOn`] (also what a board
-/// reports that cannot tell).
+/// chip-level reset, told apart by CHIP_RESET: HAD_POR (power-on or brown-out) is
+/// [`ResetReason::PowerOn`], anything else (HAD_RUN, the RUN pin; HAD_PSM_RESTART, the debug
+/// port) [`ResetReason::ResetPin`].
 #[must_use]
 pub const fn rp2040_reset_reason(reason: u32, chip_reset: u32, scratch: u32) -> ResetReason {
     let reason = reason & (RP2040_REASON_TIMER | RP2040_REASON_FORCE);
@@ -274,12 +258,10 @@ pub const fn rp2040_reset_reason(reason: u32, chip_reset: u32, scratch: u32) -> 
             ResetReason::Software
         };
     }
-    if chip_reset & (RP2040_HAD_RUN | RP2040_HAD_PSM_RESTART) != 0
-        && chip_reset & RP2040_HAD_POR == 0
-    {
-        ResetReason::ResetPin
-    } else {
+    if chip_reset & RP2040_HAD_POR != 0 {
         ResetReason::PowerOn
+    } else {
+        ResetReason::ResetPin
     }
 }
 
@@ -491,14 +473,13 @@ mod tests {
     const LOW4: [SafeState; 4] = [SafeState::ALL_LOW; 4];
 
     #[test]
-    fn the_pico_plan_drives_its_twelve_actuator_pins_low_and_stops_slices_1_3_5() {
+    fn the_pico_plan_drives_its_twelve_actuator_pins_low() {
         let plan = pico_plan(&PICO, &LOW3).unwrap();
         // Ports 1..3: PWM GP2/GP3 (slice 1), GP6/GP7 (slice 3), GP10/GP11 (slice 5), digital
         // GP4/GP5, GP8/GP9, GP12/GP13: GP2..=GP13.
         assert_eq!(plan.low, 0b11_1111_1111_1100);
         assert_eq!(plan.high, 0);
         assert_eq!(plan.pins(), 0x3ffc);
-        assert_eq!(plan.slices, 0b10_1010);
         // No bus pin, sensor pin or jumper is touched.
         for p in [0, 1, 14, 15, 16, 17, 18, 19, 20, 21, 22, 26, 27, 28] {
             assert_eq!(plan.pins() & (1 << p), 0, "GP{p}");
@@ -641,9 +622,9 @@ mod tests {
         assert_eq!(rp2040_reset_reason(0, RP2040_HAD_POR, 0), PowerOn);
         assert_eq!(rp2040_reset_reason(0, RP2040_HAD_RUN, 0), ResetPin);
         assert_eq!(rp2040_reset_reason(0, RP2040_HAD_PSM_RESTART, 0), ResetPin);
-        // Nothing to tell by: power-on. The rig's rp2040js reads 0xffffffff for a block it
-        // lacks: HAD_POR with the others is power-on too.
-        assert_eq!(rp2040_reset_reason(0, 0, 0), PowerOn);
+        // No HAD_POR: not a power-on (the flags say which of the others; both are the pin or a
+        // probe). HAD_POR with the others (0xffffffff: rp2040js without the block) is power-on.
+        assert_eq!(rp2040_reset_reason(0, 0, 0), ResetPin);
         assert_eq!(rp2040_reset_reason(0, 0xffff_ffff, 0), PowerOn);
         // A marker without a watchdog reset is not believed (REASON 0: chip-level reset).
         assert_eq!(rp2040_reset_reason(0, RP2040_HAD_POR, panic), PowerOn);

@@ -35,12 +35,18 @@ pub async fn keep_fed() -> ! {
     }
 }
 
-/// What a panic handler does first: interrupts off, every actuator pin in its safe state,
-/// the crash recorded for [`reset_reason`] after the reset.
+/// What a panic handler does first: every actuator pin in its safe state, the crash recorded
+/// for [`reset_reason`] after the reset. (Interrupts may go on: no interrupt handler of the
+/// images drives an output, and the executor that would is the one stuck in the panic.)
 pub fn crashed(crash: Crash) {
-    cortex_m::interrupt::disable();
     safe_outputs();
     chip::record(crate::crash::marker(crash));
+}
+
+/// [`crashed`] for a panic, then `udf`: the daughterboard image's panic handlers.
+pub fn panicked() -> ! {
+    crashed(Crash::Panic);
+    cortex_m::asm::udf()
 }
 
 /// The HardFault handler: every actuator pin in its safe state, the crash recorded (a panic's

@@ -32,15 +32,19 @@ const WDSEL: u32 = 0x0001_fffc;
 /// `IO_BANK0.GPIOn_CTRL` with FUNCSEL = 5 (SIO) and no overrides (datasheet §2.19.2).
 const FUNC_SIO: u32 = 5;
 
-/// Starts the watchdog: stopped, told what to reset, loaded, enabled (the order of embassy-rp's
-/// `Watchdog::start`). It pauses while a debugger halts the core (`CTRL.PAUSE_DBG0`, set
-/// since reset and left).
+/// Starts the watchdog: told what to reset, loaded, enabled (embassy-rp's `Watchdog::start`
+/// stops it first; not needed here: loading it restarts the count whether it runs or not). It
+/// pauses while a debugger halts the core (`CTRL.PAUSE_DBG0`, set since reset and left).
 pub fn start() {
-    let w = pac::WATCHDOG;
-    w.ctrl().modify(|c| c.set_enable(false));
     pac::PSM.wdsel().write_value(pac::psm::regs::Wdsel(WDSEL));
     feed();
-    w.ctrl().modify(|c| c.set_enable(true));
+    // PAUSE_DBG0/1, PAUSE_JTAG as since reset.
+    pac::WATCHDOG.ctrl().write(|c| {
+        c.set_enable(true);
+        c.set_pause_dbg0(true);
+        c.set_pause_dbg1(true);
+        c.set_pause_jtag(true);
+    });
 }
 
 /// Loads the counter with the full timeout.
@@ -72,9 +76,9 @@ pub(super) fn recorded() -> u32 {
 
 /// Drives every actuator pin to its safe level ([`PLAN`]): the SIO levels and output enables
 /// first, then each pin's function to SIO (a PWM pin leaves its slice at once, driven at the
-/// level just set), then the slices stopped with compare 0. IO_BANK0 and PWM are written only
-/// once out of reset (`RESETS.RESET_DONE`, datasheet §2.14): before the HAL brought them out,
-/// the pins are not driven at all.
+/// level just set; the slice runs on, disconnected: stopping it too cost 52 B db-pico has not
+/// got). IO_BANK0 is written only once out of reset (`RESETS.RESET_DONE`, datasheet §2.14):
+/// before the HAL brought it out, the pins are not driven at all.
 pub fn safe_outputs() {
     let sio = pac::SIO;
     sio.gpio_out(0).value_clr().write_value(PLAN.low);
@@ -93,26 +97,17 @@ pub fn safe_outputs() {
             }
         }
     }
-    if done.pwm() {
-        let pwm = pac::PWM;
-        pwm.en().modify(|e| e.0 &= !PLAN.slices);
-        for slice in 0..8 {
-            if PLAN.slices & (1 << slice) != 0 {
-                pwm.ch(slice).cc().write_value(pac::pwm::regs::ChCc(0));
-            }
-        }
-    }
 }
 
 /// Resets the chip through the watchdog at once (`CTRL.TRIGGER`, REASON becomes FORCE),
-/// resetting what [`WDSEL`] names (written again: the crash may come before [`start`]).
+/// resetting what [`start`] told it to ([`WDSEL`]). A crash before [`start`] (in the HAL's
+/// start-up, with no pin driven yet) resets nothing: the core then waits here, outputs
+/// undriven, until a power cycle.
 pub fn reset() -> ! {
-    pac::PSM.wdsel().write_value(pac::psm::regs::Wdsel(WDSEL));
     pac::WATCHDOG.ctrl().write(|c| {
         c.set_enable(true);
         c.set_trigger(true);
     });
-    loop {
-        cortex_m::asm::nop();
-    }
+    #[allow(clippy::empty_loop)]
+    loop {}
 }
