@@ -170,6 +170,9 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   } catch (e) {
     checks.push({ name: 'ran to the end', ok: false, detail: e.stack });
   }
+  // Every image runs its watchdog: a reset no scenario asked for (`resets: true`) is a failure.
+  const resets = rigs.flatMap((r) => r.chips.flatMap((c) => (c.resets ?? []).map((x) => `${c.name} at ${(x.t / 1e6).toFixed(3)} ms (REASON ${x.reason})`)));
+  if (!s.resets) checks.push({ name: 'no watchdog reset', ok: resets.length === 0, detail: resets.join(', ') });
   const wall = (Date.now() - wall0) / 1000;
   const sim = rigs.reduce((a, r) => a + r.t, 0) / 1e9;
   const bad = checks.filter((c) => !c.ok).length;

@@ -5,6 +5,7 @@ import { readElf } from './elf.js';
 import { applyAll, bootFromFlash } from './patches.js';
 import { Bus } from './bus.js';
 import { driveLines } from './lines.js';
+import { applyResetModel, watchdogReset } from './reset.js';
 
 const FLASH = 0x10000000;
 const SRAM = 0x20000000;
@@ -22,6 +23,7 @@ export class Chip {
     this.clock = rp.clock;
     rp.logger = new ConsoleLogger(options.verbose ? LogLevel.Info : LogLevel.Error, false);
     applyAll(rp);
+    applyResetModel(rp);
     for (const s of this.elf.segments) {
       if (s.paddr >= FLASH && s.paddr < FLASH + rp.flash.length) rp.flash.set(s.data, s.paddr - FLASH);
       else if (s.paddr >= SRAM && s.paddr < SRAM + rp.sram.length) rp.sram.set(s.data, s.paddr - SRAM);
@@ -170,6 +172,7 @@ export class Rig {
     while (this.t < ns) {
       const next = Math.min(ns, this.t + this.quantumNs);
       for (const c of this.chips) c.runUntil(next);
+      for (const c of this.chips) if (c.rp.watchdogFired) watchdogReset(this, c);
       while (this.queue.length && this.queue[0].t <= next) {
         const e = this.queue.shift();
         this.t = Math.max(this.t, e.t);

@@ -2,7 +2,8 @@
 //! names its board module as `board`, includes this file as
 //! `#[path = "../mb_image.rs"] #[macro_use] mod image;` and calls [`mb_image!`] with the
 //! example's tasks. `main` starts the X10 motherboard runtime and spawns one embassy task per
-//! robot function; your own robot's image looks the same (`cargo x10 new`,
+//! robot function. The panic and HardFault handlers and the watchdog come with x10-boards
+//! (`x10_boards::watchdog`); your own robot's image looks the same (`cargo x10 new`,
 //! `docs/your-first-robot.md`).
 
 /// `mb_image!("what it runs", task_name = path::to::async_fn, ...)`: the image's `main` and
@@ -13,7 +14,8 @@ macro_rules! mb_image {
         use embassy_executor::Spawner;
         use x10::{MbConfig, X10};
         use x10_boards::start::MB_ADDRESS;
-        use {defmt_rtt as _, panic_probe as _};
+        // The panic handler comes with x10-boards (`x10_boards::watchdog`): safe outputs first.
+        use defmt_rtt as _;
 
         use crate::board::{init, start_motherboard};
 

@@ -16,9 +16,11 @@
 use defmt::{info, unwrap};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
+use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{Daughterboard, DbConfig, TargetConfig};
 use static_cell::StaticCell;
+use x10_boards::watchdog;
 use x10_boards::{address, BusConfig, EmbassyClock};
 use x10_microcode::Address;
 
@@ -27,6 +29,13 @@ use crate::board::{init, Board, Bus, Ports, JUMPERS, KIND, NAME};
 /// The motherboard's address, checked at build time.
 /// (A `panic!` in a `const` is a compile error naming the variable: it never runs on the board.)
 const MB: u8 = match address::build_mb(option_env!("X10_MB_ADDR")) {
+    Ok(a) => a,
+    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
+};
+
+/// [`MB`] as an address (checked at build time: a `panic!` in a `const` never runs on the
+/// board).
+const MB_ADDRESS: Address = match Address::external(MB) {
     Ok(a) => a,
     Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
 };
@@ -43,23 +52,25 @@ const BASE: u8 = match address::build_base(option_env!("X10_DB_ADDR"), JUMPERS a
     ),
 };
 
-/// A panic logs "panic" and stops the core with a HardFault (`udf`), which `probe-rs run` turns
-/// into a backtrace: the file and line of every frame, the panicking one first, from the debug
-/// info on the host. Nothing of the `PanicInfo` is read, not even its location: with the
-/// handler ignoring it, link-time optimisation drops what every panic site builds for it (its
-/// message, its file name and line, and the `core::fmt` code that would format them). Reading
-/// the location alone kept all of that: 6.5 KiB of flash on db-pico, 6.6 KiB on db-g431
-/// (issue 12).
+/// A panic first puts every actuator pin in its safe state and records the panic for the next
+/// boot's reset reason ([`watchdog::crashed`]), then stops the core with a HardFault (`udf`):
+/// `probe-rs run` turns it into a backtrace (the file and line of every frame, the panicking
+/// one first, `rust_begin_unwind` at the top, from the debug info on the host); without a
+/// debugger the HardFault handler (`x10_boards::watchdog`) resets the chip. It logs nothing
+/// (the backtrace says it is a panic; `defmt::panic!` and `unwrap!` log their message first). Nothing of the `PanicInfo` is
+/// read, not even its location: with the handler ignoring it, link-time optimisation drops
+/// what every panic site builds for it (its message, its file name and line, and the
+/// `core::fmt` code that would format them). Reading the location alone kept all of that:
+/// 6.5 KiB of flash on db-pico, 6.6 KiB on db-g431 (issue 12).
 #[panic_handler]
 fn panic(_info: &core::panic::PanicInfo) -> ! {
-    defmt::error!("panic");
-    cortex_m::asm::udf()
+    watchdog::panicked()
 }
 
 /// `defmt::panic!` and `unwrap!` (their message is logged by defmt before this is called).
 #[defmt::panic_handler]
 fn defmt_panic() -> ! {
-    cortex_m::asm::udf()
+    watchdog::panicked()
 }
 
 type Db = Daughterboard<NoopRawMutex, Ports>;
@@ -68,28 +79,40 @@ static DB: StaticCell<Db> = StaticCell::new();
 
 #[embassy_executor::task]
 async fn daughterboard(db: &'static Db, bus: Bus, target: TargetConfig) -> ! {
-    firmware_db::run(db, bus, EmbassyClock, target).await
+    // The watchdog is fed while the executor polls this task (see `watchdog::keep_fed`).
+    match select(
+        firmware_db::run(db, bus, EmbassyClock, target),
+        watchdog::keep_fed(),
+    )
+    .await
+    {
+        Either::First(never) | Either::Second(never) => never,
+    }
 }
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
     let mut own = Address::INTERNAL;
-    let board = Board::new(init(), |jumpers| {
+    // Before anything else: the record of a crash and the chip's reset flags.
+    let reset_reason = watchdog::reset_reason();
+    let p = init();
+    watchdog::start();
+    let board = Board::new(p, |jumpers| {
         // BASE + 0..2^JUMPERS was checked at build time, so this cannot fail.
         own = unwrap!(address::address(BASE, jumpers).ok());
         BusConfig::for_build(own.get())
     });
-    // MB was checked at build time.
-    let mb = unwrap!(Address::external(MB).ok());
+    let mb = MB_ADDRESS;
     info!(
-        "X10 daughterboard on a {=str} at {=u8:#04x} (base {=u8:#04x} + jumpers {=u8}), motherboard at {=u8:#04x}",
+        "X10 daughterboard on a {=str} at {=u8:#04x} (jumpers {=u8}), motherboard at {=u8:#04x}",
         NAME,
         own.get(),
-        BASE,
         board.jumpers,
         mb.get()
     );
-    let db = DB.init(Daughterboard::new(board.ports, DbConfig::new(own, KIND)));
+    let mut config = DbConfig::new(own, KIND);
+    config.reset_reason = reset_reason;
+    let db = DB.init(Daughterboard::new(board.ports, config));
     // One task, spawned once: the pool (size 1) cannot be exhausted.
     spawner.spawn(unwrap!(daughterboard(db, board.bus, TargetConfig::new(mb))));
 }

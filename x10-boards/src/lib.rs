@@ -25,8 +25,12 @@
 //! With the `motherboard` feature, each chip module also has `start_motherboard`
 //! ([`start`]): the library call an image's `main` makes to start the X10 motherboard runtime
 //! and get the robot programs' [`firmware_mb::X10`] handle. The images themselves (`main`,
-//! robot tasks, defmt-rtt, panic-probe) are the bins of x10-robots (motherboard, the example
-//! programs), firmware-db (daughterboard) and of a user's own robot crate.
+//! robot tasks, defmt-rtt) are the bins of x10-robots (motherboard, the example programs),
+//! x10-boards (daughterboard, `db_image.rs`) and of a user's own robot crate.
+//!
+//! Every image runs the chip's hardware watchdog and has panic and HardFault handlers that put
+//! the actuator outputs in their safe state before the chip resets ([`watchdog`], with the
+//! motherboard images' panic handler; the decisions in [`crash`], tested on the host).
 //!
 //! Features: `rp2040`, `stm32g431`, `stm32c011` (one per build: each brings its HAL and
 //! critical section), `time` (only [`EmbassyClock`]), `small-mem` (the images' small
@@ -39,6 +43,7 @@
 #[macro_use]
 pub mod pins;
 pub mod address;
+pub mod crash;
 pub mod i2c_v2;
 // Raw-pointer loops behind the images' memcpy/memset (see the module): the one place of
 // this crate that needs `unsafe`.
@@ -80,6 +85,9 @@ pub mod g431;
 
 #[cfg(feature = "stm32c011")]
 pub mod c011;
+
+#[cfg(any(feature = "rp2040", feature = "stm32g431", feature = "stm32c011"))]
+pub mod watchdog;
 
 /// How a board's bus adapter is set up.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

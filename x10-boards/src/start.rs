@@ -46,10 +46,16 @@ macro_rules! motherboard_starter {
 
         #[embassy_executor::task]
         async fn motherboard_task(mb: &'static StartedMb, bus: $bus) -> ! {
-            mb.run(bus).await
+            use embassy_futures::select::{select, Either};
+            // The watchdog is fed while the executor polls this task
+            // (`crate::watchdog::keep_fed`): a robot task that never yields resets the board.
+            match select(mb.run(bus), crate::watchdog::keep_fed()).await {
+                Either::First(never) | Either::Second(never) => never,
+            }
         }
 
-        /// Starts the X10 motherboard runtime on this board: builds the bus (listening at
+        /// Starts the X10 motherboard runtime on this board: starts the hardware watchdog
+        /// ([`crate::watchdog`], fed by the runtime's task), builds the bus (listening at
         /// `config.address`) and the ports of the internal daughterboard from `p`, spawns the
         /// runtime's task (dispatcher, DB-interrupt listener, internal daughterboard,
         /// keepalive) and returns the handle robot tasks take.
@@ -63,6 +69,8 @@ macro_rules! motherboard_starter {
             mut config: firmware_mb::MbConfig,
         ) -> Result<firmware_mb::X10, crate::start::StartError> {
             let address = config.address.get();
+            config.internal.reset_reason = crate::watchdog::reset_reason();
+            crate::watchdog::start();
             let board = Board::new(p, |_jumpers| crate::BusConfig::for_build(address));
             config.internal.board = $kind;
             let mb: &'static StartedMb = MOTHERBOARD

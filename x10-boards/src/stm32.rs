@@ -172,27 +172,13 @@ macro_rules! stm32_build {
 
             /// Running at the default frequency, both channels on at 0 % duty.
             fn started(mut self) -> PwmUnit {
-                use embassy_stm32::timer::low_level::{CountingMode, OutputCompareMode};
-                use embassy_stm32::timer::Channel;
                 use $crate::stm32::PwmTimer as _;
                 self.set_frequency(u32::from($crate::pwm::DEFAULT_HZ));
                 match &mut self {
                     $( PwmUnit::$tim(t, ..) => {
-                        t.set_counting_mode(CountingMode::EdgeAlignedUp);
                         // Required for advanced timers (their main output enable).
                         t.enable_outputs();
-                        for ch in [Channel::Ch1, Channel::Ch2] {
-                            t.set_output_compare_mode(ch, OutputCompareMode::PwmMode1);
-                            t.set_output_compare_preload(ch, true);
-                        }
-                        t.set_autoreload_preload(true);
-                        // Loads the preloaded registers.
-                        t.generate_update_event();
-                        t.start();
-                        for ch in [Channel::Ch1, Channel::Ch2] {
-                            t.set_compare_value(ch, 0);
-                            t.enable_channel(ch, true);
-                        }
+                        $crate::stm32::start_pwm(t.regs_core());
                     } )*
                 }
                 self
@@ -226,17 +212,64 @@ macro_rules! stm32_build {
             }
 
             fn set_compare(&mut self, pin: x10_microcode::Pin, c: u32) {
-                let ch = match pin {
-                    x10_microcode::Pin::A => embassy_stm32::timer::Channel::Ch1,
-                    x10_microcode::Pin::B => embassy_stm32::timer::Channel::Ch2,
-                };
-                match self {
-                    // `c` is at most 0xFFFF (`stm32_compare`): it fits every timer's word.
-                    $( PwmUnit::$tim(t, ..) => t.set_compare_value(ch, c as _), )*
-                }
+                // `c` is at most 0xFFFF (`stm32_compare`): it fits every timer's word.
+                $crate::stm32::set_compare(self.core(), pin, c);
             }
         }
     };
+}
+
+/// The rest of what `started` does for one timer: what the HAL's low-level `Timer` calls did
+/// (`timer/low_level.rs`: `set_counting_mode(EdgeAlignedUp)` 702-712,
+/// `set_output_compare_mode(PwmMode1)` 778-783 and `set_output_compare_preload` 1014-1019 on
+/// channels 1 and 2, `set_autoreload_preload` 572-574, `generate_update_event` 428-432,
+/// `start` 419-421, then `set_compare_value(0)` 803-812 and `enable_channel` 793-795 on both),
+/// written once on the general-purpose register block instead of once per timer type (issue
+/// 21: 0.5 KiB less on db-g431, whose four timers each had their own copy). The HAL's calls go
+/// through `TimGp16::from_ptr(T::regs())` for every timer of the tables too (`regs_gp16`,
+/// 692-694; TIM15 and TIM1 implement `GeneralInstance4Channel`, `timer/mod.rs` 326-381), and
+/// TIM2's 32-bit CCRx take the same 0. The timer is fresh from `Timer::new` (enabled and
+/// reset, so stopped, as the HAL's `set_counting_mode` asserts).
+#[allow(unsafe_code)]
+pub fn start_pwm(core: pac::timer::TimCore) {
+    use embassy_stm32::timer::low_level::{CountingMode, OutputCompareMode};
+    use pac::timer::vals::Urs;
+    // SAFETY: the register block of a timer the caller owns, as the HAL's `regs_gp16`.
+    let t = unsafe { pac::timer::TimGp16::from_ptr(core.as_ptr()) };
+    let (cms, dir) = CountingMode::EdgeAlignedUp.into();
+    t.cr1().modify(|w| {
+        w.set_dir(dir);
+        w.set_cms(cms);
+    });
+    t.ccmr_output(0).modify(|w| {
+        for ch in 0..2 {
+            w.set_ocm(ch, OutputCompareMode::PwmMode1.into());
+            w.set_ocpe(ch, true);
+        }
+    });
+    t.cr1().modify(|w| w.set_arpe(true));
+    // Loads the preloaded registers.
+    t.cr1().modify(|w| w.set_urs(Urs::COUNTER_ONLY));
+    t.egr().write(|w| w.set_ug(true));
+    t.cr1().modify(|w| w.set_urs(Urs::ANY_EVENT));
+    t.cr1().modify(|w| w.set_cen(true));
+    for ch in 0..2 {
+        t.ccr(ch).write_value(pac::timer::regs::Ccr1ch(0));
+    }
+    t.ccer().modify(|w| {
+        w.set_cce(0, true);
+        w.set_cce(1, true);
+    });
+}
+
+/// Writes compare value `c` of channel 1 (`Pin::A`) or 2 (`Pin::B`): the HAL's
+/// `set_compare_value` (`timer/low_level.rs` 803-812, a 32-bit write of CCRx through the
+/// general-purpose register block), once for every timer type.
+#[allow(unsafe_code)]
+pub fn set_compare(core: pac::timer::TimCore, pin: Pin, c: u32) {
+    // SAFETY: the register block of a timer the caller owns, as the HAL's `regs_gp16`.
+    let t = unsafe { pac::timer::TimGp16::from_ptr(core.as_ptr()) };
+    t.ccr(pin.index()).write_value(pac::timer::regs::Ccr1ch(c));
 }
 
 /// A digital pin as an input with pull-down.

@@ -152,8 +152,9 @@ const DB_BUDGET: Budget = Budget {
 };
 
 /// The motherboard images' flash budgets: their sizes when last set, plus about 0.5 to 1 KiB,
-/// rounded up to 256 B (panic-probe prints each panic's location, whose file path holds
-/// cargo's registry path: it differs with `CARGO_HOME`). Set after issue 12's size work
+/// rounded up to 256 B (when they were set, panic-probe printed each panic's location, whose
+/// file path holds cargo's registry path: it differs with `CARGO_HOME`; the panic handler of
+/// `x10_boards::watchdog` that replaced it prints no location). Set after issue 12's size work
 /// (mb-pico 68 340 B, mb-g431 64 972 B), raised for issues 21 and 22 (the boot event's check
 /// and reset reason, keepalive retries, deferred requests held after a lost `pending`, the
 /// per-board port table, the internal board read back, the Pico adapter's line watch, the
