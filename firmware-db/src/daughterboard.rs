@@ -401,27 +401,23 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         check: Check,
     ) -> Vec<u8, REPLY_BUF_LEN> {
         let mut buf = [0u8; REPLY_BUF_LEN];
-        let emit = |r: &Reply<'_>, buf: &mut [u8]| {
-            let addr = self.config.address;
-            match check {
-                Check::None => r.emit(buf),
-                Check::ByLength => r.emit_with_pec(addr, buf),
-                Check::Crc16 => r
-                    .emit(buf)
-                    .and_then(|n| pec::append16(addr.addr_byte(true), buf, n)),
-            }
-        };
         let reply = Reply {
             seq,
             status,
             payload: value,
         };
-        let len = match emit(&reply, &mut buf) {
-            Ok(n) => n,
-            // A value never exceeds MAX_PAYLOAD (it is a Vec of that capacity), so this is
-            // unreachable; answer bad_length rather than nothing.
-            Err(_) => emit(&Reply::status_only(seq, Status::BadLength), &mut buf).unwrap_or(0),
-        };
+        // A value never exceeds MAX_PAYLOAD (it is a Vec of that capacity) and the buffer has
+        // room for the longest reply and its check, so neither step fails; if one did, the
+        // answer would be empty (padding, which the MB refuses).
+        let addr = self.config.address.addr_byte(true);
+        let len = reply
+            .emit(&mut buf)
+            .and_then(|n| match check {
+                Check::None => Ok(n),
+                Check::ByLength => pec::append(addr, &mut buf, n),
+                Check::Crc16 => pec::append16(addr, &mut buf, n),
+            })
+            .unwrap_or(0);
         let mut out = Vec::new();
         let _ = out.extend_from_slice(buf.get(..len).unwrap_or(&[]));
         out
