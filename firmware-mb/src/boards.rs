@@ -4,8 +4,13 @@
 //! once the board confirmed it ([`pec_change`], [`failsafe_change`]). Pure bookkeeping, one
 //! entry per 7-bit address; the dispatcher and the internal worker act on it.
 
+use heapless::Vec;
 use x10_hal::time::Instant;
-use x10_microcode::{Address, Identity, Op, PortKind};
+use x10_microcode::{Address, EventConfig, Identity, Op, PinRef, PortKind};
+
+/// Event enables the motherboard remembers, to set them again on a board that restarted
+/// (all boards together).
+pub const REMEMBERED_ENABLES: usize = 16;
 
 use crate::board_set::{board_index, BoardSet, BOARDS};
 use crate::keepalive::Keepalives;
@@ -29,6 +34,9 @@ pub(crate) struct Boards {
     ports: [u8; BOARDS],
     /// Boards whose port counts are known.
     ports_known: BoardSet,
+    /// The event enables boards confirmed (board, pin, configuration), set again after a
+    /// board restarts (with the safe defaults, as part of its preparation).
+    enables: Vec<(Address, PinRef, EventConfig), REMEMBERED_ENABLES>,
 }
 
 impl Boards {
@@ -41,7 +49,29 @@ impl Boards {
             keepalive_changed: false,
             ports: [0; BOARDS],
             ports_known: BoardSet::new(),
+            enables: Vec::new(),
         }
+    }
+
+    /// `board` confirmed `event_enable(pin, cfg)`: remembered (replacing the pin's previous
+    /// one; an enable of nothing forgets it). False when no room was left to remember it.
+    pub(crate) fn enabled(&mut self, board: Address, pin: PinRef, cfg: EventConfig) -> bool {
+        self.enables.retain(|&(b, p, _)| !(b == board && p == pin));
+        if cfg == EventConfig::OFF {
+            return true;
+        }
+        self.enables.push((board, pin, cfg)).is_ok()
+    }
+
+    /// The event enables remembered for `board`.
+    pub(crate) fn enables_of(
+        &self,
+        board: Address,
+    ) -> impl Iterator<Item = (PinRef, EventConfig)> + '_ {
+        self.enables
+            .iter()
+            .filter(move |e| e.0 == board)
+            .map(|&(_, p, c)| (p, c))
     }
 
     /// `board` described itself (its `boot` event, an `identify` reply): its port counts.

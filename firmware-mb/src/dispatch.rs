@@ -13,7 +13,7 @@ use x10_hal::retry::Backoff;
 use x10_hal::time::Instant;
 use x10_microcode::{Address, Op, Request, Status, MAX_FRAME_LEN, REPLY_HEADER_LEN};
 
-use crate::boards::pec_change;
+use crate::boards::{pec_change, REMEMBERED_ENABLES};
 use crate::diag::bump;
 use crate::jobs::Job;
 use crate::keepalive::{KeepaliveOp, Next};
@@ -408,6 +408,21 @@ impl MbCore {
         // Its ports, unless its boot event told them: nothing to a port it lacks goes out.
         if !self.with(|t| t.boards.ports_known(db)) {
             self.setup_op(bus, db, Op::Identify, seed, rx).await?;
+        }
+        // The event enables it confirmed before it restarted: its pins report again, so a
+        // task waiting for a button is not left waiting for good by a board's reset.
+        let mut enables: Vec<
+            (x10_microcode::PinRef, x10_microcode::EventConfig),
+            REMEMBERED_ENABLES,
+        > = Vec::new();
+        self.with(|t| {
+            for e in t.boards.enables_of(db) {
+                let _ = enables.push(e);
+            }
+        });
+        for (pin, cfg) in enables {
+            self.setup_op(bus, db, Op::EventEnable(pin, cfg), seed, rx)
+                .await?;
         }
         Ok(())
     }

@@ -58,6 +58,14 @@ impl MbCore {
                     let (outcome, state) = self.interpret(meta, pec, &op, read);
                     self.board_pec_is(meta.db, state);
                     match (op, &outcome) {
+                        (Op::EventEnable(pin, cfg), Outcome::Complete(Ok(_))) => {
+                            self.with(|t| {
+                                if !t.boards.enabled(meta.db, pin, cfg) {
+                                    warn!("no room to remember an event enable");
+                                }
+                            });
+                            outcome
+                        }
                         (Op::Identify, Outcome::Complete(Ok(p))) => {
                             if let Ok(id) = x10_microcode::Identity::parse(p) {
                                 self.with(|t| t.boards.identified(meta.db, &id));

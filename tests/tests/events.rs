@@ -178,3 +178,46 @@ fn a_task_that_waits_later_gets_the_event_held_for_one_that_moved_on() {
     assert_eq!((seen[0].0, seen[0].1), ("once", 1));
     assert_eq!(seen[1], ("later", 0, 200));
 }
+
+/// A board that restarts forgets its event enables; with the safe defaults the motherboard
+/// sets them again when it prepares the board after its boot, so a task waiting for a button
+/// keeps getting its presses (before: none after the reset, for good).
+#[test]
+fn event_enables_are_set_again_after_a_board_restarts() {
+    use x10_microcode::{EventConfig, Op, Pin, Port};
+    let world = World::new().board(Board::new(9, 2, 2)).device(
+        Device::button("button", 9, 1, Pin::A)
+            .pressed_at_ms(100, 20)
+            .pressed_at_ms(600, 20),
+    );
+    let pin = Port::sensor(1).unwrap().pin(Pin::A);
+    let db = Address::new(9).unwrap();
+    let seen: Rc<RefCell<Vec<u8>>> = Rc::default();
+    let log = seen.clone();
+    let config = SimConfig {
+        duration_ms: 900,
+        ..SimConfig::default()
+    };
+    world
+        .sim(config)
+        .unwrap()
+        .reset_at("db09", 300, 5)
+        .with_robot("buttons", move |x10: X10| async move {
+            let both = EventConfig {
+                rising: true,
+                falling: true,
+                ..EventConfig::OFF
+            };
+            x10.call(db, Op::EventEnable(pin, both)).await?;
+            loop {
+                let ev = x10.wait_event(db, pin).await?;
+                log.borrow_mut().push(ev.value[0]);
+            }
+            #[allow(unreachable_code)]
+            Ok::<(), x10_devices::LinkError>(())
+        })
+        .run()
+        .unwrap();
+    // Pressed and released before the reset at 300 ms, and again at 600 ms after it.
+    assert_eq!(*seen.borrow(), [1, 0, 1, 0]);
+}
