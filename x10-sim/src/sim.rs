@@ -727,6 +727,12 @@ impl Sim {
             )
         }));
         lines.extend(log.changes().iter().map(trace::change_line));
+        let device_warnings = log.device_warnings();
+        lines.extend(
+            device_warnings
+                .iter()
+                .map(|w| TraceLine::new(w.t_ns, Severity::Warn, w.board.clone(), w.text.clone())),
+        );
         let calls = tracer.lines.lock().map(|mut l| std::mem::take(&mut *l));
         let mut calls = calls.unwrap_or_default();
         let mut notes = notes.lines();
@@ -770,7 +776,7 @@ impl Sim {
                 .collect(),
             board_addresses,
             task_errors,
-            device_warnings: Vec::new(),
+            device_warnings: device_warnings.into_iter().map(|w| w.text).collect(),
         })
     }
 }
