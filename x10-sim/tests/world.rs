@@ -344,14 +344,14 @@ fn a_ticker_burst_of_ultrasonic_reads_gets_no_echo_and_a_warning() {
     // After the pause, the ticker's catch-up fires reads back to back: the HC-SR04 ignores
     // the triggers closer than 60 ms to its last measurement (no echo), and the run warns.
     let burst = run(true);
-    // The burst: a read answered, the next 3.966 ms later ignored (it waits out its 30 ms
-    // pulse-in timeout), the next 34.633 ms after the answered one ignored too, the next
+    // The burst: a read answered, the next 4.104 ms later ignored (it waits out its 30 ms
+    // pulse-in timeout), the next 35.001 ms after the answered one ignored too, the next
     // answered; four times over, then the ticks are caught up.
     let ignored = |ms: &str| {
         format!("ultrasonic on S1.B: measurement {ms} ms after the last one, under the part's 60 ms minimum: no echo")
     };
     let want: Vec<String> = (0..4)
-        .flat_map(|_| [ignored("3.966"), ignored("34.633")])
+        .flat_map(|_| [ignored("4.104"), ignored("35.001")])
         .collect();
     assert_eq!(burst.device_warnings, want);
     let first = &want[0];
