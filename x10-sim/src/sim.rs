@@ -378,8 +378,13 @@ impl SimOutcome {
             })
             .count();
         if failed > 0 {
+            let noun = if failed == 1 {
+                "transaction"
+            } else {
+                "transactions"
+            };
             out.push(format!(
-                "{failed} bus transactions failed (NACK, timeout or bus fault) with no injected fault or board reset to explain them"
+                "{failed} bus {noun} failed (NACK, timeout or bus fault) with no injected fault or board reset to explain them"
             ));
         }
         out
@@ -846,6 +851,61 @@ mod tests {
         assert_eq!(
             err.as_deref(),
             Some("bad simulation setup: no board called db42 to reset")
+        );
+    }
+
+    #[test]
+    fn failed_transactions_are_a_problem_unless_a_fault_or_a_reset_explains_them() {
+        use crate::bus::{Outcome, WireSym};
+        let sim = Sim::new(SimConfig {
+            duration_ms: 10,
+            ..SimConfig::default()
+        });
+        let ports = sim.ports("db09", 1, 1);
+        let mut o = sim.with_board(addr(9), ports).run().unwrap();
+        assert_eq!(o.board_addresses, [0, 9]);
+        assert_eq!(o.problems("w.toml"), Vec::<String>::new());
+        let nack = |target: Option<NodeId>, addr: u8, faults: Vec<String>| BusRecord {
+            txn: 0,
+            start_ns: 0,
+            end_ns: 1,
+            master: 0,
+            addr,
+            target,
+            written: vec![0x12],
+            received: vec![],
+            is_read: false,
+            read: vec![],
+            outcome: Outcome::Nack { byte: 1 },
+            losers: vec![],
+            stretch_ns: 0,
+            faults,
+            wire: vec![(0, WireSym::Start)],
+        };
+        // Explained: an injected fault; nobody at an address no board has (the program's
+        // call to it is its own problem).
+        o.records = vec![
+            nack(Some(1), 9, vec!["flip".to_string()]),
+            nack(None, 0x0a, vec![]),
+        ];
+        assert_eq!(o.problems("w.toml"), Vec::<String>::new());
+        // Unexplained: a board that NACKs a byte; a board that does not answer, no reset.
+        o.records = vec![nack(Some(1), 9, vec![]), nack(None, 9, vec![])];
+        assert_eq!(
+            o.problems("w.toml"),
+            ["2 bus transactions failed (NACK, timeout or bus fault) with no injected fault or board reset to explain them"]
+        );
+        // A board that was reset does not answer while it is down.
+        o.bus.resets = 1;
+        assert_eq!(o.problems("w.toml").len(), 1);
+        o.records.truncate(1);
+        o.unknown_boards = vec![0x0a];
+        assert_eq!(
+            o.problems("w.toml"),
+            [
+                "the program called board 0x0a, which is not in w.toml (boards: SELF, 0x09)",
+                "1 bus transaction failed (NACK, timeout or bus fault) with no injected fault or board reset to explain them"
+            ]
         );
     }
 
