@@ -60,6 +60,10 @@ cp -r "$root"/templates/shared/. .
 cargo sim | tee "$work/shared.out"
 grep -q "reverse 50 %" "$work/shared.out"
 cargo test
+# Its images spawn the two tasks (a few seconds each: the dependencies are built above).
+cargo build --release --target thumbv6m-none-eabi --features rp2040 --bin mb-pico
+cargo build --release --target thumbv7em-none-eabihf --features stm32g431 --bin mb-g431
+cargo clippy --all-targets -- -D warnings
 # The same test binary 20 times in a row: each test's simulation has its statics to itself.
 bin=$(cargo test --no-run 2>&1 | sed -n 's/.*Executable tests\/sim.rs (\(.*\))$/\1/p')
 test -x "$bin"
