@@ -90,6 +90,20 @@ fn every_command_of_the_guide_is_run_by_ci() {
 }
 
 #[test]
+fn the_shared_robots_images_are_the_templates_with_its_tasks() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../templates");
+    for bin in ["src/bin/mb-pico.rs", "src/bin/mb-g431.rs"] {
+        let template = std::fs::read_to_string(root.join("robot").join(bin)).unwrap();
+        let shared = std::fs::read_to_string(root.join("shared").join(bin)).unwrap();
+        assert_eq!(
+            shared,
+            template.replace("blink", "bumper"),
+            "templates/shared/{bin}"
+        );
+    }
+}
+
+#[test]
 fn the_template_is_what_x10_new_writes() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../templates/robot");
     for (rel, text) in x10_cli::new::TEMPLATE {

@@ -8,7 +8,8 @@ use embassy_executor::Spawner;
 use x10::{MbConfig, X10};
 use x10_boards::g431::{init, start_motherboard};
 use x10_boards::start::MB_ADDRESS;
-use {defmt_rtt as _, panic_probe as _};
+// The panic and HardFault handlers and the watchdog come with x10-boards (`x10_boards::watchdog`).
+use defmt_rtt as _;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
