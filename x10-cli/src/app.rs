@@ -70,9 +70,10 @@ struct Cli {
 
 /// The `main` of a robot crate's simulator command: parses the command line
 /// ([`RunArgs`]), loads the world (`world_file`, relative to the crate, unless `--world`
-/// names another), adds the robot tasks with `robots`, runs and prints.
+/// names another), adds the robot tasks with `robots`, runs and prints. Exits non-zero when
+/// the run went wrong ([`SimOutcome::problems`]).
 pub fn main(world_file: &str, robots: impl FnOnce(Sim) -> Sim) -> ExitCode {
-    let cli = Cli::parse();
+    let cli = Cli::parse_from(without_separator(std::env::args_os()));
     let default = Path::new(world_file);
     let path = cli
         .run
@@ -87,7 +88,23 @@ pub fn main(world_file: &str, robots: impl FnOnce(Sim) -> Sim) -> ExitCode {
         }
     };
     let title = format!("the robot against {}", path.display());
-    run(&cli.run, &world, robots, &title)
+    run(
+        &cli.run,
+        &world,
+        robots,
+        &title,
+        &path.display().to_string(),
+    )
+}
+
+/// The arguments without a `--` right after the program's name: `cargo sim -- --trace`
+/// (cargo's own form, the `sim` alias already ends in `--`) means `cargo sim --trace`.
+pub fn without_separator<T: PartialEq<&'static str>>(args: impl IntoIterator<Item = T>) -> Vec<T> {
+    let mut args: Vec<T> = args.into_iter().collect();
+    if args.len() > 1 && args[1] == "--" {
+        args.remove(1);
+    }
+    args
 }
 
 /// The simulation configuration of `args`.
@@ -103,12 +120,15 @@ pub fn config(args: &RunArgs) -> SimConfig {
 }
 
 /// Runs `robots` against `world` as `args` say and prints a header line naming the run
-/// (`title`), then the summary or the trace; writes the files asked for.
+/// (`title`), then the summary or the trace; writes the files asked for. When the run went
+/// wrong ([`SimOutcome::problems`], `world_label` naming the world in them), the first lines
+/// say what (`error: …`) and the exit code is 1.
 pub fn run(
     args: &RunArgs,
     world: &World,
     robots: impl FnOnce(Sim) -> Sim,
     title: &str,
+    world_label: &str,
 ) -> ExitCode {
     let sim = match world.sim(config(args)) {
         Ok(s) => s,
@@ -127,17 +147,24 @@ pub fn run(
     if let Err(code) = write_files(args, world, &outcome, title) {
         return code;
     }
-    let mut text = format!(
+    let problems = outcome.problems(world_label);
+    let mut text: String = problems.iter().map(|p| format!("error: {p}\n")).collect();
+    text.push_str(&format!(
         "# {title} (--seed {} --clock {} --duration-ms {})\n",
         args.seed, args.clock, args.duration_ms
-    );
+    ));
     if args.trace {
         text.push_str(&outcome.trace.render());
         text.push_str(&crate::report::summary(&outcome));
     } else {
         text.push_str(&timeline::summary(world, &outcome));
     }
-    write_out(&text)
+    let printed = write_out(&text);
+    if problems.is_empty() {
+        printed
+    } else {
+        ExitCode::FAILURE
+    }
 }
 
 fn write_files(

@@ -79,7 +79,7 @@ pub fn sim_main(args: SimArgs) -> ExitCode {
         "x10 sim {} against {source}: {}",
         example.name, example.description
     );
-    app::run(&args.run, &world, example.add_tasks, &title)
+    app::run(&args.run, &world, example.add_tasks, &title, &source)
 }
 
 /// `x10 report [--samples N]`: the latency table.

@@ -2,8 +2,11 @@
 //! repository (compiled into the tool, so the template and the tool never disagree).
 //!
 //! The crate depends on the X10 crates by path (nothing is published yet): on this
-//! repository's checkout by default, or on the one `--x10 DIR` names. It gets this
-//! repository's `Cargo.lock`, so it builds with the crate versions X10 is tested with.
+//! repository's checkout by default, or on the one `--x10 DIR` names. The path is relative
+//! (`../x10/x10`, from the crate's folder to the checkout), in `Cargo.toml` and `build.rs`
+//! alike, so both folders can move together (side by side, into another home, a container's
+//! mount). It gets this repository's `Cargo.lock`, so it builds with the crate versions X10 is
+//! tested with.
 
 use std::fmt;
 use std::fs;
@@ -122,8 +125,30 @@ pub fn fill(text: &str, name: &str, x10: &Path) -> String {
     text.replace("{{name}}", name).replace("{{x10}}", &x10)
 }
 
+/// The path from folder `from` to `to`, both absolute (`..` up to their common folder, then
+/// down); `to` itself when they share nothing (another drive on Windows).
+pub fn relative(from: &Path, to: &Path) -> PathBuf {
+    let (f, t): (Vec<_>, Vec<_>) = (from.components().collect(), to.components().collect());
+    let common = f.iter().zip(&t).take_while(|(a, b)| a == b).count();
+    if common == 0 {
+        return to.to_path_buf();
+    }
+    let mut out = PathBuf::new();
+    for _ in common..f.len() {
+        out.push("..");
+    }
+    for c in &t[common..] {
+        out.push(c);
+    }
+    if out.as_os_str().is_empty() {
+        out.push(".");
+    }
+    out
+}
+
 /// Writes the new crate `name` into `dir` (created if missing, must be empty), depending on
-/// the X10 checkout `x10`. Returns the files written.
+/// the X10 checkout `x10` by a path relative to `dir` ([`relative`]). Returns the files
+/// written.
 ///
 /// # Errors
 /// [`NewError`]: nothing is written when `dir` is not empty or `x10` is not a checkout.
@@ -140,13 +165,20 @@ pub fn create(dir: &Path, name: &str, x10: &Path) -> Result<Vec<PathBuf>, NewErr
         }
     }
     let io = |p: &Path, e: std::io::Error| NewError::Io(p.to_path_buf(), e.to_string());
+    fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+    let (here, there) = (dir.canonicalize(), x10.canonicalize());
+    let (here, there) = (
+        here.map_err(|e| io(dir, e))?,
+        there.map_err(|e| io(x10, e))?,
+    );
+    let from_crate = relative(&here, &there);
     let mut written = Vec::new();
     for (rel, text) in TEMPLATE {
         let path = dir.join(rel);
         if let Some(parent) = path.parent() {
             fs::create_dir_all(parent).map_err(|e| io(parent, e))?;
         }
-        fs::write(&path, fill(text, name, x10)).map_err(|e| io(&path, e))?;
+        fs::write(&path, fill(text, name, &from_crate)).map_err(|e| io(&path, e))?;
         written.push(path);
     }
     // The versions X10 is tested with (cargo drops what the new crate does not use).
@@ -188,6 +220,15 @@ mod tests {
     }
 
     #[test]
+    fn relative_paths_between_folders() {
+        let r = |a: &str, b: &str| relative(Path::new(a), Path::new(b));
+        assert_eq!(r("/w/my-robot", "/w/x10"), Path::new("../x10"));
+        assert_eq!(r("/w/x10/robots/mine", "/w/x10"), Path::new("../.."));
+        assert_eq!(r("/home/a/r", "/w/x10"), Path::new("../../../w/x10"));
+        assert_eq!(r("/w/x10", "/w/x10"), Path::new("."));
+    }
+
+    #[test]
     fn a_crate_is_written_once_and_never_over_another() {
         let base = std::env::temp_dir().join(format!("x10-new-test-{}", std::process::id()));
         let _ = fs::remove_dir_all(&base);
@@ -196,6 +237,17 @@ mod tests {
         assert_eq!(written.len(), TEMPLATE.len() + 1);
         assert!(dir.join("src/lib.rs").is_file());
         assert!(dir.join("Cargo.lock").is_file());
+        // Relative paths: no absolute path of the checkout in Cargo.toml or build.rs.
+        let up = relative(&dir.canonicalize().unwrap(), &own_checkout());
+        assert!(up.is_relative() && up.starts_with(".."), "{}", up.display());
+        let cargo = fs::read_to_string(dir.join("Cargo.toml")).unwrap();
+        let want = format!("x10 = {{ path = \"{}/x10\" }}", up.display());
+        assert!(cargo.contains(&want), "{want} not in Cargo.toml");
+        let build = fs::read_to_string(dir.join("build.rs")).unwrap();
+        let want = format!("include!(\"{}/x10-boards/link_args.rs\");", up.display());
+        assert!(build.contains(&want), "{want} not in build.rs");
+        let checkout = format!("\"{}", own_checkout().display());
+        assert!(!cargo.contains(&checkout) && !build.contains(&checkout));
         assert_eq!(
             create(&dir, "rover", &own_checkout()),
             Err(NewError::NotEmpty(dir.clone()))

@@ -52,7 +52,55 @@ fn every_rust_and_toml_block_is_a_template_file_word_for_word() {
         );
         checked += 1;
     }
-    assert_eq!(checked, 5);
+    assert_eq!(checked, 8);
+}
+
+/// Commands of the guide that CI cannot run: they flash a board through a probe (their build
+/// is the guide's `cargo build --release …` lines, which CI runs).
+const FLASHING: [&str; 2] = ["cargo mb-pico", "cargo mb-g431"];
+
+#[test]
+fn every_command_of_the_guide_is_run_by_ci() {
+    let script = include_str!("../../templates/check.sh");
+    let mut checked = 0;
+    for (_, lang, text) in blocks() {
+        if lang != "sh" {
+            continue;
+        }
+        for line in text.lines() {
+            // The command without its comment; `cd` only moves (check.sh has its own).
+            let command = line.split(" #").next().unwrap_or("").trim();
+            if command.is_empty() || command.starts_with("cd ") || FLASHING.contains(&command) {
+                continue;
+            }
+            // The guide's folders are check.sh's: the new crate and this checkout.
+            let run = command
+                .replace("../my-robot", "\"$dir\"")
+                .replace("../x10/", "\"$root\"/");
+            assert!(
+                script.lines().any(|l| l.trim() == run
+                    || l.trim().starts_with(&format!("{run} |"))
+                    || l.trim().starts_with(&format!("(cd \"$root\" && {run})"))),
+                "the guide's `{command}` is not run by templates/check.sh (as `{run}`)"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 13);
+}
+
+#[test]
+fn the_shared_robots_images_are_the_templates_with_its_tasks() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../templates");
+    for bin in ["src/bin/mb-pico.rs", "src/bin/mb-g431.rs"] {
+        let template = std::fs::read_to_string(root.join("robot").join(bin)).unwrap();
+        let shared = std::fs::read_to_string(root.join("shared").join(bin)).unwrap();
+        assert_eq!(
+            shared,
+            template.replace("blink", "bumper"),
+            "templates/shared/{bin}"
+        );
+    }
 }
 
 #[test]

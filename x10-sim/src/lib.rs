@@ -22,11 +22,15 @@
 //! * [`world`]: the boards, devices and scripted signals a program runs against, from a
 //!   builder or a TOML file; [`timeline`]: what each device did over a run, as a short
 //!   summary, an SVG or an HTML page.
+//! * [`isolated`]: runs a test's simulation in a process of its own, so the statics a robot
+//!   program shares between its tasks (embassy-sync `Mutex`, `Signal`, `StaticCell`, …) are
+//!   that simulation's own.
 //! * [`examples`]: the example robots of `x10-robots` by name, with their worlds.
 pub mod board;
 pub mod bus;
 pub mod examples;
 pub mod exec;
+pub mod isolate;
 pub mod ports;
 
 pub mod sim;
@@ -35,3 +39,5 @@ pub mod timing;
 pub mod trace;
 pub mod vcd;
 pub mod world;
+
+pub use isolate::isolated;

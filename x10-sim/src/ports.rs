@@ -139,12 +139,17 @@ pub enum Digital {
     ///
     /// Only pulse-in sees the echo: a digital read of the pin reads low. A pulse-in that
     /// starts after the echo has risen (or with no trigger pulse before it) misses it and
-    /// times out, as `pulseIn` does on a board.
+    /// times out, as `pulseIn` does on a board. A measurement that starts less than
+    /// `min_interval_us` after the last one the part answered gets no echo either (an HC-SR04
+    /// ignores a trigger while its last ping may still echo), and the run warns
+    /// ([`ActuatorLog::device_warnings`]).
     Echo {
         /// The trigger pin of the same port, if any.
         trigger: Option<Pin>,
         /// From the trigger's falling edge (or the start of the pulse-in) to the echo, in µs.
         delay_us: u64,
+        /// The shortest time between two measurements the part answers, µs (0: any rate).
+        min_interval_us: u64,
         /// Echo width in µs, as a function of the time the echo starts.
         width_us: Analog,
     },
@@ -377,6 +382,7 @@ pub struct ActuatorLog {
     changes: Rc<RefCell<Vec<OutputChange>>>,
     safe: Rc<RefCell<Vec<SafeStateApplied>>>,
     latches: Rc<RefCell<Vec<EdgeLatch>>>,
+    warnings: Rc<RefCell<Vec<DeviceWarning>>>,
 }
 
 /// The firmware started latching a pin's edges ([`Ports::latch_edges`]: the counts start from
@@ -389,6 +395,18 @@ pub struct EdgeLatch {
     pub board: String,
     /// The pin.
     pub pin: PinRef,
+}
+
+/// A documented limit of a device model that the program broke (a measurement sooner than
+/// the part allows): the run's summary lists it with the warnings.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeviceWarning {
+    /// When (ns).
+    pub t_ns: Nanos,
+    /// The board of the device's port.
+    pub board: String,
+    /// What happened and what the part did.
+    pub text: String,
 }
 
 impl ActuatorLog {
@@ -411,6 +429,11 @@ impl ActuatorLog {
     /// in time order.
     pub fn latches(&self) -> Vec<EdgeLatch> {
         self.latches.borrow().clone()
+    }
+
+    /// Every device warning so far, in time order.
+    pub fn device_warnings(&self) -> Vec<DeviceWarning> {
+        self.warnings.borrow().clone()
     }
 
     /// All changes so far, in time order.
@@ -486,6 +509,8 @@ struct State {
     sensor_out: Vec<[Option<Level>; 2]>,
     actuators: Vec<ActuatorState>,
     busy: Vec<PinRef>,
+    /// Echo pins with the start of the last measurement their part answered.
+    pings: Vec<(PinRef, Nanos)>,
     /// Pins whose edges are latched, with the instant of the last take (edges after it are
     /// counted by the next take).
     latched: Vec<(PinRef, Nanos)>,
@@ -499,6 +524,7 @@ impl State {
             sensor_out: vec![[None, None]; sensors],
             actuators: vec![ActuatorState::default(); actuators],
             busy: Vec::new(),
+            pings: Vec::new(),
             latched: Vec::new(),
         }
     }
@@ -690,6 +716,7 @@ impl SimPorts {
         pin: PinRef,
         trigger: Option<Pin>,
         delay_us: u64,
+        min_interval_us: u64,
         width_us: &Analog,
     ) -> Option<(Nanos, Nanos)> {
         let now = self.clock.now_ns();
@@ -711,6 +738,35 @@ impl SimPorts {
                 fall?
             }
         };
+        // A new measurement (not a second pulse-in on the last trigger) too soon after the
+        // last one the part answered: no echo.
+        let last = self
+            .state
+            .borrow()
+            .pings
+            .iter()
+            .find(|(p, _)| *p == pin)
+            .map(|(_, t)| *t);
+        let min_ns = min_interval_us.saturating_mul(1_000);
+        if let Some(last) = last.filter(|&l| from > l && from - l < min_ns) {
+            let gap_us = (from - last) / 1_000;
+            self.log.warnings.borrow_mut().push(DeviceWarning {
+                t_ns: from,
+                board: self.board.clone(),
+                text: format!(
+                    "ultrasonic on {pin}: measurement {}.{:03} ms after the last one, under the part's {} ms minimum: no echo",
+                    gap_us / 1_000,
+                    gap_us % 1_000,
+                    min_interval_us / 1_000
+                ),
+            });
+            return None;
+        }
+        {
+            let mut state = self.state.borrow_mut();
+            state.pings.retain(|(p, _)| *p != pin);
+            state.pings.push((pin, from));
+        }
         let start = from.saturating_add(delay_us.saturating_mul(1_000));
         let width = u64::from(width_us.value_at(start)) * 1_000;
         (start >= now && width > 0).then(|| (start, start + width))
@@ -871,10 +927,11 @@ impl Ports for SimPorts {
         if let Digital::Echo {
             trigger,
             delay_us,
+            min_interval_us,
             width_us,
         } = &signal
         {
-            let echo = self.echo(pin, *trigger, *delay_us, width_us);
+            let echo = self.echo(pin, *trigger, *delay_us, *min_interval_us, width_us);
             let result = match echo {
                 // Only a rising-edge pulse-in that starts before the echo rises sees it whole.
                 Some((start, end)) if start_level && end <= deadline => {
@@ -1171,11 +1228,65 @@ mod tests {
     }
 
     #[test]
+    fn an_echo_pin_ignores_a_trigger_sooner_than_its_minimum_interval_and_warns() {
+        let clock = SimClock::new();
+        let log = ActuatorLog::new();
+        let ports = SimPorts::new("db09", clock.clone(), log.clone(), 1, 0).with_sensor(
+            1,
+            SensorScript {
+                b: Digital::Echo {
+                    trigger: Some(Pin::A),
+                    delay_us: 500,
+                    min_interval_us: 60_000,
+                    width_us: Analog::Const(1_000),
+                },
+                ..SensorScript::default()
+            },
+        );
+        let out = RefCell::new(Vec::new());
+        let mut ex = Executor::with_clock(&clock);
+        let (p, o) = (&ports, &out);
+        let (trig, echo) = (
+            pin(PortKind::Sensor, 1, Pin::A),
+            pin(PortKind::Sensor, 1, Pin::B),
+        );
+        ex.spawn("t", async move {
+            // Triggers ending at 10 ms (answered), 30 ms (20 ms later: ignored), 70 ms (60 ms
+            // after the last answered one: answered).
+            for at_ms in [10, 30, 70] {
+                clock.sleep_until_ns(at_ms * 1_000_000).await;
+                p.digital_write(trig, Level::High).await.unwrap();
+                p.digital_write(trig, Level::Low).await.unwrap();
+                let r = p.pulse_in(echo, Edge::Rising, 5).await;
+                o.borrow_mut().push((clock.now_ns(), r));
+            }
+        });
+        ex.run_until_ns(1_000_000_000).unwrap();
+        assert_eq!(
+            *out.borrow(),
+            vec![
+                (11_500_000, Ok(1_000)),
+                (35_000_000, Err(PortError::Timeout)),
+                (71_500_000, Ok(1_000)),
+            ]
+        );
+        assert_eq!(
+            log.device_warnings(),
+            [DeviceWarning {
+                t_ns: 30_000_000,
+                board: "db09".to_string(),
+                text: "ultrasonic on S1.B: measurement 20.000 ms after the last one, under the part's 60 ms minimum: no echo".to_string(),
+            }]
+        );
+    }
+
+    #[test]
     fn an_echo_pin_answers_its_trigger() {
         let clock = SimClock::new();
         let echo = |trigger| Digital::Echo {
             trigger,
             delay_us: 500,
+            min_interval_us: 0,
             width_us: Analog::Const(1_000),
         };
         let ports = SimPorts::new("db", clock.clone(), ActuatorLog::new(), 2, 0)

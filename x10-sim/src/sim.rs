@@ -225,6 +225,8 @@ pub struct CallSpan {
 struct CallTracer {
     lines: Mutex<Vec<TraceLine>>,
     spans: Mutex<Vec<CallSpan>>,
+    /// The boards the tasks called, each once, in the order of their first call.
+    called: Mutex<Vec<u8>>,
 }
 
 impl CallObserver for CallTracer {
@@ -232,6 +234,11 @@ impl CallObserver for CallTracer {
         let who = current_task().map_or_else(|| "?".to_string(), |n| n.to_string());
         if who == "mb" {
             return;
+        }
+        if let Ok(mut called) = self.called.lock() {
+            if !called.contains(&call.db.get()) {
+                called.push(call.db.get());
+            }
         }
         let took = trace::micros(call.ended.since(call.started).saturating_mul(1_000));
         let (severity, outcome) = match call.result {
@@ -305,6 +312,16 @@ pub struct SimOutcome {
     /// Every call of a robot or test task, in the order they ended (whether or not the trace
     /// keeps them, [`SimConfig::trace_calls`]).
     pub calls: Vec<CallSpan>,
+    /// The addresses of the boards on the bus (the internal board, 0, first).
+    pub board_addresses: Vec<u8>,
+    /// Boards the robot and test tasks called that are not on the bus, in the order of the
+    /// first call.
+    pub unknown_boards: Vec<u8>,
+    /// Robot tasks that ended with an error: (task, the error's text).
+    pub task_errors: Vec<(String, String)>,
+    /// Device warnings: a user's program broke a documented limit of a device model
+    /// (e.g. ultrasonic measurements closer together than the part allows).
+    pub device_warnings: Vec<String>,
 }
 
 impl SimOutcome {
@@ -320,6 +337,57 @@ impl SimOutcome {
             return Some(&self.internal);
         }
         self.boards.iter().find(|(n, _)| n == name).map(|(_, d)| d)
+    }
+
+    /// What went wrong in the run, one sentence each, the worst first: a call to a board the
+    /// world does not have, a robot task that ended with an error, and bus transactions that
+    /// failed (NACK, timeout, bus fault) with no injected fault or board reset to explain
+    /// them. Empty for a correct run; `cargo sim` and `x10 sim` exit non-zero otherwise.
+    /// `world` names the world in the text (`world.toml`).
+    pub fn problems(&self, world: &str) -> Vec<String> {
+        let mut out = Vec::new();
+        let boards: Vec<String> = self
+            .board_addresses
+            .iter()
+            .map(|&a| {
+                if a == 0 {
+                    "SELF".to_string()
+                } else {
+                    format!("{a:#04x}")
+                }
+            })
+            .collect();
+        for a in &self.unknown_boards {
+            out.push(format!(
+                "the program called board {a:#04x}, which is not in {world} (boards: {})",
+                boards.join(", ")
+            ));
+        }
+        for (task, e) in &self.task_errors {
+            out.push(format!("the task {task} ended with an error: {e}"));
+        }
+        let failed = self
+            .records
+            .iter()
+            .filter(|r| r.outcome != crate::bus::Outcome::Ok && r.faults.is_empty())
+            .filter(|r| match r.target {
+                Some(_) => true,
+                // Nobody answered: a board that was down (reset) or one the world lacks
+                // (reported above when the program called it).
+                None => self.bus.resets == 0 && self.board_addresses.contains(&r.addr),
+            })
+            .count();
+        if failed > 0 {
+            let noun = if failed == 1 {
+                "transaction"
+            } else {
+                "transactions"
+            };
+            out.push(format!(
+                "{failed} bus {noun} failed (NACK, timeout or bus fault) with no injected fault or board reset to explain them"
+            ));
+        }
+        out
     }
 }
 
@@ -342,7 +410,11 @@ pub struct Sim {
     tasks: Vec<(String, TaskFn)>,
     resets: Vec<ScheduledReset>,
     mb_stop_ns: Option<Nanos>,
+    task_errors: TaskErrors,
 }
+
+/// The robot tasks that ended with an error: (task, error text).
+type TaskErrors = Rc<std::cell::RefCell<Vec<(String, String)>>>;
 
 impl Sim {
     /// A simulation with a motherboard whose internal board has 2 idle sensor ports and 2
@@ -363,6 +435,7 @@ impl Sim {
             tasks: Vec::new(),
             resets: Vec::new(),
             mb_stop_ns: None,
+            task_errors: TaskErrors::default(),
         }
     }
 
@@ -428,11 +501,15 @@ impl Sim {
         Fut::Output: TaskEnd,
     {
         let who = name.to_string();
+        let errors = self.task_errors.clone();
         let f: RobotFn = Box::new(move |x10, notes, clock| {
             Box::pin(async move {
                 let end = robot(x10).await;
                 let (severity, text) = match end.error() {
-                    Some(e) => (Severity::Warn, format!("ended with an error: {e}")),
+                    Some(e) => {
+                        errors.borrow_mut().push((who.clone(), e.clone()));
+                        (Severity::Warn, format!("ended with an error: {e}"))
+                    }
                     None => (Severity::Info, "ended".to_string()),
                 };
                 notes.push(TraceLine::new(clock.now_ns(), severity, who, text));
@@ -516,7 +593,11 @@ impl Sim {
             tasks,
             resets,
             mb_stop_ns,
+            task_errors,
         } = self;
+        let mut board_addresses = vec![0];
+        board_addresses.extend(boards.iter().map(|b| b.config.address.get()));
+        board_addresses.extend(raw_nodes.iter().filter_map(|n| n.address));
         let mut bus_cfg = BusConfig::new(config.speed);
         bus_cfg.seed = config.seed;
         bus_cfg.faults = config.faults;
@@ -554,6 +635,7 @@ impl Sim {
         let tracer: &'static CallTracer = Box::leak(Box::new(CallTracer {
             lines: Mutex::new(Vec::new()),
             spans: Mutex::new(Vec::new()),
+            called: Mutex::new(Vec::new()),
         }));
         let mb: &'static SimMotherboard = Box::leak(Box::new(
             Motherboard::new(mb_cfg, mb_ports).with_observer(tracer),
@@ -650,12 +732,23 @@ impl Sim {
             )
         }));
         lines.extend(log.changes().iter().map(trace::change_line));
+        let device_warnings = log.device_warnings();
+        lines.extend(
+            device_warnings
+                .iter()
+                .map(|w| TraceLine::new(w.t_ns, Severity::Warn, w.board.clone(), w.text.clone())),
+        );
         let calls = tracer.lines.lock().map(|mut l| std::mem::take(&mut *l));
+        let mut calls = calls.unwrap_or_default();
+        let mut notes = notes.lines();
+        let task_errors = task_errors.take();
+        for (task, e) in &task_errors {
+            once_per_error(task, e, &mut calls, &mut notes);
+        }
         lines.extend(
             notes
-                .lines()
                 .into_iter()
-                .chain(calls.unwrap_or_default())
+                .chain(calls)
                 .filter(|l| config.trace_calls || l.severity >= Severity::Warn),
         );
         trace.extend(lines);
@@ -678,7 +771,42 @@ impl Sim {
                 .lock()
                 .map(|mut s| std::mem::take(&mut *s))
                 .unwrap_or_default(),
+            unknown_boards: tracer
+                .called
+                .lock()
+                .map(|c| c.clone())
+                .unwrap_or_default()
+                .into_iter()
+                .filter(|a| !board_addresses.contains(a))
+                .collect(),
+            board_addresses,
+            task_errors,
+            device_warnings: device_warnings.into_iter().map(|w| w.text).collect(),
         })
+    }
+}
+
+/// A task that ended with error `e` is one warning, not two: when its last call failed (the
+/// cause), that call's line becomes an information line and the task's end line names it.
+fn once_per_error(task: &str, e: &str, calls: &mut [TraceLine], notes: &mut [TraceLine]) {
+    let Some(call) = calls.iter_mut().rev().find(|l| l.source == task) else {
+        return;
+    };
+    if call.severity < Severity::Warn {
+        return;
+    }
+    let end = format!("ended with an error: {e}");
+    if let Some(note) = notes
+        .iter_mut()
+        .rev()
+        .find(|l| l.source == task && l.text == end)
+    {
+        call.severity = Severity::Info;
+        note.text = format!(
+            "{end} (its call at {}: {})",
+            trace::timestamp(call.t_ns),
+            call.text
+        );
     }
 }
 
@@ -723,6 +851,61 @@ mod tests {
         assert_eq!(
             err.as_deref(),
             Some("bad simulation setup: no board called db42 to reset")
+        );
+    }
+
+    #[test]
+    fn failed_transactions_are_a_problem_unless_a_fault_or_a_reset_explains_them() {
+        use crate::bus::{Outcome, WireSym};
+        let sim = Sim::new(SimConfig {
+            duration_ms: 10,
+            ..SimConfig::default()
+        });
+        let ports = sim.ports("db09", 1, 1);
+        let mut o = sim.with_board(addr(9), ports).run().unwrap();
+        assert_eq!(o.board_addresses, [0, 9]);
+        assert_eq!(o.problems("w.toml"), Vec::<String>::new());
+        let nack = |target: Option<NodeId>, addr: u8, faults: Vec<String>| BusRecord {
+            txn: 0,
+            start_ns: 0,
+            end_ns: 1,
+            master: 0,
+            addr,
+            target,
+            written: vec![0x12],
+            received: vec![],
+            is_read: false,
+            read: vec![],
+            outcome: Outcome::Nack { byte: 1 },
+            losers: vec![],
+            stretch_ns: 0,
+            faults,
+            wire: vec![(0, WireSym::Start)],
+        };
+        // Explained: an injected fault; nobody at an address no board has (the program's
+        // call to it is its own problem).
+        o.records = vec![
+            nack(Some(1), 9, vec!["flip".to_string()]),
+            nack(None, 0x0a, vec![]),
+        ];
+        assert_eq!(o.problems("w.toml"), Vec::<String>::new());
+        // Unexplained: a board that NACKs a byte; a board that does not answer, no reset.
+        o.records = vec![nack(Some(1), 9, vec![]), nack(None, 9, vec![])];
+        assert_eq!(
+            o.problems("w.toml"),
+            ["2 bus transactions failed (NACK, timeout or bus fault) with no injected fault or board reset to explain them"]
+        );
+        // A board that was reset does not answer while it is down.
+        o.bus.resets = 1;
+        assert_eq!(o.problems("w.toml").len(), 1);
+        o.records.truncate(1);
+        o.unknown_boards = vec![0x0a];
+        assert_eq!(
+            o.problems("w.toml"),
+            [
+                "the program called board 0x0a, which is not in w.toml (boards: SELF, 0x09)",
+                "1 bus transaction failed (NACK, timeout or bus fault) with no injected fault or board reset to explain them"
+            ]
         );
     }
 

@@ -261,9 +261,11 @@ pub fn bus_lines(rec: &BusRecord, names: &BusNames<'_>) -> Vec<TraceLine> {
         ));
     }
     for l in &rec.losers {
+        // Losing arbitration is the multi-master bus working (the loser retries): not a
+        // warning.
         lines.push(TraceLine::new(
             rec.start_ns,
-            Severity::Warn,
+            Severity::Info,
             names.name(l.node),
             format!(
                 "lost arbitration to {master} at bit {} (wanted {:#04x} {})",
@@ -450,7 +452,7 @@ mod tests {
         let lines = bus_lines(&ev, &n);
         assert_eq!(
             lines[0].to_string(),
-            "0.002345 WARN  mb: lost arbitration to db09 at bit 4 (wanted 0x09 [12])"
+            "0.002345 INFO  mb: lost arbitration to db09 at bit 4 (wanted 0x09 [12])"
         );
         assert_eq!(
             lines[1].to_string(),

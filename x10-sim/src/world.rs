@@ -551,6 +551,7 @@ impl World {
                     let echo = Digital::Echo {
                         trigger: ranger.trigger.filter(|t| *t != ranger.echo),
                         delay_us: u64::from(ranger.echo_delay_us),
+                        min_interval_us: u64::from(ranger.min_interval_ms) * 1_000,
                         width_us: Analog::Func(Rc::new(move |t_us| {
                             echo_width_us(c.value_at_us(t_us), speed)
                         })),

@@ -305,6 +305,63 @@ fn the_ranger_driver_reads_the_scripted_distance() {
     assert_eq!(*got.borrow(), vec![Ok(None)]);
 }
 
+/// Reads the ranger on DB 9 every 100 ms with an embassy `Ticker`, 12 times; with `pause`,
+/// the task is held up for 1 s first (a slow call, a long computation), and the ticker fires
+/// the ticks it missed back to back: a burst of reads.
+async fn sonar_ticker(x10: x10_sim::sim::X10, pause: bool) -> Result<(), x10_devices::Error> {
+    let sonar = Ultrasonic::new(x10, db(9), 1)?;
+    let mut ticker = embassy_time::Ticker::every(embassy_time::Duration::from_millis(100));
+    if pause {
+        embassy_time::Timer::after_millis(1_000).await;
+    }
+    for _ in 0..12 {
+        ticker.next().await;
+        sonar.distance().await?;
+    }
+    Ok(())
+}
+
+#[test]
+fn a_ticker_burst_of_ultrasonic_reads_gets_no_echo_and_a_warning() {
+    let world = World::new()
+        .board(Board::new(9, 2, 2))
+        .device(Device::ultrasonic("sonar", 9, 1).distance_mm(Signal::constant(500.0)));
+    let run = |pause: bool| {
+        world
+            .sim(SimConfig {
+                duration_ms: 2_500,
+                ..SimConfig::default()
+            })
+            .unwrap()
+            .with_robot("sonar", move |x10| sonar_ticker(x10, pause))
+            .run()
+            .unwrap()
+    };
+    // Paced at 100 ms: every read is answered, nothing to warn about.
+    let paced = run(false);
+    assert_eq!(paced.device_warnings, Vec::<String>::new());
+    assert!(summary(&world, &paced).ends_with("warnings and errors: none\n"));
+    // After the pause, the ticker's catch-up fires reads back to back: the HC-SR04 ignores
+    // the triggers closer than 60 ms to its last measurement (no echo), and the run warns.
+    let burst = run(true);
+    // The burst: a read answered, the next 4.104 ms later ignored (it waits out its 30 ms
+    // pulse-in timeout), the next 35.001 ms after the answered one ignored too, the next
+    // answered; four times over, then the ticks are caught up.
+    let ignored = |ms: &str| {
+        format!("ultrasonic on S1.B: measurement {ms} ms after the last one, under the part's 60 ms minimum: no echo")
+    };
+    let want: Vec<String> = (0..4)
+        .flat_map(|_| [ignored("4.104"), ignored("35.001")])
+        .collect();
+    assert_eq!(burst.device_warnings, want);
+    let first = &want[0];
+    let text = summary(&world, &burst);
+    assert!(
+        text.contains(&format!("WARN  db09: {first}")),
+        "the summary lists the warning:\n{text}"
+    );
+}
+
 #[test]
 fn the_thermistor_driver_reads_the_scripted_temperature() {
     let profile = Signal::linear([(0, -20.0), (2_000, 100.0)]);

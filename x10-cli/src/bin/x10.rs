@@ -97,7 +97,7 @@ fn new_main(args: NewArgs) -> ExitCode {
     match new::create(&args.path, &name, &x10) {
         Ok(files) => {
             println!(
-                "Created the robot crate `{name}` in {} ({} files), on the X10 crates in {}.",
+                "Created the robot crate `{name}` in {} ({} files), on the X10 crates in {} (by a relative path: move both folders together).",
                 args.path.display(),
                 files.len(),
                 x10.display()

@@ -17,16 +17,22 @@ pub struct Ranger {
     pub speed_of_sound_m_s: u16,
     /// From the end of the trigger pulse to the start of the echo, µs.
     pub echo_delay_us: u32,
+    /// The shortest time between two measurements the part answers, ms (from one trigger
+    /// pulse's end to the next): a trigger sooner than that gets no echo, and the run warns.
+    pub min_interval_ms: u32,
 }
 
 impl Ranger {
     /// An HC-SR04: trigger on pin A, echo on pin B, sound at 343 m/s, the echo starting
-    /// 500 µs after the trigger pulse (the driver's "about 0.5 ms").
+    /// 500 µs after the trigger pulse (the driver's "about 0.5 ms"), at most one measurement
+    /// every 60 ms (its datasheet: "we suggest to use over 60ms measurement cycle, in order to
+    /// prevent trigger signal to the echo signal").
     pub const HC_SR04: Ranger = Ranger {
         trigger: Some(Pin::A),
         echo: Pin::B,
         speed_of_sound_m_s: 343,
         echo_delay_us: 500,
+        min_interval_ms: 60,
     };
 }
 

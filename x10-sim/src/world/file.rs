@@ -62,6 +62,7 @@ struct RawDevice {
     echo: Option<Spanned<String>>,
     speed_of_sound: Option<Spanned<u16>>,
     echo_delay_us: Option<Spanned<u32>>,
+    min_interval_ms: Option<Spanned<u32>>,
     // Servo range (each field overrides the standard one).
     min_us: Option<Spanned<u16>>,
     max_us: Option<Spanned<u16>>,
@@ -281,6 +282,7 @@ impl RawDevice {
             ("echo", s(&self.echo)),
             ("speed_of_sound", s(&self.speed_of_sound)),
             ("echo_delay_us", s(&self.echo_delay_us)),
+            ("min_interval_ms", s(&self.min_interval_ms)),
             ("min_us", s(&self.min_us)),
             ("max_us", s(&self.max_us)),
             ("max_angle", s(&self.max_angle)),
@@ -315,6 +317,7 @@ fn fields_of(kind: &str) -> &'static [&'static str] {
             "echo",
             "speed_of_sound",
             "echo_delay_us",
+            "min_interval_ms",
         ],
         _ => &[],
     }
@@ -533,6 +536,10 @@ fn device(d: &RawDevice) -> Result<Device, FieldError> {
                         .echo_delay_us
                         .as_ref()
                         .map_or(h.echo_delay_us, |v| *v.get_ref()),
+                    min_interval_ms: d
+                        .min_interval_ms
+                        .as_ref()
+                        .map_or(h.min_interval_ms, |v| *v.get_ref()),
                 },
                 distance_mm: signal("distance_mm", &d.distance_mm)?
                     .unwrap_or(Signal::Const(1_000.0)),

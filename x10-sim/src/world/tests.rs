@@ -284,7 +284,7 @@ fn errors_name_the_line_and_the_field() {
         ),
         (
             "[[device]]\nname = \"m\"\nkind = \"dc_motor\"\nport = \"A1\"\ncolour = \"red\"\n",
-            "line 5: unknown field `colour`, expected one of `name`, `kind`, `board`, `port`, `pin`, `pwm`, `active_low`, `level`, `toggles`, `presses`, `pulses`, `counts`, `celsius`, `distance_mm`, `fixed_ohms`, `adc_bits`, `divider`, `steinhart_hart`, `trigger`, `echo`, `speed_of_sound`, `echo_delay_us`, `min_us`, `max_us`, `max_angle`",
+            "line 5: unknown field `colour`, expected one of `name`, `kind`, `board`, `port`, `pin`, `pwm`, `active_low`, `level`, `toggles`, `presses`, `pulses`, `counts`, `celsius`, `distance_mm`, `fixed_ohms`, `adc_bits`, `divider`, `steinhart_hart`, `trigger`, `echo`, `speed_of_sound`, `echo_delay_us`, `min_interval_ms`, `min_us`, `max_us`, `max_angle`",
         ),
         ("[[device]\nname = 1", "line 1: unclosed array table, expected `]`"),
         (

@@ -1,5 +1,6 @@
 //! `cargo sim`: runs the robot in the simulator against `world.toml` and prints what each
-//! device did (`cargo sim -- --help` for the options: duration, full trace, SVG plot, …).
+//! device did (`cargo sim --help` for the options: duration, full trace, SVG plot, …); exits
+//! 1 when the run went wrong, its first line saying what.
 
 fn main() -> std::process::ExitCode {
     x10_cli::app::main("world.toml", |sim| {
