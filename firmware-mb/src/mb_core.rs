@@ -274,8 +274,7 @@ impl MbCore {
             if t.slot_waiting > 0 {
                 return None;
             }
-            let mut scratch = MbDiagnostics::new();
-            let (ticket, seq) = t.requests.alloc(db, t_now, &mut scratch).ok()?;
+            let (ticket, seq) = t.requests.try_alloc(db, t_now).ok()?;
             bump(&mut t.diag.requests);
             if let Some(s) = self.done.get(ticket.index) {
                 s.reset();
@@ -381,9 +380,8 @@ impl MbCore {
                         t.slot_waiters.register(cx.waker());
                         return Poll::Pending;
                     }
-                    // `alloc` counts into a scratch copy: a wait is counted once, below.
-                    let mut scratch = MbDiagnostics::new();
-                    match t.requests.alloc(db, t_now, &mut scratch) {
+                    // Not counted here: a wait is counted once, below.
+                    match t.requests.try_alloc(db, t_now) {
                         Ok((ticket, seq)) => {
                             bump(&mut t.diag.requests);
                             if let Some(s) = self.done.get(ticket.index) {

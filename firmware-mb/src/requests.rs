@@ -196,15 +196,32 @@ impl Requests {
     /// # Errors
     /// [`LinkError::Busy`] when every slot is in use (abandoned deferred requests included),
     /// or every sequence number of the board.
+    #[cfg(test)]
     pub(crate) fn alloc(
         &mut self,
         board: Address,
         now: Instant,
         diag: &mut MbDiagnostics,
     ) -> Result<(Ticket, u8), LinkError> {
+        let r = self.try_alloc(board, now);
+        bump(match r {
+            Ok(_) => &mut diag.requests,
+            Err(_) => &mut diag.busy,
+        });
+        r
+    }
+
+    /// [`Requests::alloc`] without counting (a caller that waits for a slot counts once).
+    ///
+    /// # Errors
+    /// As [`Requests::alloc`].
+    pub(crate) fn try_alloc(
+        &mut self,
+        board: Address,
+        now: Instant,
+    ) -> Result<(Ticket, u8), LinkError> {
         self.expire_abandoned(now);
         let Some(index) = self.slots.iter().position(|s| s.state == SlotState::Free) else {
-            bump(&mut diag.busy);
             return Err(LinkError::Busy);
         };
         let b = board.get();
@@ -217,7 +234,6 @@ impl Requests {
             candidate = candidate.wrapping_add(1);
             if candidate == start {
                 // All 256 numbers are pending or recently ended.
-                bump(&mut diag.busy);
                 return Err(LinkError::Busy);
             }
         };
@@ -241,7 +257,6 @@ impl Requests {
         if let Some(h) = self.held.get_mut(held_bucket(b, seq)) {
             *h = h.wrapping_add(1);
         }
-        bump(&mut diag.requests);
         Ok((Ticket { index, generation }, seq))
     }
 
