@@ -10,7 +10,7 @@ use x10_microcode::{Address, EventConfig, Identity, Op, PinRef, PortKind};
 
 /// Event enables the motherboard remembers, to set them again on a board that restarted
 /// (all boards together).
-pub const REMEMBERED_ENABLES: usize = 16;
+pub const REMEMBERED_ENABLES: usize = 8;
 
 use crate::board_set::{board_index, BoardSet, BOARDS};
 use crate::keepalive::Keepalives;

@@ -410,17 +410,12 @@ impl MbCore {
             self.setup_op(bus, db, Op::Identify, seed, rx).await?;
         }
         // The event enables it confirmed before it restarted: its pins report again, so a
-        // task waiting for a button is not left waiting for good by a board's reset.
-        let mut enables: Vec<
-            (x10_microcode::PinRef, x10_microcode::EventConfig),
-            REMEMBERED_ENABLES,
-        > = Vec::new();
-        self.with(|t| {
-            for e in t.boards.enables_of(db) {
-                let _ = enables.push(e);
-            }
-        });
-        for (pin, cfg) in enables {
+        // task waiting for a button is not left waiting for good by a board's reset. One at a
+        // time (no copy of the list held across the awaits).
+        for i in 0..REMEMBERED_ENABLES {
+            let Some((pin, cfg)) = self.with(|t| t.boards.enables_of(db).nth(i)) else {
+                break;
+            };
             self.setup_op(bus, db, Op::EventEnable(pin, cfg), seed, rx)
                 .await?;
         }

@@ -39,7 +39,7 @@ pub(crate) struct Table {
 
 /// Callers whose wakers are kept while they wait for a slot; more wake all and register
 /// again (embassy-sync's `MultiWakerRegistration`).
-const SLOT_WAITERS: usize = 8;
+const SLOT_WAITERS: usize = 4;
 
 impl Table {
     pub(crate) const fn new() -> Table {
