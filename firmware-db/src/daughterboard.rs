@@ -172,7 +172,7 @@ struct Head {
     port: u8,
     expects_reply: bool,
     /// The operation's reply length varies (scan, serial read, batch): its reply always ends
-    /// in a CRC-16 when checked (`Reply::emit_for`).
+    /// in a CRC-16 when checked (`pec::append16`).
     crc16_reply: bool,
 }
 

@@ -507,7 +507,7 @@ impl MbCore {
 /// How many bytes to read for a reply to `op` (of up to `capacity` payload bytes): the
 /// header, the payload and, with the check on, the check of the longest such reply (a shorter
 /// reply ends earlier, with its own check; the rest is padding). A reply whose length varies
-/// always ends in a CRC-16 (`Reply::emit_for`).
+/// always ends in a CRC-16 (`pec::append16`).
 fn reply_read_len(op: Option<&Op<'_>>, capacity: usize, pec: bool) -> usize {
     let frame = REPLY_HEADER_LEN + capacity;
     if !pec {

@@ -274,12 +274,7 @@ impl MbCore {
             if t.slot_waiting > 0 {
                 return None;
             }
-            let (ticket, seq) = t.requests.try_alloc(db, t_now).ok()?;
-            bump(&mut t.diag.requests);
-            if let Some(s) = self.done.get(ticket.index) {
-                s.reset();
-            }
-            Some((ticket, seq))
+            self.take_slot(t, db, t_now).ok()
         });
         let (ticket, seq) = match free {
             Some(claimed) => claimed,
@@ -355,6 +350,22 @@ impl MbCore {
         }
     }
 
+    /// Claims a slot and a sequence number for a request to `db`, under the lock: counted in
+    /// `requests`, its result signal cleared. `Busy` is not counted here.
+    fn take_slot(
+        &self,
+        t: &mut Table,
+        db: Address,
+        now: Instant,
+    ) -> Result<(Ticket, u8), LinkError> {
+        let (ticket, seq) = t.requests.try_alloc(db, now)?;
+        bump(&mut t.diag.requests);
+        if let Some(s) = self.done.get(ticket.index) {
+            s.reset();
+        }
+        Ok((ticket, seq))
+    }
+
     /// A pending slot and a sequence number for a request to `db`. When every slot (or every
     /// sequence number of the board) is taken, waits until one is free, at most until
     /// `deadline`: woken when a caller releases one, or when an abandoned deferred request's
@@ -380,13 +391,9 @@ impl MbCore {
                         t.slot_waiters.register(cx.waker());
                         return Poll::Pending;
                     }
-                    // Not counted here: a wait is counted once, below.
-                    match t.requests.try_alloc(db, t_now) {
+                    // A failure is not counted here: a wait is counted once, below.
+                    match self.take_slot(t, db, t_now) {
                         Ok((ticket, seq)) => {
-                            bump(&mut t.diag.requests);
-                            if let Some(s) = self.done.get(ticket.index) {
-                                s.reset();
-                            }
                             if core::mem::take(&mut waiting.counted) {
                                 t.slot_waiting = t.slot_waiting.saturating_sub(1);
                                 // Others may find a slot too: let them look.

@@ -173,8 +173,8 @@ impl MbCore {
             Err(_) => None,
         };
         let Some((reply, answered_in)) = parsed else {
-            let state = self.pec_off_sign(meta, pec, op, read);
-            return (Outcome::Complete(Err(LinkError::BadReply)), state);
+            self.pec_off_sign(meta, pec, op, read);
+            return (Outcome::Complete(Err(LinkError::BadReply)), None);
         };
         if reply.seq != meta.seq {
             warn!(
@@ -232,13 +232,13 @@ impl MbCore {
     /// took our PEC byte for data, so it has PEC off (it restarted and its boot event was
     /// lost). Recorded here as unchecked ([`crate::boards::Boards::pec_lost_unchecked`]): it
     /// only ever leads to switching PEC on again, never to accepting a value or an unchecked
-    /// event. Always `None`.
-    fn pec_off_sign(&self, meta: &JobMeta, pec: bool, op: &Op<'_>, read: &[u8]) -> Option<bool> {
+    /// event.
+    fn pec_off_sign(&self, meta: &JobMeta, pec: bool, op: &Op<'_>, read: &[u8]) {
         if !pec {
-            return None;
+            return;
         }
-        match Reply::parse_read_for(meta.db, false, read, op) {
-            Ok(reply) if reply.seq == meta.seq && reply.status == Status::BadLength => {
+        if let Ok(reply) = Reply::parse_read_for(meta.db, false, read, op) {
+            if reply.seq == meta.seq && reply.status == Status::BadLength {
                 warn!("board {} has PEC off", meta.db.get());
                 // Unchecked: requests go without PEC (prepared again first with the safe
                 // defaults), events must still be checked.
@@ -246,9 +246,7 @@ impl MbCore {
                     bump(&mut t.diag.pec_resyncs);
                     t.boards.pec_lost_unchecked(meta.db);
                 });
-                None
             }
-            _ => None,
         }
     }
 }

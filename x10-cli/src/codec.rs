@@ -184,7 +184,7 @@ pub struct Answers {
 
 impl Answers {
     /// True when the reply's length varies with its content (scan, serial read, batch): with
-    /// PEC on it always ends in a CRC-16 (`Reply::emit_for`).
+    /// PEC on it always ends in a CRC-16 (`pec::append16`).
     fn crc16_reply(&self) -> bool {
         matches!(
             self.name.as_str(),

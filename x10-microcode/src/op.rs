@@ -739,7 +739,7 @@ pub enum ReplyLen {
 
 impl ReplyLen {
     /// True for one fixed length ([`ReplyLen::Exact`]); the replies of the others always end
-    /// in a CRC-16 when checked ([`crate::Reply::emit_for`]).
+    /// in a CRC-16 when checked ([`crate::pec::append16`]).
     pub const fn is_exact(self) -> bool {
         matches!(self, ReplyLen::Exact(_))
     }

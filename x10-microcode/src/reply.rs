@@ -224,7 +224,8 @@ impl<'a> Reply<'a> {
     /// is looked for after *n* payload bytes (an `ok` reply) and, if it does not match there,
     /// right after the header (a status-only reply); the received LEN byte must then agree.
     /// For the others (scan, serial read, batch) the LEN byte is checked against the lengths
-    /// the operation allows and the reply always ends in a CRC-16 ([`Reply::emit_for`]): a
+    /// the operation allows and the reply always ends in a CRC-16 (the daughterboard appends
+    /// it with [`pec::append16`] when the operation's [`crate::ReplyLen`] is not exact): a
     /// LEN byte misread as another allowed length moves the CRC-16 to bytes that match it by
     /// chance once in 65 536. A status-only reply with a PEC byte (from a board that could not
     /// parse the request) is accepted only with a status other than `ok`.
@@ -261,7 +262,7 @@ impl<'a> Reply<'a> {
                     return Err(Error::BadLength);
                 }
                 if pec_on {
-                    // Always a CRC-16 ([`Reply::emit_for`]): a misread LEN moves where it is
+                    // Always a CRC-16 (`pec::append16`): a misread LEN moves where it is
                     // looked for, and a CRC-16 matches there by chance once in 65 536.
                     let frame = REPLY_HEADER_LEN + usize::from(len);
                     let with = read.get(..frame + 2).ok_or(Error::Truncated)?;
@@ -285,22 +286,6 @@ impl<'a> Reply<'a> {
         };
         op.check_reply(reply.status, reply.payload)?;
         Ok(reply)
-    }
-
-    /// Encodes the reply to `op` from board `db` with its check: a PEC byte or a CRC-16 by the
-    /// frame's length ([`Reply::emit_with_pec`]), except for an operation whose reply length
-    /// varies (scan, serial read, batch: [`crate::Op::reply_len`] other than `Exact`), whose
-    /// replies always end in a CRC-16, so that where the check is never rests on an unchecked
-    /// LEN byte alone (see [`Reply::parse_read_for`]).
-    ///
-    /// # Errors
-    /// As [`Reply::emit`], [`Error::BufferTooShort`].
-    pub fn emit_for(&self, db: Address, op: &crate::Op<'_>, buf: &mut [u8]) -> Result<usize> {
-        if op.reply_len().is_exact() {
-            return self.emit_with_pec(db, buf);
-        }
-        let len = self.emit(buf)?;
-        pec::append16(db.addr_byte(true), buf, len)
     }
 
     /// A reply with no payload.
