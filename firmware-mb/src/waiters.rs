@@ -89,18 +89,21 @@ impl Waiters {
             matches!(w.state, Waiter::Lingering(b, p) if b == board && p == pin)
                 && w.owner.as_ref().is_some_and(|o| o.will_wake(task))
         });
-        if let Some(ev) = own
-            .and_then(|i| self.waiters.get_mut(i))
-            .and_then(|w| w.held.take())
-        {
-            return Ok(Ok(ev));
-        }
+        // The queue first: an event for the pin is queued only while no slot waits or
+        // lingers on it (one delivered and not yet taken included), so a queued event is
+        // always older than the one held by a lingering slot.
         if let Some(i) = self
             .unclaimed
             .iter()
             .position(|e| e.source == board && e.pin == pin)
         {
             return Ok(Ok(self.unclaimed.remove(i)));
+        }
+        if let Some(ev) = own
+            .and_then(|i| self.waiters.get_mut(i))
+            .and_then(|w| w.held.take())
+        {
+            return Ok(Ok(ev));
         }
         // A task's first wait for the pin: an event held for another task that took the
         // pin's previous event and has not come back is this task's too (every task waiting
@@ -207,18 +210,23 @@ impl Waiters {
         let _ = self.unclaimed.insert(at, ev);
     }
 
-    /// Frees a waiter slot. Returns true if an event had been delivered to it (the caller
-    /// takes it from the signal).
+    /// A wait ended without taking its event (its future was dropped: a timeout, a
+    /// `select`): the slot lingers for its task, empty, so that the task's next wait for the
+    /// pin is known as its own (not a first wait, which could be handed an event this task
+    /// already had). Returns true if an event had been delivered to it (the caller takes it
+    /// from the signal and queues it at the front, older than anything the slot holds later).
     pub(crate) fn unwait(&mut self, t: WaiterTicket) -> bool {
         match self.waiters.get_mut(t.index) {
-            Some(w) if w.generation == t.generation => {
-                let delivered = matches!(w.state, Waiter::Delivered(..));
-                w.state = Waiter::Free;
-                w.owner = None;
-                w.held = None;
-                w.shared = false;
-                delivered
-            }
+            Some(w) if w.generation == t.generation => match w.state {
+                Waiter::Waiting(b, p) | Waiter::Delivered(b, p) => {
+                    let delivered = matches!(w.state, Waiter::Delivered(..));
+                    w.state = Waiter::Lingering(b, p);
+                    w.held = None;
+                    w.shared = false;
+                    delivered
+                }
+                _ => false,
+            },
             _ => false,
         }
     }
@@ -233,5 +241,98 @@ impl Waiters {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use x10_microcode::EventKind;
+
+    extern crate std;
+    use std::sync::Arc;
+    use std::task::Wake;
+
+    struct Task;
+
+    impl Wake for Task {
+        fn wake(self: Arc<Self>) {}
+    }
+
+    /// A waker of a task of its own (`will_wake` tells them apart).
+    fn task() -> Waker {
+        Waker::from(Arc::new(Task))
+    }
+
+    fn board() -> Address {
+        Address::new(9).unwrap()
+    }
+
+    const PIN: PinRef = PinRef::from_byte(0x80);
+
+    /// A pin-change event carrying `n` as its level byte (to tell events apart).
+    fn event(n: u8) -> PinEvent {
+        PinEvent {
+            source: board(),
+            kind: EventKind::PinChange,
+            pin: PIN,
+            value: heapless::Vec::from_slice(&[n]).unwrap(),
+        }
+    }
+
+    fn ticket(r: Result<Result<PinEvent, WaiterTicket>, LinkError>) -> WaiterTicket {
+        match r {
+            Ok(Err(t)) => t,
+            other => panic!("expected to wait, got {other:?}"),
+        }
+    }
+
+    fn got(r: Result<Result<PinEvent, WaiterTicket>, LinkError>) -> u8 {
+        match r {
+            Ok(Ok(ev)) => ev.value[0],
+            other => panic!("expected an event, got {other:?}"),
+        }
+    }
+
+    /// The fuzz finding `event-out-of-order--lingering-held-before-queued`: an event that
+    /// came while the task's slot was delivered (queued) is older than the one its slot held
+    /// afterwards, and comes first.
+    #[test]
+    fn a_queued_event_comes_before_the_one_held_after_it() {
+        let (mut w, mut d) = (Waiters::new(), MbDiagnostics::default());
+        let a = task();
+        let t = ticket(w.wait_for(board(), PIN, &a, &mut d));
+        let mut to = Vec::<usize, 8>::new();
+        w.deliver(&event(1), &mut d, |i| to.push(i).unwrap());
+        assert_eq!(to, [t.index]);
+        w.deliver(&event(2), &mut d, |_| panic!("delivered twice"));
+        w.took(t);
+        w.deliver(&event(3), &mut d, |_| panic!("a lingering slot holds"));
+        assert_eq!(got(w.wait_for(board(), PIN, &a, &mut d)), 2);
+        assert_eq!(got(w.wait_for(board(), PIN, &a, &mut d)), 3);
+        ticket(w.wait_for(board(), PIN, &a, &mut d));
+        assert_eq!(d.events_dropped, 0);
+    }
+
+    /// The fuzz finding `event-out-of-order--rewait-after-timeout-takes-anothers-held`: two
+    /// tasks got event 1; event 2 is held for both; task A takes it, waits again and gives up
+    /// (a timeout drops its wait). Waiting once more, it must not get event 2 a second time
+    /// from B's slot, as a task's first wait would.
+    #[test]
+    fn a_wait_given_up_leaves_the_task_its_slot_and_no_second_copy() {
+        let (mut w, mut d) = (Waiters::new(), MbDiagnostics::default());
+        let (a, b) = (task(), task());
+        let ta = ticket(w.wait_for(board(), PIN, &a, &mut d));
+        let tb = ticket(w.wait_for(board(), PIN, &b, &mut d));
+        w.deliver(&event(1), &mut d, |_| {});
+        w.took(ta);
+        w.took(tb);
+        w.deliver(&event(2), &mut d, |_| panic!("both slots linger"));
+        assert_eq!(got(w.wait_for(board(), PIN, &a, &mut d)), 2);
+        let again = ticket(w.wait_for(board(), PIN, &a, &mut d));
+        assert!(!w.unwait(again));
+        ticket(w.wait_for(board(), PIN, &a, &mut d));
+        // B still gets its own copy.
+        assert_eq!(got(w.wait_for(board(), PIN, &b, &mut d)), 2);
     }
 }

@@ -6,13 +6,17 @@
 //! a registry: your own robot lives in a crate of its own (`cargo x10 new PATH`, see
 //! `docs/your-first-robot.md`), written the same way.
 //!
-//! | example | tasks | boards | what it does |
+//! Each example is declared once as a robot ([`x10::robot!`]): the simulator
+//! (`sim.robot(x10_robots::Fig4_4)`) and the images (`Fig4_4.spawn(spawner, x10)`) take its
+//! tasks from there.
+//!
+//! | robot | tasks | boards | what it does |
 //! |---|---|---|---|
-//! | `fig4_2` | [`fig4_2::single_board`] | SELF | thesis Fig. 4.2: button or force > 100 runs the motor at full speed |
-//! | `fig4_4` | [`fig4_2::single_board`], [`fig4_4::light_motor`] | SELF, 9 | Fig. 4.4: Fig. 4.2 unchanged, plus light > 700 runs a second motor at 50 % |
-//! | `fig4_6` | [`fig4_6::temperature_alarm`] | 17, 108, 10 | Fig. 4.6: freezer > 1 °C or oven < 200 °F raises the alarm |
-//! | `bumper` | [`bumper::heartbeat`], [`bumper::lamp`], [`bumper::bumper`] | SELF, 9 | three concurrent tasks: a blinking LED, a light-following lamp, and a timed back-off when the bumper is hit |
-//! | `doorbell` | [`doorbell::doorbell`] | 9, SELF | a button's events from board 9 wake the task, which mirrors the button on a chime |
+//! | [`Fig4_2`] | [`fig4_2::single_board`] | SELF | thesis Fig. 4.2: button or force > 100 runs the motor at full speed |
+//! | [`Fig4_4`] | [`fig4_2::single_board`], [`fig4_4::light_motor`] | SELF, 9 | Fig. 4.4: Fig. 4.2 unchanged, plus light > 700 runs a second motor at 50 % |
+//! | [`Fig4_6`] | [`fig4_6::temperature_alarm`] | 17, 108, 10 | Fig. 4.6: freezer > 1 °C or oven < 200 °F raises the alarm |
+//! | [`Bumper`] | [`bumper::heartbeat`], [`bumper::lamp`], [`bumper::bumper`] | SELF, 9 | three concurrent tasks: a blinking LED, a light-following lamp, and a timed back-off when the bumper is hit |
+//! | [`Doorbell`] | [`doorbell::doorbell`] | 9, SELF | a button's events from board 9 wake the task, which mirrors the button on a chime |
 //!
 //! ## Keeping the actuators driven
 //! The thesis programs send an actuator command when the wanted state changes, and also every
@@ -35,6 +39,31 @@ pub mod doorbell;
 pub mod fig4_2;
 pub mod fig4_4;
 pub mod fig4_6;
+
+x10::robot! {
+    /// Thesis Figure 4.2: one task on the motherboard's own ports.
+    pub struct Fig4_2 { single_board: fig4_2::single_board }
+}
+
+x10::robot! {
+    /// Thesis Figure 4.4: Figure 4.2 unchanged, plus the light-sensor motor on board 9.
+    pub struct Fig4_4 { single_board: fig4_2::single_board, light_motor: fig4_4::light_motor }
+}
+
+x10::robot! {
+    /// Thesis Figure 4.6: the temperature alarm on boards 17, 108 and 10.
+    pub struct Fig4_6 { temperature_alarm: fig4_6::temperature_alarm }
+}
+
+x10::robot! {
+    /// Three concurrent tasks: a heartbeat LED, a lamp following the light, a bumper back-off.
+    pub struct Bumper { heartbeat: bumper::heartbeat, lamp: bumper::lamp, bumper: bumper::bumper }
+}
+
+x10::robot! {
+    /// A button on board 9 rings a chime on the motherboard while held.
+    pub struct Doorbell { doorbell: doorbell::doorbell }
+}
 
 /// The thesis programs' loop period: each pass of their `loop()` runs every 20 ms.
 pub const PERIOD: Duration = Duration::from_millis(20);

@@ -4,7 +4,7 @@
 //! own crate with its own world file and `sim` command (`x10 new`,
 //! `docs/your-first-robot.md`).
 
-use x10_robots::{bumper, doorbell, fig4_2, fig4_4, fig4_6};
+use x10_robots::{Bumper, Doorbell, Fig4_2, Fig4_4, Fig4_6};
 
 use crate::sim::{Sim, SimConfig};
 use crate::world::{World, WorldError};
@@ -16,7 +16,7 @@ pub struct Example {
     pub name: &'static str,
     /// One line about it.
     pub description: &'static str,
-    /// Adds its robot tasks (named as the trace shows them) to a simulation.
+    /// Adds its robot's tasks (`x10_robots::Fig4_4` and so on) to a simulation.
     pub add_tasks: fn(Sim) -> Sim,
     /// Its world file (`robots/worlds/NAME.toml`).
     pub world: &'static str,
@@ -27,38 +27,31 @@ pub const EXAMPLES: [Example; 5] = [
     Example {
         name: "fig4_2",
         description: "thesis Fig. 4.2: button (SELF S2.B) or force (SELF S1) > 100 runs the motor (SELF A1) at 100 %",
-        add_tasks: |sim| sim.with_robot("single_board", fig4_2::single_board),
+        add_tasks: |sim| sim.robot(Fig4_2),
         world: include_str!("../../robots/worlds/fig4_2.toml"),
     },
     Example {
         name: "fig4_4",
         description: "thesis Fig. 4.4: Fig. 4.2 unchanged plus a second task: light (DB 9 S1) > 700 runs a motor (DB 9 A1) at 50 %",
-        add_tasks: |sim| {
-            sim.with_robot("single_board", fig4_2::single_board)
-                .with_robot("light_motor", fig4_4::light_motor)
-        },
+        add_tasks: |sim| sim.robot(Fig4_4),
         world: include_str!("../../robots/worlds/fig4_4.toml"),
     },
     Example {
         name: "fig4_6",
         description: "thesis Fig. 4.6: freezer (DB 17 S1) > 1 °C or oven (DB 108 S6) < 200 °F raises the alarm (DB 10 A3.A)",
-        add_tasks: |sim| sim.with_robot("temperature_alarm", fig4_6::temperature_alarm),
+        add_tasks: |sim| sim.robot(Fig4_6),
         world: include_str!("../../robots/worlds/fig4_6.toml"),
     },
     Example {
         name: "bumper",
         description: "three tasks: a heartbeat LED (DB 9), a lamp following the light (SELF), a timed back-off when the bumper is hit (SELF)",
-        add_tasks: |sim| {
-            sim.with_robot("heartbeat", bumper::heartbeat)
-                .with_robot("lamp", bumper::lamp)
-                .with_robot("bumper", bumper::bumper)
-        },
+        add_tasks: |sim| sim.robot(Bumper),
         world: include_str!("../../robots/worlds/bumper.toml"),
     },
     Example {
         name: "doorbell",
         description: "a button on DB 9 (S1.A) rings a chime on the motherboard (SELF A1.A) while held: its events wake the task",
-        add_tasks: |sim| sim.with_robot("doorbell", doorbell::doorbell),
+        add_tasks: |sim| sim.robot(Doorbell),
         world: include_str!("../../robots/worlds/doorbell.toml"),
     },
 ];

@@ -180,6 +180,22 @@ impl<T, E: fmt::Display> TaskEnd for Result<T, E> {
     }
 }
 
+impl x10::Tasks for Sim {
+    fn task<F, Fut>(&mut self, name: &'static str, task: F)
+    where
+        F: FnOnce(X10) -> Fut + 'static,
+        Fut: Future + 'static,
+        Fut::Output: x10::TaskEnd,
+    {
+        self.add_robot_task(name, move |x10| async move {
+            match x10::TaskEnd::into_error(task(x10).await) {
+                Some(e) => Err(e),
+                None => Ok(()),
+            }
+        });
+    }
+}
+
 /// A robot task: given the handle, the future to run.
 type RobotFn = Box<dyn FnOnce(X10, Notes, SimClock) -> LocalFuture>;
 
@@ -500,6 +516,27 @@ impl Sim {
         Fut: Future + 'static,
         Fut::Output: TaskEnd,
     {
+        self.add_robot_task(name, robot);
+        self
+    }
+
+    /// Runs every task of `robot`, a robot declared once with `x10::robot!` (its tasks named
+    /// as it names them): the same list the board images spawn.
+    ///
+    /// ```ignore
+    /// let outcome = world.sim(config)?.robot(robot::Robot).run()?;
+    /// ```
+    pub fn robot<R: x10::Robot>(mut self, _robot: R) -> Sim {
+        R::tasks(&mut self);
+        self
+    }
+
+    fn add_robot_task<F, Fut>(&mut self, name: &str, robot: F)
+    where
+        F: FnOnce(X10) -> Fut + 'static,
+        Fut: Future + 'static,
+        Fut::Output: TaskEnd,
+    {
         let who = name.to_string();
         let errors = self.task_errors.clone();
         let f: RobotFn = Box::new(move |x10, notes, clock| {
@@ -516,7 +553,6 @@ impl Sim {
             })
         });
         self.robots.push((name.to_string(), f));
-        self
     }
 
     /// Runs a test task next to everything else.

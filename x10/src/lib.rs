@@ -30,6 +30,10 @@
 //! * in the simulator: `x10_sim::Sim::with_robot("bumper", bumper)` (or a world file and the
 //!   `x10_cli::app` command line), in virtual time, against simulated daughterboards.
 //!
+//! A robot with several tasks is declared once with [`robot!`]: `x10::robot! { pub struct
+//! Robot { heartbeat, bumper } }`; the simulator runs `sim.robot(Robot)` and the image's
+//! `main` calls `Robot.spawn(spawner, x10)` (see [`Robot`]).
+//!
 //! [`X10`] is `Copy`: give it to as many tasks as the robot has. Every driver method returns
 //! a [`Result`]; nothing panics. Boards are addressed by number, [`SELF`] (0) being the
 //! motherboard's own ports; ports count from 1, as in the thesis.
@@ -44,6 +48,9 @@ pub use embassy_time::Duration;
 pub use firmware_mb::{MbConfig, MbDiagnostics, X10};
 pub use x10_devices::*;
 pub use x10_microcode::{BoardKind, Op};
+
+mod robot;
+pub use robot::{task_ended, Robot, TaskEnd, Tasks};
 
 /// Runs `step` every `period` on a fixed grid (an embassy `Ticker`), for ever: the Arduino
 /// `loop()` of the thesis, for code written that way. A step that overruns its period is

@@ -10,8 +10,4 @@ use x10_boards::g431 as board;
 #[macro_use]
 mod image;
 
-mb_image!(
-    "thesis Figure 4.4 (tasks single_board, light_motor)",
-    single_board = x10_robots::fig4_2::single_board,
-    light_motor = x10_robots::fig4_4::light_motor,
-);
+mb_image!(x10_robots::Fig4_4);

@@ -12,7 +12,4 @@ use x10_boards::pico as board;
 #[macro_use]
 mod image;
 
-mb_image!(
-    "doorbell (task doorbell)",
-    doorbell = x10_robots::doorbell::doorbell,
-);
+mb_image!(x10_robots::Doorbell);

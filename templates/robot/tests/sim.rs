@@ -16,8 +16,7 @@ fn run(ms: u64) -> (World, SimOutcome) {
     };
     let sim: Sim = world.sim(config).expect("a valid world");
     let outcome = sim
-        .with_robot("blink", robot::blink)
-        .with_robot("drive", robot::drive)
+        .robot(robot::Robot)
         .run()
         .expect("the simulation runs");
     (world, outcome)

@@ -46,3 +46,9 @@ pub async fn bumper(x10: X10) -> Result<(), Error> {
         }
     }
 }
+
+x10::robot! {
+    /// The robot: its tasks, listed here once. `cargo sim`, `cargo test` and both board images
+    /// (`src/bin/`) run exactly these.
+    pub struct Robot { drive, bumper }
+}

@@ -14,8 +14,7 @@ fn run(ms: u64) -> (World, SimOutcome) {
     let outcome = world
         .sim(config)
         .expect("a valid world")
-        .with_robot("drive", robot::drive)
-        .with_robot("bumper", robot::bumper)
+        .robot(robot::Robot)
         .run()
         .expect("the simulation runs");
     (world, outcome)

@@ -3,9 +3,9 @@
 #![no_std]
 #![no_main]
 
-use defmt::{unwrap, warn};
+use defmt::unwrap;
 use embassy_executor::Spawner;
-use x10::{MbConfig, X10};
+use x10::MbConfig;
 use x10_boards::pico::{init, start_motherboard};
 use x10_boards::start::MB_ADDRESS;
 // The panic and HardFault handlers and the watchdog come with x10-boards (`x10_boards::watchdog`).
@@ -15,20 +15,6 @@ use defmt_rtt as _;
 async fn main(spawner: Spawner) {
     let p = init();
     let x10 = unwrap!(start_motherboard(spawner, p, MbConfig::new(MB_ADDRESS)));
-    spawner.spawn(unwrap!(blink(x10)));
-    spawner.spawn(unwrap!(drive(x10)));
-}
-
-#[embassy_executor::task]
-async fn blink(x10: X10) {
-    if let Err(e) = robot::blink(x10).await {
-        warn!("blink ended: {}", e);
-    }
-}
-
-#[embassy_executor::task]
-async fn drive(x10: X10) {
-    if let Err(e) = robot::drive(x10).await {
-        warn!("drive ended: {}", e);
-    }
+    // One embassy task per task of the robot (`src/lib.rs`), each logging the error that ends it.
+    unwrap!(robot::Robot.spawn(spawner, x10));
 }
