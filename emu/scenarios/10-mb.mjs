@@ -30,7 +30,7 @@ export default [
       const mbLog = ctx.defmt(mb).map((l) => l.text).join('\n');
       const dbLog = ctx.defmt(db).map((l) => l.text).join('\n');
       ctx.check('db-pico logs its address', /daughterboard on a Pico at 0x09/.test(dbLog), dbLog.split('\n')[0]);
-      ctx.check('mb-pico logs the robot program', /Figure 4.4/.test(mbLog));
+      ctx.check('mb-pico logs the robot program', /robot program Fig4_4/.test(mbLog));
       const boot = rig.bus.transfers.find((t) => t.master === 'db09' && t.parts[0].addr === 0x08 && t.parts[0].ack && t.parts[0].bytes[1] === 0x07);
       ctx.check('DB 9 sends its boot event to the MB (0x08)', boot, boot && rig.bus.describe(boot));
       ctx.check('the MB logs "board 9 booted"', /board 9 booted/.test(mbLog));

@@ -23,7 +23,11 @@ macro_rules! mb_image {
         async fn main(spawner: Spawner) {
             let p = init();
             let x10 = unwrap!(start_motherboard(spawner, p, MbConfig::new(MB_ADDRESS)));
-            info!("robot program {=str}, tasks {}", <$robot>::NAME, <$robot>::TASKS);
+            info!(
+                "robot program {=str}, tasks {}",
+                <$robot>::NAME,
+                <$robot>::TASKS
+            );
             unwrap!($robot.spawn(spawner, x10));
         }
     };

@@ -103,8 +103,16 @@ fn the_tasks_are_named_once_in_the_lib() {
         "tests/sim.rs",
     ] {
         let text = std::fs::read_to_string(root.join("robot").join(rel)).unwrap();
-        for named in ["robot::blink", "robot::drive", "with_robot", "embassy_executor::task"] {
-            assert!(!text.contains(named), "templates/robot/{rel} names `{named}`");
+        for named in [
+            "robot::blink",
+            "robot::drive",
+            "with_robot",
+            "embassy_executor::task",
+        ] {
+            assert!(
+                !text.contains(named),
+                "templates/robot/{rel} names `{named}`"
+            );
         }
         assert!(text.contains("robot::Robot"), "templates/robot/{rel}");
     }

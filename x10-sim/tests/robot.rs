@@ -66,5 +66,8 @@ fn a_declared_tasks_error_is_reported_under_its_declared_name() {
     let outcome = run(|sim| sim.robot(Failing));
     assert_eq!(outcome.task_errors.len(), 1);
     assert_eq!(outcome.task_errors[0].0, "broken");
-    assert!(outcome.problems("world.toml").iter().any(|p| p.contains("broken")));
+    assert!(outcome
+        .problems("world.toml")
+        .iter()
+        .any(|p| p.contains("broken")));
 }
