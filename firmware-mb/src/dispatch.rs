@@ -489,7 +489,7 @@ impl MbCore {
                             Ok(())
                         }
                         Outcome::Complete(Err(e)) => Err(e),
-                        Outcome::Defer => Err(LinkError::BadReply),
+                        Outcome::Defer { .. } => Err(LinkError::BadReply),
                     };
                 }
                 Err(e) => {

@@ -79,6 +79,10 @@ struct Slot {
     pin: PinRef,
     /// Deferred or abandoned: the latest the board may send the deferred reply.
     until: Instant,
+    /// Deferred: its `pending` came with a check, so its deferred reply must carry one too
+    /// (whatever the board's PEC state by then: a board that restarted has PEC off, and an
+    /// unchecked reply with the old number proves nothing).
+    checked: bool,
 }
 
 const FREE_SLOT: Slot = Slot {
@@ -88,6 +92,7 @@ const FREE_SLOT: Slot = Slot {
     state: SlotState::Free,
     pin: PinRef::from_byte(0),
     until: Instant(0),
+    checked: false,
 };
 
 /// One request's claim on a slot.
@@ -252,6 +257,7 @@ impl Requests {
             state: SlotState::Queued,
             pin: PinRef::from_byte(0),
             until: Instant(0),
+            checked: false,
         };
         // Never wraps: at most MAX_PENDING + RECENT_LEN pairs are held.
         if let Some(h) = self.held.get_mut(held_bucket(b, seq)) {
@@ -303,15 +309,17 @@ impl Requests {
         }
     }
 
-    /// Marks the queued deferred request `t` as answered `pending` at `now`: it waits for a
-    /// deferred reply naming `pin` until `hold_us` after `now` (`deferred`: the request's
-    /// pin and hold; `None`, not a deferred request: nothing happens). False if its caller
+    /// Marks the queued deferred request `t` as answered `pending` at `now` (`checked`: that
+    /// reply carried its check): it waits for a deferred reply naming `pin` until `hold_us`
+    /// after `now` (`deferred`: the request's pin and hold; `None`, not a deferred request:
+    /// nothing happens). False if its caller
     /// already gave up: then the pair is held by a free slot as abandoned all the same (when
     /// one is free), since the board measures and will answer.
     pub(crate) fn defer(
         &mut self,
         t: Ticket,
         deferred: Option<(PinRef, u64)>,
+        checked: bool,
         now: Instant,
     ) -> bool {
         let Some((pin, hold_us)) = deferred else {
@@ -322,6 +330,7 @@ impl Requests {
             return false;
         };
         s.pin = pin;
+        s.checked = checked;
         match s.state {
             SlotState::Queued | SlotState::Sending => {
                 s.state = SlotState::Deferred;
@@ -448,13 +457,15 @@ impl Requests {
     }
 
     /// The deferred request a deferred reply from `board` with `seq` for `pin` answers, if its
-    /// caller still waits. A reply for an abandoned request is counted as late and frees its
+    /// caller still waits (`checked`: the reply carried its check; one without cannot answer
+    /// a request whose `pending` had one, and is counted in `bad_events`). A reply for an abandoned request is counted as late and frees its
     /// slot; any other reply that matches no waiting request is classified as a stray.
     pub(crate) fn take_deferred(
         &mut self,
         board: Address,
         seq: u8,
         pin: PinRef,
+        checked: bool,
         diag: &mut MbDiagnostics,
     ) -> Option<Ticket> {
         let found = self.slots.iter().enumerate().find_map(|(index, s)| {
@@ -462,11 +473,17 @@ impl Requests {
                 && s.board == board.get()
                 && s.seq == seq
                 && s.pin == pin)
-                .then_some((index, s.generation, s.state))
+                .then_some((index, s.generation, s.state, s.checked))
         });
         match found {
-            Some((index, generation, SlotState::Deferred)) => Some(Ticket { index, generation }),
-            Some((index, _, _)) => {
+            // Its `pending` was checked: an unchecked reply cannot complete it (it waits on
+            // for a checked one, or its deadline).
+            Some((_, _, SlotState::Deferred, true)) if !checked => {
+                bump(&mut diag.bad_events);
+                None
+            }
+            Some((index, generation, SlotState::Deferred, _)) => Some(Ticket { index, generation }),
+            Some((index, _, _, _)) => {
                 bump(&mut diag.late_replies);
                 self.retire(index, Ended::GaveUp);
                 None
@@ -546,11 +563,12 @@ mod tests {
         /// A pulse-in on `pin` answered `pending` at `now`; the board may answer until
         /// `hold_us` later.
         fn defer(&mut self, t: Ticket, pin: PinRef, hold_us: u64, now: u64) -> bool {
-            self.r.defer(t, Some((pin, hold_us)), Instant(now))
+            self.r.defer(t, Some((pin, hold_us)), false, Instant(now))
         }
 
         fn take_deferred(&mut self, board: u8, seq: u8, pin: PinRef) -> Option<Ticket> {
-            self.r.take_deferred(addr(board), seq, pin, &mut self.diag)
+            self.r
+                .take_deferred(addr(board), seq, pin, false, &mut self.diag)
         }
 
         /// (late, duplicate, unknown) after classifying one stray reply.
@@ -647,6 +665,38 @@ mod tests {
         assert_eq!(t.state(ticket), SlotState::Deferred);
         assert_eq!(t.diag.unknown_replies, 1);
         assert_eq!(t.take_deferred(9, seq, pin(0x80)), Some(ticket));
+    }
+
+    /// The fuzz finding `reboot-then-unchecked-deferred-reply`: a pulse-in whose `pending`
+    /// came checked is completed only by a checked deferred reply; an unchecked one with its
+    /// number (from a board that restarted, so has PEC off, or a corrupted frame) is counted
+    /// and the request waits on.
+    #[test]
+    fn a_checked_pending_wants_a_checked_deferred_reply() {
+        let mut t = T::new();
+        let (ticket, seq) = t.alloc(9).unwrap();
+        assert!(t
+            .r
+            .defer(ticket, Some((pin(0x80), 1_000)), true, Instant(100)));
+        assert_eq!(
+            t.r.take_deferred(addr(9), seq, pin(0x80), false, &mut t.diag),
+            None
+        );
+        assert_eq!(t.diag.bad_events, 1);
+        assert_eq!(t.state(ticket), SlotState::Deferred);
+        assert_eq!(
+            t.r.take_deferred(addr(9), seq, pin(0x80), true, &mut t.diag),
+            Some(ticket)
+        );
+        // An unchecked `pending` takes either.
+        let (other, seq) = t.alloc(9).unwrap();
+        assert!(t
+            .r
+            .defer(other, Some((pin(0x82), 1_000)), false, Instant(100)));
+        assert_eq!(
+            t.r.take_deferred(addr(9), seq, pin(0x82), false, &mut t.diag),
+            Some(other)
+        );
     }
 
     #[test]

@@ -74,12 +74,14 @@ impl MbCore {
             })
         };
         let parsed = if pec_on {
-            with_pec()
+            with_pec().map(|ev| (ev, true))
         } else {
-            unchecked().or_else(|_| with_pec())
+            unchecked()
+                .map(|ev| (ev, false))
+                .or_else(|_| with_pec().map(|ev| (ev, true)))
         };
         match parsed {
-            Ok(ev) if !ev.source.is_internal() => self.route_event(&ev),
+            Ok((ev, checked)) if !ev.source.is_internal() => self.route_event(&ev, checked),
             _ => {
                 warn!("bad event ({} bytes)", bytes.len());
                 self.with(|t| bump(&mut t.diag.bad_events));
@@ -122,7 +124,7 @@ impl MbCore {
 
     /// Routes one event: a deferred reply to its waiting request, a pin event to its waiters
     /// (or the unclaimed queue), the rest to the counters and the log.
-    pub(crate) fn route_event(&self, ev: &Event<'_>) {
+    pub(crate) fn route_event(&self, ev: &Event<'_>, checked: bool) {
         self.with(|t| {
             bump(&mut t.diag.events);
             t.events_in.received(ev, &mut t.diag);
@@ -131,9 +133,9 @@ impl MbCore {
             EventKind::DeferredReply => self.with(|t| {
                 // Matched by board, sequence number and pin; a reply for a request that gave
                 // up is counted as late (see `Requests::take_deferred`).
-                let Some(ticket) = t
-                    .requests
-                    .take_deferred(ev.source, ev.seq, ev.pin, &mut t.diag)
+                let Some(ticket) =
+                    t.requests
+                        .take_deferred(ev.source, ev.seq, ev.pin, checked, &mut t.diag)
                 else {
                     // A late reply may have freed its abandoned request's slot.
                     t.slot_waiters.wake();

@@ -40,7 +40,10 @@ pub(crate) fn request_op(frame: &[u8]) -> Option<Op<'_>> {
 /// What a finished transfer means for its request.
 pub(crate) enum Outcome {
     Complete(Result<Payload, LinkError>),
-    Defer,
+    /// `pending`: the board measures; `checked`, the reply carried its check.
+    Defer {
+        checked: bool,
+    },
 }
 
 impl MbCore {
@@ -97,8 +100,8 @@ impl MbCore {
                 t.boards.keepalive.sent(meta.db, now());
             }
             match outcome {
-                Outcome::Defer => {
-                    if !t.requests.defer(meta.ticket, meta.deferred, now()) {
+                Outcome::Defer { checked } => {
+                    if !t.requests.defer(meta.ticket, meta.deferred, checked, now()) {
                         bump(&mut t.diag.late_replies);
                     }
                 }
@@ -195,7 +198,12 @@ impl MbCore {
                 Ok(p) => (Outcome::Complete(Ok(p)), switch),
                 Err(_) => (Outcome::Complete(Err(LinkError::BadReply)), None),
             },
-            Status::Pending if meta.deferred.is_some() => (Outcome::Defer, None),
+            Status::Pending if meta.deferred.is_some() => (
+                Outcome::Defer {
+                    checked: answered_in,
+                },
+                None,
+            ),
             Status::Pending => (Outcome::Complete(Err(LinkError::BadReply)), None),
             Status::PecMismatch if !pec => {
                 // Only a board that checks PEC answers this, with its PEC byte: check it.
