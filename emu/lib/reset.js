@@ -1,7 +1,8 @@
-// What rp2040js 1.4.1 lacks for the crash paths and the watchdog of the images (tests:
-// test/reset.test.js): an undefined instruction's HardFault, the watchdog's reset keeping
-// SCRATCH and REASON, and the chip-level reset flags. lib/rig.js applies `applyResetModel` to
-// every chip and calls `watchdogReset` when a chip's watchdog fired.
+// What rp2040js 1.4.1 lacks for the crash paths, the watchdog and software resets of the images
+// (tests: test/reset.test.js, test/flash.test.js): an undefined instruction's HardFault, the
+// watchdog's reset keeping SCRATCH and REASON, SCB AIRCR.SYSRESETREQ, and the chip-level reset
+// flags. lib/rig.js applies `applyResetModel` to every chip and calls `watchdogReset` when a
+// chip's watchdog fired, `sysReset` when its core asked for a reset.
 import { BasePeripheral } from 'rp2040js';
 
 const WATCHDOG = 0x40058;
@@ -93,37 +94,85 @@ export function fixWatchdog(rp2040) {
   core.executeInstruction = () => (rp2040.watchdogFired ? 1 : execute());
 }
 
+/** SCB AIRCR (ARMv6-M ARM §B3.2.6): VECTKEY to write, VECTKEYSTAT read, SYSRESETREQ bit 2. */
+const AIRCR = 0xd0c;
+const VECTKEY = 0x05fa;
+
+/**
+ * SCB AIRCR.SYSRESETREQ resets the chip: rp2040js 1.4.1 does not implement AIRCR (its reads
+ * and writes only log). A write with VECTKEY 0x05FA and SYSRESETREQ set (cortex-m's
+ * `SCB::sys_reset`) records the request in `rp2040.sysResetRequested` and stops the core, as
+ * the reset does within a few cycles; the rig replaces the chip (`sysReset`) at the end of its
+ * time step. AIRCR reads VECTKEYSTAT (0xFA05), little-endian, PRIGROUP 0.
+ */
+export function fixSysReset(rp2040) {
+  const ppb = rp2040.ppb;
+  const core = rp2040.core;
+  rp2040.sysResetRequested = null;
+  const read = ppb.readUint32.bind(ppb);
+  const write = ppb.writeUint32.bind(ppb);
+  ppb.readUint32 = (offset) => (offset === AIRCR ? 0xfa050000 : read(offset));
+  ppb.writeUint32 = (offset, value) => {
+    if (offset !== AIRCR) return write(offset, value);
+    if (value >>> 16 === VECTKEY && value & (1 << 2) && !rp2040.sysResetRequested) {
+      rp2040.sysResetRequested = { t: rp2040.clock.nanos };
+    }
+  };
+  const execute = core.executeInstruction.bind(core);
+  core.executeInstruction = () => (rp2040.sysResetRequested ? 1 : execute());
+}
+
 /** Every model of this file, on a chip before its image runs. */
 export function applyResetModel(rp2040) {
   fixUdf(rp2040);
   fixChipReset(rp2040);
   fixWatchdog(rp2040);
+  fixSysReset(rp2040);
 }
 
 /**
  * Replaces `chip`, whose watchdog fired, with a fresh chip of the same image booting now
- * (`rig.powerCycle`), and gives it what a watchdog reset keeps: WATCHDOG.REASON and SCRATCH0-7.
- * What the reset does not change stays too: the levels driven into its input pins and its ADC
- * inputs. Its logs go on in the same arrays; `chip.resets` lists each reset (time, REASON,
- * SCRATCH0). SRAM is not kept (the images do not rely on it), nor the watchdog's enable and
- * count: the fresh chip's watchdog is stopped until its image starts it.
+ * (`rig.powerCycle`, which keeps the flash), and gives it what a watchdog reset keeps:
+ * WATCHDOG.REASON and SCRATCH0-7. What the reset does not change stays too: the levels driven
+ * into its input pins and its ADC inputs. Its logs go on in the same arrays; `chip.resets`
+ * lists each reset (time, kind, REASON, SCRATCH0). SRAM is not kept (the images do not rely on
+ * it), nor the watchdog's enable and count: the fresh chip's watchdog is stopped until its
+ * image starts it.
  */
 export function watchdogReset(rig, chip) {
   const fired = chip.rp.watchdogFired;
+  return warmReset(rig, chip, { ...fired, kind: 'watchdog' });
+}
+
+/**
+ * Replaces `chip`, whose core wrote AIRCR.SYSRESETREQ, with a fresh chip of the same image
+ * booting now (from its vector table; the flash kept). The WATCHDOG block is not reset by it
+ * (only a chip-level reset does, datasheet §4.7.1): REASON and SCRATCH0-7 keep the values they
+ * had. The rig resets every other block too; on the chip a SYSRESETREQ resets the processors
+ * and the blocks their reset reaches (datasheet §2.13), and the images' start-up resets the
+ * blocks they use either way.
+ */
+export function sysReset(rig, chip) {
+  const wd = chip.rp.peripherals[WATCHDOG];
+  const t = chip.rp.sysResetRequested.t;
+  return warmReset(rig, chip, { t, kind: 'sysreset', reason: wd.reason, scratch: Array.from(wd.scratchData) });
+}
+
+function warmReset(rig, chip, { t, kind, reason, scratch }) {
   chip.readRtt();
   const inputs = chip.rp.gpio.map((g) => g.rawInputValue);
   const adc = Array.from(chip.rp.adc.channelValues);
   const fresh = rig.powerCycle(chip);
-  fresh.clock.nanosCounter = Math.max(fired.t, rig.now());
+  fresh.clock.nanosCounter = Math.max(t, rig.now());
   fresh.lastRtt = fresh.clock.nanosCounter;
   const wd = fresh.rp.peripherals[WATCHDOG];
-  wd.reason = fired.reason;
-  wd.scratchData.set(fired.scratch);
+  wd.reason = reason;
+  wd.scratchData.set(scratch);
   inputs.forEach((level, pin) => fresh.setPin(pin, level));
   adc.forEach((v, i) => { fresh.rp.adc.channelValues[i] = v; });
   fresh.defmt = chip.defmt;
   fresh.pinLog = chip.pinLog;
   fresh.pwmLog = chip.pwmLog;
-  fresh.resets = [...(chip.resets ?? []), { t: fired.t, reason: fired.reason, scratch0: fired.scratch[0] }];
+  fresh.resets = [...(chip.resets ?? []), { t, kind, reason, scratch0: scratch[0] }];
   return fresh;
 }

@@ -5,27 +5,44 @@ import { readElf } from './elf.js';
 import { applyAll, bootFromFlash } from './patches.js';
 import { Bus } from './bus.js';
 import { driveLines } from './lines.js';
-import { applyResetModel, watchdogReset } from './reset.js';
+import { applyResetModel, watchdogReset, sysReset } from './reset.js';
+import { NorFlash, applyFlashModel, defaultUid } from './flash.js';
 
 const FLASH = 0x10000000;
 const SRAM = 0x20000000;
 const PAINT = 0x57a0c5ed;
 
-/** One emulated Pico running one image. */
+/** The 8-byte unique ID of `options.uid`: an array of bytes or 16 hex digits. */
+function uidOf(uid) {
+  if (typeof uid === 'string') return uid.match(/../g).map((x) => parseInt(x, 16));
+  return uid;
+}
+
+/**
+ * One emulated Pico running one image. Its flash (`nor`, lib/flash.js: the array XIP reads, and
+ * the unique ID `options.uid`, by default one from the chip's name) is loaded from the ELF when
+ * the chip is first made; a chip made by a reset or power cycle is given the old one's.
+ */
 export class Chip {
-  constructor(rig, name, elfPath, options = {}) {
+  constructor(rig, name, elfPath, options = {}, nor = null) {
     this.rig = rig;
     this.name = name;
     this.options = options;
-    this.elf = readElf(elfPath);
+    // An image: an ELF file's path, or its contents as readElf returns them (the tests' images).
+    this.elf = typeof elfPath === 'string' ? readElf(elfPath) : elfPath;
     // The package does not export SimulationClock: each chip keeps the one RP2040 makes.
     const rp = (this.rp = new RP2040());
     this.clock = rp.clock;
     rp.logger = new ConsoleLogger(options.verbose ? LogLevel.Info : LogLevel.Error, false);
     applyAll(rp);
     applyResetModel(rp);
+    const programmed = !!nor;
+    this.nor = nor ?? new NorFlash(rp.flash, uidOf(options.uid) ?? defaultUid(name));
+    applyFlashModel(rp, this.nor);
     for (const s of this.elf.segments) {
-      if (s.paddr >= FLASH && s.paddr < FLASH + rp.flash.length) rp.flash.set(s.data, s.paddr - FLASH);
+      if (s.paddr >= FLASH && s.paddr < FLASH + rp.flash.length) {
+        if (!programmed) rp.flash.set(s.data, s.paddr - FLASH);
+      }
       else if (s.paddr >= SRAM && s.paddr < SRAM + rp.sram.length) rp.sram.set(s.data, s.paddr - SRAM);
     }
     // Stack high-water mark: paint the stack region before reset (cortex-m-rt does not touch it).
@@ -154,12 +171,14 @@ export class Rig {
 
   /**
    * Power-cycles `chip`: its I2C block lets go of the bus at once (no STOP), and a fresh chip
-   * with the same image and options boots in its place at the current time.
+   * with the same image and options boots in its place at the current time. Only the flash
+   * (contents and unique ID) is kept: every register (WATCHDOG's REASON and SCRATCH included)
+   * and SRAM start from their power-on values. The resets build on it (lib/reset.js).
    */
   powerCycle(chip) {
     const i = this.chips.indexOf(chip);
     this.bus.detach(chip.i2c0);
-    const fresh = new Chip(this, chip.name, chip.elf.path, chip.options);
+    const fresh = new Chip(this, chip.name, chip.elf, chip.options, chip.nor);
     fresh.clock.nanosCounter = this.t;
     fresh.lastRtt = this.t;
     this.bus.attach(fresh.i2c0, chip.name);
@@ -172,7 +191,10 @@ export class Rig {
     while (this.t < ns) {
       const next = Math.min(ns, this.t + this.quantumNs);
       for (const c of this.chips) c.runUntil(next);
-      for (const c of this.chips) if (c.rp.watchdogFired) watchdogReset(this, c);
+      for (const c of this.chips) {
+        if (c.rp.watchdogFired) watchdogReset(this, c);
+        else if (c.rp.sysResetRequested) sysReset(this, c);
+      }
       while (this.queue.length && this.queue[0].t <= next) {
         const e = this.queue.shift();
         this.t = Math.max(this.t, e.t);

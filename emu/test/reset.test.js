@@ -104,7 +104,7 @@ test('a watchdog reset keeps REASON, SCRATCH, the input levels and the logs; the
   assert.equal(after.rp.watchdogFired, null, 'the fresh chip runs');
   assert.equal(after.clock.nanosCounter, 5e6);
   assert.deepEqual([after.defmt, after.pinLog, after.pwmLog], [logs.defmt, logs.pinLog, logs.pwmLog]);
-  assert.deepEqual(after.resets, [{ t: 0, reason: REASON_FORCE, scratch0: 0x58313003 }]);
+  assert.deepEqual(after.resets, [{ t: 0, kind: 'watchdog', reason: REASON_FORCE, scratch0: 0x58313003 }]);
 });
 
 test('injected panic and hang start in thread mode: the panic handler, a spin at HANG_AT', () => {
