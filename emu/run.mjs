@@ -26,6 +26,8 @@ const opt = (name) => {
 const mbElf = opt('--mb');
 const dbElf = opt('--db');
 const mbDoorbellElf = opt('--mb-doorbell');
+// The flash test image (emu/fw-flash), for the `flash` scenario.
+const fwFlashElf = opt('--fw-flash');
 // db-pico built for faster buses: --db-at HZ=ELF, any number of times.
 const dbAt = {};
 for (let v = opt('--db-at'); v; v = opt('--db-at')) {
@@ -46,7 +48,7 @@ if (list) {
   process.exit(0);
 }
 if (!mbElf || !dbElf) {
-  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
+  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--fw-flash ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
   process.exit(2);
 }
 const wanted = args.filter((a) => !a.startsWith('--'));
@@ -64,13 +66,16 @@ export function decodeDefmt(chip) {
   const r = spawnSync('defmt-print', ['-e', chip.elf.path, '--json'], { input: Buffer.from(frames.flatMap((f) => f.bytes)) });
   if (r.error) throw new Error(`defmt-print: ${r.error.message} (cargo install defmt-print)`);
   const lines = r.stdout.toString().split('\n').filter((l) => l.startsWith('{') && !l.includes('schema_version'));
+  // A lone delimiter (defmt-rtt starts each boot with one) is no frame: each line gets the time
+  // of its own frame.
+  const timed = frames.filter((f) => f.bytes.length > 1);
   return lines.map((l, i) => {
     let text = l;
     try {
       const j = JSON.parse(l);
       text = `${j.level ?? ''} ${j.data}`.trim();
     } catch { /* printed as is */ }
-    return { t: frames[i]?.t ?? NaN, chip: chip.name, text };
+    return { t: timed[i]?.t ?? NaN, chip: chip.name, text };
   });
 }
 
@@ -151,7 +156,7 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   const figures = [];
   const rigs = [];
   const ctx = {
-    mbElf, dbElf, dbAt, mbDoorbellElf,
+    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf,
     rig(options = {}) { const r = new Rig(options); rigs.push(r); return r; },
     check(name, ok, detail = '') { checks.push({ name, ok: !!ok, detail }); },
     figure(name, value) { figures.push({ name, value }); },

@@ -64,8 +64,10 @@ export class NorFlash {
     this.busyUntil = 0;
     this.selected = false;
     this.bytes = [];
-    /** Every command run (`{ cmd, addr }`), in order: the tests and the debug output read it. */
+    /** Every erase, program and status write run (`{ cmd, addr }`), in order. */
     this.ops = [];
+    /** The first byte of every command the flash was selected for, in order (reads included). */
+    this.commands = [];
     // JEDEC: Winbond, W25Q..JV IQ, capacity code log2(size) (2 MiB: 0x15; rp2040js maps 16 MiB: 0x18).
     this.jedec = [0xef, 0x40, Math.log2(data.length)];
   }
@@ -101,7 +103,9 @@ export class NorFlash {
     this.selected = false;
     const rx = this.bytes;
     this.bytes = [];
-    if (!rx.length || this.busy) return;
+    if (!rx.length) return;
+    this.commands.push(rx[0]);
+    if (this.busy) return;
     const cmd = rx[0];
     const addr = rx.length >= 4 ? ((rx[1] << 16) | (rx[2] << 8) | rx[3]) & (this.data.length - 1) : 0;
     const done = (ns) => {

@@ -3,7 +3,8 @@
 //! Builds mb-pico and db-pico in release (the same cargo calls as `cargo xtask size`, one per
 //! image; db-pico with its default base address 9: DB 10 is the same image with jumper 0
 //! fitted; db-pico also for 400 kHz and 1 MHz buses, `X10_BUS_HZ`, copied to
-//! `target/emu/db-pico-HZ`) and the host `x10` tool, installs the rig's Node packages from `emu/package-lock.json`
+//! `target/emu/db-pico-HZ`), the flash path's test image `emu/fw-flash` (its own workspace) and
+//! the host `x10` tool, installs the rig's Node packages from `emu/package-lock.json`
 //! with `npm ci` when `emu/node_modules` is missing or older than the lock file, then runs
 //! `node emu/run.mjs` on the two ELFs. The rig, its scenarios and what they check are in
 //! `emu/` and `docs/emulation.md`; the trace of each scenario (bus transfers decoded by
@@ -164,6 +165,7 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
         .join(mb.target)
         .join("release")
         .join(doorbell.bin);
+    let fw_flash = build_fw_flash(&cargo, &root)?;
     let status = Command::new(&cargo)
         .args(["build", "-q", "-p", "x10-cli", "--bin", "x10"])
         .status()
@@ -185,12 +187,43 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
     ];
     a.push("--mb-doorbell".into());
     a.push(doorbell_elf.display().to_string());
+    a.push("--fw-flash".into());
+    a.push(fw_flash.display().to_string());
     for f in fast {
         a.push("--db-at".into());
         a.push(f);
     }
     a.extend(args.iter().cloned());
     node(&emu, &a)
+}
+
+/// The test image of the flash path, `emu/fw-flash` (its own workspace, with its own lock file),
+/// built in release for the RP2040 into the main target directory (it shares the images'
+/// compiled dependencies there); its ELF's path.
+///
+/// # Errors
+/// [`Error::Build`] when cargo fails.
+fn build_fw_flash(cargo: &str, root: &Path) -> Result<std::path::PathBuf, Error> {
+    const TARGET: &str = "thumbv6m-none-eabi";
+    let target = target_dir(cargo)?;
+    let status = Command::new(cargo)
+        .args([
+            "build",
+            "--release",
+            "--locked",
+            "--target",
+            TARGET,
+            "--manifest-path",
+        ])
+        .arg(root.join("emu").join("fw-flash").join("Cargo.toml"))
+        .arg("--target-dir")
+        .arg(&target)
+        .status()
+        .map_err(Error::Run)?;
+    if !status.success() {
+        return Err(Error::Build("emu/fw-flash"));
+    }
+    Ok(target.join(TARGET).join("release").join("x10-emu-fw-flash"))
 }
 
 /// The bus frequencies, besides the default 100 kHz, that the `event-latency` scenario
