@@ -74,6 +74,18 @@ export class NorFlash {
 
   get busy() { return this.now() < this.busyUntil; }
 
+  /**
+   * Power lost and back: not busy, write enable off, deselected. An erase or program that was
+   * still busy stays done (the model applies them at once): a cut in the middle of one is not
+   * modelled.
+   */
+  powerUp() {
+    this.busyUntil = 0;
+    this.wel = false;
+    this.selected = false;
+    this.bytes = [];
+  }
+
   select() {
     this.selected = true;
     this.bytes = [];

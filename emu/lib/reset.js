@@ -148,9 +148,9 @@ export function watchdogReset(rig, chip) {
  * Replaces `chip`, whose core wrote AIRCR.SYSRESETREQ, with a fresh chip of the same image
  * booting now (from its vector table; the flash kept). The WATCHDOG block is not reset by it
  * (only a chip-level reset does, datasheet §4.7.1): REASON and SCRATCH0-7 keep the values they
- * had. The rig resets every other block too; on the chip a SYSRESETREQ resets the processors
- * and the blocks their reset reaches (datasheet §2.13), and the images' start-up resets the
- * blocks they use either way.
+ * had. Approximate: the rig starts every other block afresh too, where on the chip the
+ * request restarts the processors and the peripherals may keep their state; the images'
+ * start-up (embassy-rp's init) resets the blocks they use either way.
  */
 export function sysReset(rig, chip) {
   const wd = chip.rp.peripherals[WATCHDOG];
@@ -162,7 +162,7 @@ function warmReset(rig, chip, { t, kind, reason, scratch }) {
   chip.readRtt();
   const inputs = chip.rp.gpio.map((g) => g.rawInputValue);
   const adc = Array.from(chip.rp.adc.channelValues);
-  const fresh = rig.powerCycle(chip);
+  const fresh = rig.powerCycle(chip, { warm: true });
   fresh.clock.nanosCounter = Math.max(t, rig.now());
   fresh.lastRtt = fresh.clock.nanosCounter;
   const wd = fresh.rp.peripherals[WATCHDOG];

@@ -173,10 +173,13 @@ export class Rig {
    * Power-cycles `chip`: its I2C block lets go of the bus at once (no STOP), and a fresh chip
    * with the same image and options boots in its place at the current time. Only the flash
    * (contents and unique ID) is kept: every register (WATCHDOG's REASON and SCRATCH included)
-   * and SRAM start from their power-on values. The resets build on it (lib/reset.js).
+   * and SRAM start from their power-on values, and the flash is powered up again (not busy,
+   * write enable off). The resets build on it with `warm` (lib/reset.js): the flash stays
+   * powered through them.
    */
-  powerCycle(chip) {
+  powerCycle(chip, { warm = false } = {}) {
     const i = this.chips.indexOf(chip);
+    if (!warm) chip.nor.powerUp();
     this.bus.detach(chip.i2c0);
     const fresh = new Chip(this, chip.name, chip.elf, chip.options, chip.nor);
     fresh.clock.nanosCounter = this.t;

@@ -208,6 +208,7 @@ test('SYSRESETREQ resets the chip: it boots from its vector table, flash, REASON
   assert.equal(fresh.rp.core.PC, 0x10000200, 'at the reset vector');
   assert.equal(fresh.rp.readUint8(0x101ff000), 0x42, 'flash kept');
   assert.equal(fresh.nor, old.nor);
+  assert.equal(fresh.rp.flash, old.rp.flash, 'one array: XIP reads what was written');
   assert.equal(fresh.rp.readUint32(SCRATCH0 + 4), 0x1234);
   assert.equal(fresh.rp.readUint32(REASON), REASON_FORCE);
   assert.equal(old.rp.readUint32(AIRCR) >>> 16, 0xfa05, 'VECTKEYSTAT');
@@ -218,7 +219,7 @@ test('SYSRESETREQ resets the chip: it boots from its vector table, flash, REASON
   assert.equal(rig2.chips[0], c);
 });
 
-test('a power cycle keeps the flash and the unique ID, and clears REASON and SCRATCH', () => {
+test('a power cycle keeps the flash and the unique ID, and clears REASON, SCRATCH and the flash\'s busy state', () => {
   const rig = new Rig();
   const old = rig.addChip('c', image([T.b(0, 0)]), { uid: UID });
   old.rp.flash[0x1ff000] = 0x42;
@@ -228,7 +229,11 @@ test('a power cycle keeps the flash and the unique ID, and clears REASON and SCR
   const afterWd = rig.chips[0];
   assert.equal(afterWd.rp.readUint32(REASON), REASON_FORCE);
   assert.equal(afterWd.rp.readUint8(0x101ff000), 0x42);
+  afterWd.nor.busyUntil = rig.now() + BUSY_NS.sector; // an erase under way
+  afterWd.nor.wel = true;
   const fresh = rig.powerCycle(afterWd);
+  assert.equal(fresh.nor.busy, false, 'the flash powered up again: not busy');
+  assert.equal(fresh.nor.wel, false);
   assert.equal(fresh.rp.readUint8(0x101ff000), 0x42, 'flash kept');
   assert.equal(fresh.rp.readUint8(0x10000100 + 4), 0x01, 'the image too');
   assert.deepEqual(Array.from(fresh.nor.uid), UID);
