@@ -119,10 +119,19 @@ test('injected panic and hang start in thread mode: the panic handler, a spin at
   assert.equal(injectPanic(c), 0x10000400);
   assert.equal(rp.core.IPSR, 0);
   assert.equal(rp.core.PC, 0x10000400);
-  rp.core.PM = true;
   assert.equal(injectHang(c), HANG_AT);
   assert.equal(rp.core.PC, HANG_AT);
   assert.equal(rp.core.PM, false, 'interrupts on');
   rp.core.executeInstruction();
   assert.equal(rp.core.PC, HANG_AT, 'spins');
+});
+
+test('the injections wait until the core leaves its critical section (PRIMASK clear)', () => {
+  const CPSIE = 0xb662;
+  const rp = chip([NOP, CPSIE, LOOP]);
+  rp.core.PM = true; // in a critical section, two instructions from its end
+  const c = { name: 'c', rp, clock: rp.clock, elf: { path: 'x', symbols: new Map() } };
+  assert.equal(injectHang(c), HANG_AT);
+  assert.equal(rp.core.PM, false);
+  assert.equal(rp.clock.nanos > 0, true, 'ran the NOP and the CPSIE first');
 });
