@@ -437,8 +437,9 @@ function lookupRoutine() {
 const code = (s) => s.charCodeAt(0) | (s.charCodeAt(1) << 8);
 
 /**
- * The ROM image (16 KiB of words) with the functions `fns` (two-letter code to handler) at one
- * stub each, in the order given; returns the image and each stub's ROM address.
+ * The ROM image (16 KiB, as words) with one stub for each function of `codes` (two-letter
+ * table codes, stub n is `BKPT #n; BX LR`) in the function table; returns the image and a map
+ * from each stub's ROM address to its code.
  */
 export function buildRom(codes) {
   const bytes = new Uint8Array(16 * 1024);
@@ -524,7 +525,7 @@ export function applyFlashModel(rp, nor) {
       const addr = reg(0), count = reg(1), blockSize = reg(2), blockCmd = reg(3) & 0xff;
       const commands = [];
       for (let a = addr - (addr % SECTOR); a < addr + count;) {
-        const block = blockSize <= 0x10000 && a % blockSize === 0 && a + blockSize <= addr + count;
+        const block = blockSize >= SECTOR && blockSize <= 0x10000 && a % blockSize === 0 && a + blockSize <= addr + count;
         commands.push([0x06], [block ? blockCmd : 0x20, ...addr24(a)]);
         a += block ? blockSize : SECTOR;
       }

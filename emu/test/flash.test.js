@@ -162,6 +162,13 @@ test('erase and program through the ROM: XIP reads see them, the core is held fo
   assert.equal(romCall(rp, 'C4', [dst, 0x10000000 + at + 0x100, 8]).r0, dst, 'memcpy44 returns dest');
   assert.equal(rp.readUint32(dst), 0x04030201);
   assert.deepEqual(rp.romCalls, ['IF', 'EX', 'RE', 'RP', 'FC', 'CX', 'C4']);
+  // With a block size and command, aligned 64 KiB blocks go in one command each, the rest by sector.
+  rp.flash.fill(0, 0x100000, 0x122000);
+  const blocks = romCall(rp, 'RE', [0x100000, 0x21000, 0x10000, 0xd8]);
+  assert.ok(blocks.ns >= 2 * BUSY_NS.block64 + BUSY_NS.sector, `${blocks.ns} ns`);
+  assert.deepEqual(nor.ops.slice(2).map((o) => [o.cmd, o.addr]), [[0xd8, 0x100000], [0xd8, 0x110000], [0x20, 0x120000]]);
+  assert.equal(rp.flash.subarray(0x100000, 0x121000).every((b) => b === 0xff), true);
+  assert.equal(rp.flash[0x121000], 0);
 });
 
 test('a BKPT outside the ROM still raises a HardFault', () => {
