@@ -93,6 +93,10 @@ test('the NOR flash: write enable, sector erase, page program (AND, wrapping), r
   assert.deepEqual(nor.command([0x4b, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0]).slice(5), UID);
   assert.deepEqual(nor.command([0x9f, 0, 0, 0]).slice(1), [0xef, 0x40, 0x15]);
   assert.deepEqual(nor.command([0x35, 0]), [0xff, 0x02], 'QE set');
+  nor.command([0x06]);
+  nor.command([0x04]);
+  nor.command([0x20, 0x00, 0x10, 0x00]);
+  assert.equal(data[0x10fe], 0xa5, 'write disable (04): no erase');
   assert.deepEqual(nor.ops.map((o) => [o.cmd, o.addr]), [[0x20, 0x1fff], [0x02, 0x10fe], [0x02, 0x10fe]]);
 });
 
