@@ -16,6 +16,9 @@
 //! | [`Fig4_4`] | [`fig4_2::single_board`], [`fig4_4::light_motor`] | SELF, 9 | Fig. 4.4: Fig. 4.2 unchanged, plus light > 700 runs a second motor at 50 % |
 //! | [`Fig4_6`] | [`fig4_6::temperature_alarm`] | 17, 108, 10 | Fig. 4.6: freezer > 1 °C or oven < 200 °F raises the alarm |
 //! | [`Bumper`] | [`bumper::heartbeat`], [`bumper::lamp`], [`bumper::bumper`] | SELF, 9 | three concurrent tasks: a blinking LED, a light-following lamp, and a timed back-off when the bumper is hit |
+//! | [`Explorer`] | [`arena::explorer`] | SELF | a chassis in a walled arena: drives, and on each bump backs off, turns and goes on |
+//! | [`WallFollower`] | [`arena::wall_follower`] | SELF | a chassis keeps the wall on its left at 300 mm along its ranger's beam |
+//! | [`LineFollower`] | [`arena::line_follower`] | SELF | a chassis follows the edge of a dark floor line with one line sensor |
 //! | [`Doorbell`] | [`doorbell::doorbell`] | 9, SELF | a button's events from board 9 wake the task, which mirrors the button on a chime |
 //!
 //! ## Keeping the actuators driven
@@ -34,6 +37,7 @@
 use embassy_time::Duration;
 use x10::Refresh;
 
+pub mod arena;
 pub mod bumper;
 pub mod doorbell;
 pub mod fig4_2;
@@ -58,6 +62,21 @@ x10::robot! {
 x10::robot! {
     /// Three concurrent tasks: a heartbeat LED, a lamp following the light, a bumper back-off.
     pub struct Bumper { heartbeat: bumper::heartbeat, lamp: bumper::lamp, bumper: bumper::bumper }
+}
+
+x10::robot! {
+    /// A chassis in a walled arena: drives, and on each bump backs off, turns and goes on.
+    pub struct Explorer { explorer: arena::explorer }
+}
+
+x10::robot! {
+    /// A chassis following the wall on its left with an ultrasonic ranger.
+    pub struct WallFollower { wall_follower: arena::wall_follower }
+}
+
+x10::robot! {
+    /// A chassis following a dark line on the floor with one line sensor.
+    pub struct LineFollower { line_follower: arena::line_follower }
 }
 
 x10::robot! {

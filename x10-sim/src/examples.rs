@@ -4,7 +4,7 @@
 //! own crate with its own world file and `sim` command (`x10 new`,
 //! `docs/your-first-robot.md`).
 
-use x10_robots::{Bumper, Doorbell, Fig4_2, Fig4_4, Fig4_6};
+use x10_robots::{Bumper, Doorbell, Explorer, Fig4_2, Fig4_4, Fig4_6, LineFollower, WallFollower};
 
 use crate::sim::{Sim, SimConfig};
 use crate::world::{World, WorldError};
@@ -23,7 +23,7 @@ pub struct Example {
 }
 
 /// Every example.
-pub const EXAMPLES: [Example; 5] = [
+pub const EXAMPLES: [Example; 9] = [
     Example {
         name: "fig4_2",
         description: "thesis Fig. 4.2: button (SELF S2.B) or force (SELF S1) > 100 runs the motor (SELF A1) at 100 %",
@@ -53,6 +53,30 @@ pub const EXAMPLES: [Example; 5] = [
         description: "a button on DB 9 (S1.A) rings a chime on the motherboard (SELF A1.A) while held: its events wake the task",
         add_tasks: |sim| sim.robot(Doorbell),
         world: include_str!("../../robots/worlds/doorbell.toml"),
+    },
+    Example {
+        name: "explorer",
+        description: "a chassis (SELF A1 left, A2 right) in a walled arena with a box: drives, and on each bump (SELF S2.B, from the chassis's contacts) backs off, turns and goes on",
+        add_tasks: |sim| sim.robot(Explorer),
+        world: include_str!("../../robots/worlds/explorer.toml"),
+    },
+    Example {
+        name: "wall_follower",
+        description: "a chassis keeps the wall on its left at 300 mm along its ranger's beam (SELF S1, echoes from the arena's walls)",
+        add_tasks: |sim| sim.robot(WallFollower),
+        world: include_str!("../../robots/worlds/wall_follower.toml"),
+    },
+    Example {
+        name: "line_follower",
+        description: "a chassis follows the edge of a dark circle on the floor with one line sensor (SELF S1, the floor's reflectance under it)",
+        add_tasks: |sim| sim.robot(LineFollower),
+        world: include_str!("../../robots/worlds/line_follower.toml"),
+    },
+    Example {
+        name: "freezer",
+        description: "thesis Fig. 4.6's alarm against a freezer model: its door (DB 17 S2.A) opens at 2 s and the cabinet warms towards 20 °C until the alarm (DB 10 A3.A) goes on",
+        add_tasks: |sim| sim.robot(Fig4_6),
+        world: include_str!("../../robots/worlds/freezer.toml"),
     },
 ];
 

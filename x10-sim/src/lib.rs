@@ -22,6 +22,8 @@
 //! * [`world`]: the boards, devices and scripted signals a program runs against, from a
 //!   builder or a TOML file; [`timeline`]: what each device did over a run, as a short
 //!   summary, an SVG or an HTML page.
+//! * [`physics`]: a world that answers back: a differential-drive chassis in an arena,
+//!   sensors that read its pose, thermal bodies, integrated on a grid of virtual time.
 //! * [`isolated`]: runs a test's simulation in a process of its own, so the statics a robot
 //!   program shares between its tasks (embassy-sync `Mutex`, `Signal`, `StaticCell`, …) are
 //!   that simulation's own.
@@ -31,6 +33,7 @@ pub mod bus;
 pub mod examples;
 pub mod exec;
 pub mod isolate;
+pub mod physics;
 pub mod ports;
 
 pub mod sim;

@@ -153,6 +153,11 @@ pub enum Digital {
         /// Echo width in µs, as a function of the time the echo starts.
         width_us: Analog,
     },
+    /// A level from a physical model (a bumper, a wheel encoder: [`crate::physics`]): read
+    /// at any instant up to now; its edges are those the model's integration recorded, so
+    /// [`Digital::next_change_after`] knows only those up to now (a pulse-in on it sees no
+    /// future edge), and a task waiting for edges looks again at each step of the model's grid.
+    Model(crate::physics::ModelPin),
 }
 
 impl Digital {
@@ -190,6 +195,7 @@ impl Digital {
                 width_us,
             } => PulseTrain::new(*first_us, *period_us).level_at(t_ns, &|_| width_us * 1_000),
             Digital::Echo { .. } => false,
+            Digital::Model(m) => m.level_at(t_ns),
         }
     }
 
@@ -215,6 +221,7 @@ impl Digital {
                 PulseTrain::new(*first_us, *period_us).next_change_after(t_ns, |_| width_us * 1_000)
             }
             Digital::Echo { .. } => None,
+            Digital::Model(m) => m.next_change_after(t_ns),
         }
     }
 }
@@ -439,6 +446,18 @@ impl ActuatorLog {
     /// All changes so far, in time order.
     pub fn changes(&self) -> Vec<OutputChange> {
         self.changes.borrow().clone()
+    }
+
+    /// A log holding `changes` (a finished run's, to replay the models over it).
+    pub(crate) fn from_changes(changes: Vec<OutputChange>) -> ActuatorLog {
+        let log = ActuatorLog::new();
+        *log.changes.borrow_mut() = changes;
+        log
+    }
+
+    /// Calls `f` with the changes so far, without copying them.
+    pub(crate) fn with_changes<R>(&self, f: impl FnOnce(&[OutputChange]) -> R) -> R {
+        f(&self.changes.borrow())
     }
 
     /// Number of changes so far.
@@ -774,6 +793,9 @@ impl SimPorts {
 
     /// Edges of `signal` in `(from_ns, to_ns]`.
     fn edges_between(signal: &Digital, from_ns: Nanos, to_ns: Nanos) -> EdgeCount {
+        if let Digital::Model(m) = signal {
+            return m.edges_between(from_ns, to_ns);
+        }
         let mut n = EdgeCount::NONE;
         let mut t = from_ns;
         while let Some(at) = signal.next_change_after(t).filter(|&at| at <= to_ns) {
@@ -1015,7 +1037,10 @@ impl Ports for SimPorts {
                 let st = self.state.borrow();
                 st.latched
                     .iter()
-                    .filter_map(|(p, since)| self.input(*p).ok()?.next_change_after(*since))
+                    .filter_map(|(p, since)| match self.input(*p).ok()? {
+                        Digital::Model(m) => Some(m.wake_after(*since, now)),
+                        d => d.next_change_after(*since),
+                    })
                     .min()
             };
             match next {

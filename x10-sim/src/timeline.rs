@@ -201,7 +201,7 @@ impl<T: fmt::Debug> fmt::Debug for Track<T> {
 }
 
 impl<T: Clone + PartialEq + 'static> Track<T> {
-    fn new(initial: T, changes: Vec<(Nanos, T)>) -> Track<T> {
+    pub(crate) fn new(initial: T, changes: Vec<(Nanos, T)>) -> Track<T> {
         let mut t = Track {
             initial,
             changes: Vec::new(),
@@ -332,6 +332,9 @@ pub struct DeviceTimeline {
     pub board: String,
     /// Its states.
     pub track: Track<DeviceState>,
+    /// The model its value comes from (`ranger`, `bumper`, …; `None`: its script or an
+    /// output).
+    pub model: Option<&'static str>,
 }
 
 impl DeviceTimeline {
@@ -368,8 +371,11 @@ impl DeviceTimeline {
         }
     }
 
-    /// The input's script in words (`None` for outputs).
+    /// The input's script in words (`None` for outputs and for inputs that read a model).
     pub fn script(&self) -> Option<String> {
+        if self.model.is_some() {
+            return None;
+        }
         Some(match self.device.kind() {
             DeviceKind::Button { pressed, .. } => pressed.describe("pressed", "released"),
             DeviceKind::Switch { on, .. } => on.describe("on", "off"),
@@ -395,6 +401,8 @@ pub struct Timeline {
     pub end_ns: Nanos,
     /// One per device, in the world's order.
     pub devices: Vec<DeviceTimeline>,
+    /// The physical models replayed over the run (`None`: the world has none).
+    motion: Option<crate::physics::Motion>,
 }
 
 /// What changed on outputs, in time order, with the instants at which boards were reset.
@@ -426,6 +434,9 @@ impl Timeline {
         end_ns: Nanos,
     ) -> Timeline {
         let events = Events { changes, resets };
+        let motion = world
+            .physics_spec()
+            .map(|spec| crate::physics::Motion::replay(spec, changes, end_ns));
         let devices = world
             .devices()
             .iter()
@@ -433,15 +444,60 @@ impl Timeline {
                 let board = world
                     .board_of(d)
                     .map_or_else(|| d.board().to_string(), |b| b.log_name());
-                let track = track_of(d, &board, &events, end_ns);
+                let adc_max = world.board_of(d).map_or(1_023, |b| b.adc_max());
+                let model = motion.as_ref().and_then(|m| m.track_of(d, adc_max));
+                let (track, model) = match model {
+                    Some((name, track)) => (track, Some(name)),
+                    None => (track_of(d, &board, &events, end_ns), None),
+                };
                 DeviceTimeline {
                     device: d.clone(),
                     board,
                     track,
+                    model,
                 }
             })
             .collect();
-        Timeline { end_ns, devices }
+        Timeline {
+            end_ns,
+            devices,
+            motion,
+        }
+    }
+
+    /// The physical models over the run: the chassis's path and contacts, the ranger's
+    /// readings, the thermal bodies ([`crate::physics::Motion`]); `None` when the world has
+    /// no model.
+    pub fn motion(&self) -> Option<&crate::physics::Motion> {
+        self.motion.as_ref()
+    }
+
+    /// The chassis's pose at `t_ms`; `None` without a chassis.
+    pub fn pose_at_ms(&self, t_ms: u64) -> Option<crate::physics::Pose> {
+        self.motion
+            .as_ref()
+            .filter(|m| m.physics().chassis.is_some())
+            .map(|m| m.pose_at_ms(t_ms))
+    }
+
+    /// The closest the chassis's outline came to a wall or box: when (ns) and the gap (mm).
+    pub fn closest_to_wall(&self) -> Option<(Nanos, f64)> {
+        self.motion.as_ref()?.closest_to_wall()
+    }
+
+    /// How long (ns) line sensor `name` (a device with `source = "line"`) was over a floor
+    /// line; `None` when there is no such sensor.
+    pub fn time_on_line_ns(&self, name: &str) -> Option<Nanos> {
+        let m = self.motion.as_ref()?;
+        match m.physics().source_of(name)? {
+            crate::physics::Source::Line { at } => Some(m.time_on_line_ns(*at)),
+            _ => None,
+        }
+    }
+
+    /// Every contact of the chassis with a wall or box (empty without a chassis).
+    pub fn contacts(&self) -> &[crate::physics::Contact] {
+        self.motion.as_ref().map_or(&[], |m| m.contacts())
     }
 
     /// The timeline of device `name`.
@@ -849,6 +905,9 @@ pub fn summary(world: &World, outcome: &SimOutcome) -> String {
                 );
             }
         }
+    }
+    if let Some(line) = tl.motion().and_then(crate::physics::Motion::summary_line) {
+        let _ = writeln!(s, "{line}");
     }
     let b = &outcome.bus;
     let busy_ns: Nanos = outcome.records.iter().map(|r| r.duration_ns()).sum();

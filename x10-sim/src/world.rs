@@ -34,6 +34,7 @@
 //!   timeline decodes them (an H-bridge's direction and duty, an LED's level or brightness, a
 //!   servo's angle).
 
+mod arena;
 mod board;
 mod device;
 mod error;
@@ -67,6 +68,11 @@ use crate::sim::{Sim, SimConfig};
 enum Item {
     Board(usize),
     Device(usize),
+    Physics,
+    Chassis,
+    Arena,
+    Sensor(usize),
+    Thermal(usize),
 }
 
 /// The boards and devices a robot program runs against.
@@ -74,6 +80,8 @@ enum Item {
 pub struct World {
     boards: Vec<Board>,
     devices: Vec<Device>,
+    /// The physical models (`[chassis]`, `[arena]`, …): [`crate::physics`].
+    physics: crate::physics::Physics,
     /// Line of each (item, field) in the file the world came from.
     lines: HashMap<(Item, &'static str), usize>,
 }
@@ -95,7 +103,9 @@ impl PartialEq for World {
                 })
                 .collect()
         };
-        self.boards() == other.boards() && resolved(self) == resolved(other)
+        self.boards() == other.boards()
+            && resolved(self) == resolved(other)
+            && self.physics == other.physics
     }
 }
 
@@ -192,7 +202,8 @@ impl World {
     /// The first [`WorldError`] found, in file order.
     pub fn check(&self) -> Result<(), WorldError> {
         self.check_boards()?;
-        self.check_devices()
+        self.check_devices()?;
+        self.check_physics()
     }
 
     fn check_boards(&self) -> Result<(), WorldError> {
@@ -568,13 +579,21 @@ impl World {
         Some(script)
     }
 
-    fn ports_for(&self, sim: &Sim, board: &Board) -> SimPorts {
+    fn ports_for(
+        &self,
+        sim: &Sim,
+        board: &Board,
+        engine: Option<&Rc<std::cell::RefCell<crate::physics::Engine>>>,
+    ) -> SimPorts {
         let (s, a) = board.ports();
         let mut ports = sim
             .ports(&board_name_of(board), s, a)
             .with_adc_bits(board.adc_resolution());
         for n in 1..=s {
-            if let Some(script) = self.sensor_script(BoardRef::Address(board.address), n) {
+            if let Some(mut script) = self.sensor_script(BoardRef::Address(board.address), n) {
+                if let Some(e) = engine {
+                    self.model_scripts(e, board, n, &mut script);
+                }
                 ports = ports.with_sensor(n, script);
             }
         }
@@ -598,10 +617,15 @@ impl World {
             ));
         }
         let sim = Sim::new(config);
+        let engine = self.physics_spec().map(|spec| {
+            crate::physics::Engine::new(spec, sim.log().clone(), Some(sim.clock().clone()))
+                .into_shared()
+        });
+        let engine = engine.as_ref();
         let boards = self.boards();
         let mut sim = match boards.iter().find(|b| b.is_internal()) {
             Some(b) => {
-                let ports = self.ports_for(&sim, b);
+                let ports = self.ports_for(&sim, b, engine);
                 sim.with_internal_ports(ports)
             }
             None => sim,
@@ -612,7 +636,7 @@ impl World {
                     address: i64::from(b.address),
                 })
             })?;
-            let ports = self.ports_for(&sim, b);
+            let ports = self.ports_for(&sim, b, engine);
             sim = sim.with_board(address, ports);
         }
         Ok(sim)

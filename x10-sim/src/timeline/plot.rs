@@ -895,7 +895,7 @@ td:first-child {{ font-variant-numeric: tabular-nums; }}
 <body>
 <h1>{t}</h1>
 <div class="tools"><button id="x10-in" type="button">zoom in</button><button id="x10-out" type="button">zoom out</button><button id="x10-reset" type="button">whole run</button> <span id="x10-zoom">1×</span> · wheel over the plot zooms, drag pans; hover a dot, a transaction or a call for its details</div>
-{svg}<h2>Changes ({n})</h2>
+{svg}{arena}<h2>Changes ({n})</h2>
 <table>
 <tr><th>time</th><th>device</th><th>change</th></tr>
 {table}</table>
@@ -908,6 +908,11 @@ td:first-child {{ font-variant-numeric: tabular-nums; }}
 "#,
         t = escape(title),
         n = rows.len(),
+        arena = tl
+            .motion()
+            .filter(|m| m.physics().chassis.is_some())
+            .map(crate::physics::top_view_section)
+            .unwrap_or_default(),
         summary = escape(&text)
     )
 }

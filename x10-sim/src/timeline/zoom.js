@@ -9,6 +9,8 @@
   if (!(end > 0)) return;
   var W = R - L, k = 1, off = 0, NS = svg.namespaceURI;
   var px = function (x) { return L + (x - L) * k + off; };
+  // The x of instant t_s at the current zoom (the arena's slider draws its cursor with it).
+  svg.x10px = function (t) { return px(L + (t / end) * W); };
 
   // Labels: the first row with room, as plot.rs places them; the lane says how many had none.
   function layout() {

@@ -18,6 +18,14 @@ struct RawWorld {
     board: Vec<Spanned<RawBoard>>,
     #[serde(default)]
     device: Vec<Spanned<RawDevice>>,
+    // The physical models (world/arena.rs).
+    physics: Option<Spanned<super::arena::RawPhysics>>,
+    chassis: Option<Spanned<super::arena::RawChassis>>,
+    arena: Option<Spanned<super::arena::RawArena>>,
+    #[serde(default)]
+    sensor: Vec<Spanned<super::arena::RawSensor>>,
+    #[serde(default)]
+    thermal: Vec<Spanned<super::arena::RawThermal>>,
 }
 
 /// One `[[board]]`.
@@ -140,6 +148,14 @@ pub(super) fn parse(text: &str) -> Result<World, WorldError> {
         let device = device(d).map_err(|(field, kind)| world.at(item, field, kind))?;
         world.devices.push(device);
     }
+    let models = super::arena::RawModels {
+        physics: raw.physics.as_ref(),
+        chassis: raw.chassis.as_ref(),
+        arena: raw.arena.as_ref(),
+        sensors: &raw.sensor,
+        thermals: &raw.thermal,
+    };
+    super::arena::read(models, &mut world, &|offset| lines.of(offset))?;
     Ok(world)
 }
 
