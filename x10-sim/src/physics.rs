@@ -453,3 +453,6 @@ impl Physics {
             .map(|s| &s.source)
     }
 }
+
+#[cfg(test)]
+mod tests;

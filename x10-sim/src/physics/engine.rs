@@ -52,11 +52,11 @@ pub(crate) struct Spec {
 
 /// The recorded levels of a digital model pin.
 #[derive(Clone, Debug, Default)]
-struct Levels {
+pub(super) struct Levels {
     initial: bool,
     level: bool,
     /// Each change: when, and the new level.
-    edges: Vec<(Nanos, bool)>,
+    pub(super) edges: Vec<(Nanos, bool)>,
 }
 
 impl Levels {
@@ -67,7 +67,7 @@ impl Levels {
         }
     }
 
-    fn at(&self, t: Nanos) -> bool {
+    pub(super) fn at(&self, t: Nanos) -> bool {
         let n = self.edges.partition_point(|(at, _)| *at <= t);
         n.checked_sub(1)
             .and_then(|i| self.edges.get(i))
@@ -134,14 +134,14 @@ pub(crate) struct Engine {
     /// The state is at `k · dt`.
     k: u64,
     v: [f64; 2],
-    turned: [f64; 2],
+    pub(super) turned: [f64; 2],
     /// The pose (x, y, heading in radians) at each grid instant so far.
-    path: Vec<(f64, f64, f64)>,
+    pub(super) path: Vec<(f64, f64, f64)>,
     /// Per thermal body, the temperature at each grid instant so far.
     temps: Vec<Vec<f64>>,
     bumper: Levels,
     encoders: [Levels; 2],
-    contacts: Vec<Contact>,
+    pub(super) contacts: Vec<Contact>,
     touching: bool,
 }
 
@@ -415,7 +415,7 @@ impl Engine {
     }
 
     /// The pose (radians) at grid instant `t / dt`, integrating as needed.
-    fn pose_at(&mut self, t: Nanos) -> (f64, f64, f64) {
+    pub(super) fn pose_at(&mut self, t: Nanos) -> (f64, f64, f64) {
         let j = self.advance_to(t).min(self.k);
         let i = usize::try_from(j).unwrap_or(usize::MAX);
         self.path
@@ -426,7 +426,7 @@ impl Engine {
     }
 
     /// The distance a ranger sees at `t` (mm), `None` when nothing is within its range.
-    fn range(&mut self, sensor: usize, t: Nanos) -> Option<(f64, P, f64)> {
+    pub(super) fn range(&mut self, sensor: usize, t: Nanos) -> Option<(f64, P, f64)> {
         let Source::Ranger {
             at,
             angle_deg,
@@ -527,7 +527,7 @@ impl Engine {
             .unwrap_or(0.0)
     }
 
-    fn levels(&self, pin: PinModel) -> &Levels {
+    pub(super) fn levels(&self, pin: PinModel) -> &Levels {
         match pin {
             PinModel::Bumper => &self.bumper,
             PinModel::Encoder(Wheel::Left) => &self.encoders[0],
