@@ -6,7 +6,8 @@
 # (`cargo test`), and builds the motherboard image for the Raspberry Pi Pico
 # (thumbv6m-none-eabi) and the STM32G431 (thumbv7em-none-eabihf). Then the guide's section 7:
 # the two tasks that share the motor through a `static` embassy-sync Mutex
-# (templates/shared/), whose test binary must pass 20 runs in a row.
+# (templates/shared/), whose test binary must pass 20 runs in a row; and section 8: the robot
+# in an arena (templates/arena/), its simulator run and its test.
 # Called by ./test-all. Builds go to target/template/ (kept between runs).
 set -Eeuo pipefail
 trap 'echo "FAILED: $BASH_COMMAND" >&2' ERR
@@ -71,4 +72,10 @@ for run in $(seq 20); do
     "$bin" -q >"$work/run.out" 2>&1 || { cat "$work/run.out"; echo "run $run of 20 failed" >&2; exit 1; }
 done
 echo "20 runs passed"
+echo "-- section 8: the robot in an arena (templates/arena)"
+cp -r "$root"/templates/arena/. .
+cargo sim | tee "$work/arena.out"
+grep -q "chassis: ended at" "$work/arena.out"
+cargo test
+cargo clippy --all-targets -- -D warnings
 echo "template OK"

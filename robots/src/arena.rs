@@ -38,7 +38,7 @@ pub const BASE: i32 = 40;
 /// The line sensor reads below this on the (dark) line.
 pub const DARK: u16 = 460;
 /// The line-follower's reading period.
-pub const LINE_PERIOD: Duration = Duration::from_millis(10);
+pub const LINE_PERIOD: Duration = Duration::from_millis(20);
 
 const fn speed(percent: i8) -> Speed {
     match Speed::new(percent) {

@@ -742,19 +742,24 @@ impl SimPorts {
         let from = match trigger {
             None => now,
             Some(t) => {
-                // The trigger's last falling edge: a LOW logged right after a HIGH.
-                let changes = self.log.of(&self.board, pin.port.pin(t));
-                let mut fall = None;
-                let mut previous = None;
-                for c in changes.iter().take_while(|c| c.t_ns <= now) {
-                    if let Change::Digital(level) = c.change {
-                        if previous == Some(Level::High) && level == Level::Low {
-                            fall = Some(c.t_ns);
+                // The trigger's last falling edge: a LOW logged right after a HIGH, found from
+                // the end of the log (no copy of it: a run measures thousands of times).
+                let trigger = pin.port.pin(t);
+                self.log.with_changes(|changes| {
+                    let mut later: Option<(Nanos, Level)> = None;
+                    for c in changes.iter().rev() {
+                        if c.t_ns > now || c.pin != trigger || c.board != self.board {
+                            continue;
                         }
-                        previous = Some(level);
+                        if let Change::Digital(level) = c.change {
+                            if later.is_some_and(|(_, l)| l == Level::Low) && level == Level::High {
+                                return later.map(|(t, _)| t);
+                            }
+                            later = Some((c.t_ns, level));
+                        }
                     }
-                }
-                fall?
+                    None
+                })?
             }
         };
         // A new measurement (not a second pulse-in on the last trigger) too soon after the

@@ -122,9 +122,25 @@ pub struct RangerReading {
     pub distance_mm: Option<f64>,
 }
 
+/// The chassis's numbers the steps use, worked out once.
+#[derive(Clone, Copy, Debug)]
+struct WheelParams {
+    /// Surface speed at 100 %, mm/s.
+    top: f64,
+    /// The motor's response per step, `1 − e^(−dt/τ)`.
+    alpha: f64,
+    /// Dead band, %.
+    dead: f64,
+    /// Wheel base, mm.
+    base: f64,
+    /// Surface travel per encoder edge, mm.
+    mm_per_edge: f64,
+}
+
 /// The models' state over virtual time.
 pub(crate) struct Engine {
     spec: Spec,
+    wheels: Option<WheelParams>,
     segs: Vec<Seg>,
     log: ActuatorLog,
     cursor: usize,
@@ -143,6 +159,9 @@ pub(crate) struct Engine {
     encoders: [Levels; 2],
     pub(super) contacts: Vec<Contact>,
     touching: bool,
+    /// How far the chassis may still move before it could touch anything, mm (0: check at
+    /// the next step).
+    slack: f64,
 }
 
 impl fmt::Debug for Engine {
@@ -177,7 +196,20 @@ impl Engine {
             .map(|t| vec![t.start_c])
             .collect();
         let dt = spec.physics.step_us.max(1).saturating_mul(1_000);
+        let wheels = spec.physics.chassis.as_ref().map(|c| WheelParams {
+            top: c.top_speed_mm_s(),
+            alpha: if c.time_constant_ms <= 0.0 {
+                1.0
+            } else {
+                1.0 - (-(dt as f64) / 1e6 / c.time_constant_ms).exp()
+            },
+            dead: c.dead_band_percent,
+            base: c.wheel_base_mm.max(1e-9),
+            mm_per_edge: std::f64::consts::TAU * c.wheel_radius_mm.max(1e-9)
+                / f64::from(c.encoder_edges_per_rev.max(1)),
+        });
         let mut e = Engine {
+            wheels,
             values: vec![0; spec.inputs.len()],
             segs,
             log,
@@ -193,6 +225,7 @@ impl Engine {
             encoders: [Levels::default(), Levels::default()],
             contacts: Vec::new(),
             touching: false,
+            slack: 0.0,
             spec,
         };
         e.touching = e.gap().is_some_and(|(g, _, _)| g <= Self::TOUCH_MM);
@@ -275,8 +308,32 @@ impl Engine {
         self.gap_at(self.pose())
     }
 
+    /// Whether the outline at `p` would overlap an obstacle (squared distances: no root).
     fn blocked(&self, p: (f64, f64, f64)) -> bool {
-        self.gap_at(p).is_some_and(|(g, _, _)| g < 0.0)
+        let Some(r) = self.spec.physics.chassis.as_ref().map(|c| c.radius_mm) else {
+            return false;
+        };
+        let r2 = r * r;
+        self.segs.iter().any(|s| {
+            let q = geom::nearest_on((p.0, p.1), s.a, s.b);
+            let (dx, dy) = (p.0 - q.0, p.1 - q.1);
+            dx * dx + dy * dy < r2
+        })
+    }
+
+    /// When the bumper's level may next change, at the earliest, from now (`None`: at the
+    /// next step): while the outline is more than the touching distance away, it must first
+    /// travel the difference, at no more than the wheels' top speed.
+    pub(crate) fn bumper_quiet_ns(&self) -> Option<Nanos> {
+        let c = self.spec.physics.chassis.as_ref()?;
+        let (gap, _, _) = self.gap()?;
+        let top = c.top_speed_mm_s();
+        let room = gap - Self::TOUCH_MM;
+        if room <= 0.0 || top <= 0.0 {
+            return (top <= 0.0 && room > 0.0).then_some(Nanos::MAX / 2);
+        }
+        let ns = (room / top * 1e9).floor();
+        (ns >= self.dt as f64).then(|| ns.min(1e15) as Nanos)
     }
 
     fn bumper_level(&self) -> bool {
@@ -315,27 +372,27 @@ impl Engine {
         let end = s + self.dt;
         let dt_s = self.dt as f64 / 1e9;
         self.take_inputs(s);
-        if let (Some(c), Some(pins)) = (self.spec.physics.chassis.clone(), self.spec.motors) {
-            let top = c.top_speed_mm_s();
-            let alpha = if c.time_constant_ms <= 0.0 {
-                1.0
-            } else {
-                1.0 - (-dt_s * 1e3 / c.time_constant_ms).exp()
-            };
+        if let (Some(c), Some(pins)) = (self.wheels, self.spec.motors) {
             for (w, p) in pins.iter().enumerate() {
-                let target = self.motor_target(*p, top, c.dead_band_percent);
-                self.v[w] += (target - self.v[w]) * alpha;
+                let target = self.motor_target(*p, c.top, c.dead);
+                self.v[w] += (target - self.v[w]) * c.alpha;
             }
             let (x, y, th) = self.pose();
             let v = (self.v[0] + self.v[1]) / 2.0;
-            let omega = (self.v[1] - self.v[0]) / c.wheel_base_mm.max(1e-9);
+            let omega = (self.v[1] - self.v[0]) / c.base;
             let mid = th + omega * dt_s / 2.0;
             let (dx, dy) = (v * mid.cos() * dt_s, v * mid.sin() * dt_s);
             let th2 = th + omega * dt_s;
             // Translation as far as the outline goes without entering an obstacle (the robot
             // stops against a wall; the wheels slip); turning in place always works.
             let mut f = 1.0;
-            if self.blocked((x + dx, y + dy, th2)) {
+            let moved = (dx * dx + dy * dy).sqrt();
+            // Far from every obstacle (the gap last measured, less the way travelled since,
+            // still above the touching distance): nothing to check.
+            let clear = moved < self.slack;
+            if clear {
+                self.slack -= moved;
+            } else if self.blocked((x + dx, y + dy, th2)) {
                 let (mut lo, mut hi) = (0.0, 1.0);
                 for _ in 0..16 {
                     let m = (lo + hi) / 2.0;
@@ -349,10 +406,10 @@ impl Engine {
             }
             self.path.push((x + dx * f, y + dy * f, th2));
             for w in 0..2 {
+                let old = self.turned[w];
                 self.turned[w] += self.v[w] * dt_s;
-                let per_rev = std::f64::consts::TAU * c.wheel_radius_mm.max(1e-9);
-                let count = |d: f64| (d / per_rev * f64::from(c.encoder_edges_per_rev)).floor();
-                let before = count(self.turned[w] - self.v[w] * dt_s);
+                let count = |d: f64| (d / c.mm_per_edge).floor();
+                let before = count(old);
                 let after = count(self.turned[w]);
                 let n = (after - before).abs().min(1e6) as u64;
                 if let Some(e) = self.encoders.get_mut(w) {
@@ -362,7 +419,11 @@ impl Engine {
                     }
                 }
             }
-            let gap = self.gap();
+            let gap = if clear { None } else { self.gap() };
+            if let Some((g, _, _)) = gap {
+                // A margin far above the rounding of the sums.
+                self.slack = (g - Self::TOUCH_MM - 1e-6).max(0.0);
+            }
             let touching = gap.is_some_and(|(g, _, _)| g <= Self::TOUCH_MM);
             if touching && !self.touching {
                 if let Some((_, q, o)) = gap {
@@ -374,7 +435,8 @@ impl Engine {
                 }
             }
             self.touching = touching;
-            let b = self.bumper_level();
+            // Only a touching outline can press the bumper.
+            let b = touching && self.bumper_level();
             self.bumper.set(end, b);
         }
         for i in 0..self.temps.len() {
@@ -621,8 +683,16 @@ impl ModelPin {
         if n != EdgeCount::NONE {
             return now;
         }
-        let dt = self.engine.borrow().step_ns();
-        (now / dt + 1) * dt
+        let e = self.engine.borrow();
+        let dt = e.step_ns();
+        let next = (now / dt + 1) * dt;
+        match self.pin {
+            // Far from any wall: no contact before the chassis could have crossed the gap.
+            PinModel::Bumper => e
+                .bumper_quiet_ns()
+                .map_or(next, |q| (now.saturating_add(q) / dt * dt).max(next)),
+            PinModel::Encoder(_) => next,
+        }
     }
 }
 

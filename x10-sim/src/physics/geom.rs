@@ -25,7 +25,8 @@ pub(crate) fn nearest_on(p: P, a: P, b: P) -> P {
 
 /// Distance from `p` to `q`.
 pub(crate) fn dist(p: P, q: P) -> f64 {
-    (p.0 - q.0).hypot(p.1 - q.1)
+    let (dx, dy) = (p.0 - q.0, p.1 - q.1);
+    (dx * dx + dy * dy).sqrt()
 }
 
 /// Distance from `p` to segment `a`–`b`.
@@ -89,14 +90,17 @@ pub(crate) fn segments(walls: &[(P, P)], boxes: &[(P, P)]) -> Vec<Seg> {
     v
 }
 
-/// The nearest obstacle segment to `p`: its distance, its nearest point and its obstacle.
+/// The nearest obstacle segment to `p`: its distance, its nearest point and its obstacle
+/// (compared by squared distance; one square root for the nearest).
 pub(crate) fn nearest(p: P, segs: &[Seg]) -> Option<(f64, P, usize)> {
     segs.iter()
         .map(|s| {
             let q = nearest_on(p, s.a, s.b);
-            (dist(p, q), q, s.obstacle)
+            let (dx, dy) = (p.0 - q.0, p.1 - q.1);
+            (dx * dx + dy * dy, q, s.obstacle)
         })
         .min_by(|x, y| x.0.total_cmp(&y.0))
+        .map(|(d2, q, o)| (d2.sqrt(), q, o))
 }
 
 #[cfg(test)]

@@ -110,6 +110,14 @@ impl World {
                     return err(item, "chassis", field, format!("is {v}: from {min} up"));
                 }
             }
+            if c.encoder_edges_per_rev == 0 {
+                return err(
+                    item,
+                    "chassis",
+                    "encoder_edges_per_rev",
+                    "is 0: at least 1".to_string(),
+                );
+            }
             if c.dead_band_percent >= 100.0 {
                 return err(
                     item,
@@ -751,6 +759,12 @@ pub(super) fn read(
             mark(world, item, f, s.as_ref().map(Spanned::span));
         }
         mark(world, item, "start", c.start.as_ref().map(Spanned::span));
+        mark(
+            world,
+            item,
+            "encoder_edges_per_rev",
+            c.encoder_edges_per_rev.as_ref().map(Spanned::span),
+        );
         let d = Chassis::new(c.left.get_ref().clone(), c.right.get_ref().clone());
         let start = c.start.as_ref().map_or([0.0; 3], |s| *s.get_ref());
         world.physics.chassis = Some(Chassis {
