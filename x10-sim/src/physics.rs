@@ -19,8 +19,8 @@ mod engine;
 pub(crate) mod geom;
 mod view;
 
+pub(crate) use engine::{slewed, Engine, InputPin, PinModel, RangerWiring, Spec};
 pub use engine::{Contact, ModelPin, Motion, PoseSample, RangerReading};
-pub(crate) use engine::{Engine, InputPin, PinModel, RangerWiring, Spec};
 pub(crate) use view::top_view_section;
 pub use view::{top_view_svg, TOP_VIEW_SAMPLE_NS, TOP_VIEW_WIDTH};
 
@@ -412,6 +412,17 @@ impl Thermal {
     }
 }
 
+/// A servo that travels: the timeline's angle moves towards each commanded angle at
+/// `deg_per_s` (a hobby servo's rated speed: an SG90's 0.1 s per 60° is 600°/s) instead of
+/// jumping to it. It starts at its first commanded angle.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ServoSlew {
+    /// The servo's device name.
+    pub device: String,
+    /// Its rated speed, degrees per second.
+    pub deg_per_s: f64,
+}
+
 /// Every physical model of a world.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Physics {
@@ -425,6 +436,8 @@ pub struct Physics {
     pub sensors: Vec<ModelSensor>,
     /// Thermal bodies.
     pub thermals: Vec<Thermal>,
+    /// Servos that travel at their rated speed.
+    pub servos: Vec<ServoSlew>,
 }
 
 impl Default for Physics {
@@ -435,6 +448,7 @@ impl Default for Physics {
             arena: Arena::default(),
             sensors: Vec::new(),
             thermals: Vec::new(),
+            servos: Vec::new(),
         }
     }
 }
@@ -442,7 +456,10 @@ impl Default for Physics {
 impl Physics {
     /// True when there is nothing to simulate.
     pub fn is_empty(&self) -> bool {
-        self.chassis.is_none() && self.sensors.is_empty() && self.thermals.is_empty()
+        self.chassis.is_none()
+            && self.sensors.is_empty()
+            && self.thermals.is_empty()
+            && self.servos.is_empty()
     }
 
     /// The model of device `name`, if it has one.

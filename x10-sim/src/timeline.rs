@@ -448,7 +448,16 @@ impl Timeline {
                 let model = motion.as_ref().and_then(|m| m.track_of(d, adc_max));
                 let (track, model) = match model {
                     Some((name, track)) => (track, Some(name)),
-                    None => (track_of(d, &board, &events, end_ns), None),
+                    None => {
+                        let track = track_of(d, &board, &events, end_ns);
+                        match motion.as_ref().and_then(|m| m.slew_of(d.name())) {
+                            Some(speed) => (
+                                crate::physics::slewed(&track, speed, end_ns),
+                                Some("servo travel"),
+                            ),
+                            None => (track, None),
+                        }
+                    }
                 };
                 DeviceTimeline {
                     device: d.clone(),

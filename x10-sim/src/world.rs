@@ -73,6 +73,7 @@ enum Item {
     Arena,
     Sensor(usize),
     Thermal(usize),
+    Servo(usize),
 }
 
 /// The boards and devices a robot program runs against.

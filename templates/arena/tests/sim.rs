@@ -38,13 +38,26 @@ fn it_backs_off_from_every_wall_it_hits_and_never_goes_through() {
 }
 
 #[test]
-fn it_keeps_clear_of_the_walls_until_its_first_hit() {
+fn it_meets_the_walls_and_the_box_in_this_order() {
     x10_sim::isolated(|| {
         let (world, outcome) = run(20_000);
         let timeline = Timeline::new(&world, &outcome);
-        let first = timeline.contacts().first().expect("a contact").clone();
-        assert_eq!(first.obstacle, "wall 2");
-        let before = timeline.pose_at_ms(first.t_ns / 1_000_000 - 500).expect("a chassis");
-        assert!(before.x_mm < 1_300.0, "{before:?}");
+        let hits: Vec<(&str, u64)> = timeline
+            .contacts()
+            .iter()
+            .map(|c| (c.obstacle.as_str(), c.t_ns / 1_000_000))
+            .collect();
+        // Walls are numbered in the order of `size_mm`'s sides: 1 bottom, 2 right, 3 top,
+        // 4 left; boxes after them.
+        assert_eq!(
+            hits,
+            [
+                ("wall 2", 7_207),
+                ("wall 2", 8_751),
+                ("box 1", 13_442),
+                ("box 1", 14_652),
+                ("wall 3", 19_756),
+            ]
+        );
     });
 }

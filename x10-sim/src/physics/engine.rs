@@ -779,6 +779,15 @@ impl Motion {
         }
     }
 
+    /// The rated speed of servo `name` if it travels ([`super::ServoSlew`]), °/s.
+    pub fn slew_of(&self, name: &str) -> Option<f64> {
+        self.physics
+            .servos
+            .iter()
+            .find(|s| s.device == name)
+            .map(|s| s.deg_per_s)
+    }
+
     /// The models.
     pub fn physics(&self) -> &Physics {
         &self.physics
@@ -1035,4 +1044,58 @@ impl Engine {
         let boxes: Vec<(P, P)> = arena.boxes.iter().map(|b| (b.min, b.max)).collect();
         geom::segments(&walls, &boxes)
     }
+}
+
+/// A servo's commanded angles (`commanded`, a timeline track) as the servo reaches them at
+/// `deg_per_s`: from its first commanded angle on, each later command is approached at the
+/// rated speed, sampled every [`MODEL_SAMPLE_NS`] (a change when the whole degree changes); a
+/// release (no pulses) is immediate, the servo holding where it was.
+pub(crate) fn slewed(
+    commanded: &Track<DeviceState>,
+    deg_per_s: f64,
+    end_ns: Nanos,
+) -> Track<DeviceState> {
+    let angle = |s: DeviceState| match s {
+        DeviceState::Servo(a) => a,
+        _ => None,
+    };
+    let initial = commanded.initial();
+    let mut changes: Vec<(Nanos, DeviceState)> = Vec::new();
+    let mut at: Option<f64> = angle(initial).map(f64::from);
+    let mut shown = initial;
+    let per_step = deg_per_s.max(0.0) * MODEL_SAMPLE_NS as f64 / 1e9;
+    let mut t = 0;
+    let cmds = commanded.changes();
+    let mut next = 0;
+    let mut target = angle(initial);
+    while t <= end_ns {
+        while let Some((ct, s)) = cmds.get(next).filter(|(ct, _)| *ct <= t) {
+            let a = angle(*s);
+            if at.is_none() {
+                at = a.map(f64::from);
+            }
+            target = a;
+            let _ = ct;
+            next += 1;
+        }
+        let state = match (target, at) {
+            (Some(goal), Some(now)) => {
+                let goal = f64::from(goal);
+                let moved = if (goal - now).abs() <= per_step {
+                    goal
+                } else {
+                    now + per_step.copysign(goal - now)
+                };
+                at = Some(moved);
+                DeviceState::Servo(Some(moved.round().clamp(0.0, f64::from(u16::MAX)) as u16))
+            }
+            _ => DeviceState::Servo(None),
+        };
+        if state != shown {
+            changes.push((t, state));
+            shown = state;
+        }
+        t += MODEL_SAMPLE_NS;
+    }
+    Track::new(initial, changes)
 }

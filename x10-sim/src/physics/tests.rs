@@ -256,3 +256,39 @@ fn a_light_sensor_reads_the_inverse_square_of_its_distance_to_the_lamp() {
     let mut e = engine(&world2, Vec::new());
     assert_eq!(e.counts(i, 0, 1_023), 420);
 }
+
+#[test]
+fn a_servo_travels_at_its_rated_speed() {
+    use crate::timeline::{DeviceState, Track};
+    let commanded = Track::new(
+        DeviceState::Servo(None),
+        vec![
+            (100_000_000, DeviceState::Servo(Some(0))),
+            (1_000_000_000, DeviceState::Servo(Some(180))),
+            (2_000_000_000, DeviceState::Servo(None)),
+        ],
+    );
+    // 600°/s: 6° per 10 ms sample, from the command on; the first angle is where it starts.
+    let t = slewed(&commanded, 600.0, 3_000_000_000);
+    let at = |ms: u64| t.at_ms(ms);
+    assert_eq!(at(50), DeviceState::Servo(None));
+    assert_eq!(at(100), DeviceState::Servo(Some(0)));
+    assert_eq!(at(999), DeviceState::Servo(Some(0)));
+    assert_eq!(at(1_000), DeviceState::Servo(Some(6)));
+    assert_eq!(at(1_150), DeviceState::Servo(Some(96)));
+    assert_eq!(at(1_289), DeviceState::Servo(Some(174)));
+    assert_eq!(at(1_290), DeviceState::Servo(Some(180)));
+    assert_eq!(at(2_000), DeviceState::Servo(None));
+    let world = World::new()
+        .device(Device::servo("arm", SELF, 1, Pin::A))
+        .servo_slew("arm", 600.0);
+    assert!(world.check().is_ok());
+    let wrong = World::from_toml(
+        "[[device]]\nname = \"led\"\nkind = \"led\"\nport = \"A1\"\npin = \"A\"\n\n[[servo]]\ndevice = \"led\"\nspeed_deg_s = 600\n",
+    )
+    .expect_err("not a servo");
+    assert_eq!(
+        wrong.to_string(),
+        "line 8: servo `led`: `device` names `led`, a led: not a servo"
+    );
+}

@@ -16,7 +16,7 @@ use super::{
 };
 use crate::physics::{
     Arena, Chassis, Engine, FloorLine, InputPin, Lamp, ModelPin, ModelSensor, Obstacle, Physics,
-    PinModel, Pose, RangerWiring, Source, Spec, Thermal, Wall, Wheel,
+    PinModel, Pose, RangerWiring, ServoSlew, Source, Spec, Thermal, Wall, Wheel,
 };
 use crate::ports::{Analog, Digital, SensorScript};
 
@@ -45,6 +45,16 @@ impl World {
     /// Adds a thermal body ([`Thermal`]).
     pub fn thermal(mut self, body: Thermal) -> World {
         self.physics.thermals.push(body);
+        self
+    }
+
+    /// Servo `device` travels at `deg_per_s` towards each commanded angle
+    /// ([`crate::physics::ServoSlew`]).
+    pub fn servo_slew(mut self, device: impl Into<String>, deg_per_s: f64) -> World {
+        self.physics.servos.push(ServoSlew {
+            device: device.into(),
+            deg_per_s,
+        });
         self
     }
 
@@ -304,6 +314,40 @@ impl World {
                         )
                     }
                 }
+            }
+        }
+        for (i, s) in p.servos.iter().enumerate() {
+            let item = Item::Servo(i);
+            let who = format!("servo `{}`", s.device);
+            match self.device_named(&s.device).map(|d| &d.kind) {
+                Some(DeviceKind::Servo { .. }) => {}
+                Some(k) => {
+                    return err(
+                        item,
+                        &who,
+                        "device",
+                        format!("names `{}`, a {}: not a servo", s.device, k.name()),
+                    )
+                }
+                None => {
+                    return err(
+                        item,
+                        &who,
+                        "device",
+                        format!("names `{}`, which is not a device", s.device),
+                    )
+                }
+            }
+            if p.servos[..i].iter().any(|o| o.device == s.device) {
+                return err(item, &who, "device", "already has a speed".to_string());
+            }
+            if !(s.deg_per_s > 0.0 && s.deg_per_s.is_finite()) {
+                return err(
+                    item,
+                    &who,
+                    "speed_deg_s",
+                    format!("is {}: above 0", s.deg_per_s),
+                );
             }
         }
         for (i, s) in p.sensors.iter().enumerate() {
@@ -705,6 +749,14 @@ pub(super) struct RawThermal {
     door: Option<Spanned<String>>,
 }
 
+/// `[[servo]]`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct RawServo {
+    device: Spanned<String>,
+    speed_deg_s: Spanned<f64>,
+}
+
 /// The physics tables of a world file.
 pub(super) struct RawModels<'a> {
     pub physics: Option<&'a Spanned<RawPhysics>>,
@@ -712,6 +764,7 @@ pub(super) struct RawModels<'a> {
     pub arena: Option<&'a Spanned<RawArena>>,
     pub sensors: &'a [Spanned<RawSensor>],
     pub thermals: &'a [Spanned<RawThermal>],
+    pub servos: &'a [Spanned<RawServo>],
 }
 
 fn v<T: Copy>(s: &Option<Spanned<T>>, default: T) -> T {
@@ -863,6 +916,17 @@ pub(super) fn read(
             heater: t.heater.as_ref().map(|h| h.get_ref().clone()),
             heater_c: v(&t.heater_c, 0.0),
             door: t.door.as_ref().map(|h| h.get_ref().clone()),
+        });
+    }
+    for (i, s) in raw.servos.iter().enumerate() {
+        let item = Item::Servo(i);
+        mark(world, item, "", Some(s.span()));
+        let s = s.get_ref();
+        mark(world, item, "device", Some(s.device.span()));
+        mark(world, item, "speed_deg_s", Some(s.speed_deg_s.span()));
+        world.physics.servos.push(ServoSlew {
+            device: s.device.get_ref().clone(),
+            deg_per_s: *s.speed_deg_s.get_ref(),
         });
     }
     for (i, s) in raw.sensors.iter().enumerate() {

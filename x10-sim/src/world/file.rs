@@ -26,6 +26,8 @@ struct RawWorld {
     sensor: Vec<Spanned<super::arena::RawSensor>>,
     #[serde(default)]
     thermal: Vec<Spanned<super::arena::RawThermal>>,
+    #[serde(default)]
+    servo: Vec<Spanned<super::arena::RawServo>>,
 }
 
 /// One `[[board]]`.
@@ -154,6 +156,7 @@ pub(super) fn parse(text: &str) -> Result<World, WorldError> {
         arena: raw.arena.as_ref(),
         sensors: &raw.sensor,
         thermals: &raw.thermal,
+        servos: &raw.servo,
     };
     super::arena::read(models, &mut world, &|offset| lines.of(offset))?;
     Ok(world)
