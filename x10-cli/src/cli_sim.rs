@@ -16,6 +16,10 @@ EXAMPLES (robots/src, their worlds in robots/worlds)
   fig4_6  thesis Fig. 4.6: freezer (DB 17 S1) > 1 °C or oven (DB 108 S6) < 200 °F: alarm (DB 10 A3.A)
   bumper  three tasks: heartbeat LED, a lamp following the light, a timed back-off on a bump
   doorbell  a button on DB 9 S1.A rings a chime on SELF A1.A: its events wake the task
+  explorer  a chassis in a walled arena: drives; on each bump (from its contacts) backs off, turns
+  wall_follower  a chassis keeps the wall on its left at 300 mm along its ranger's beam
+  line_follower  a chassis follows the edge of a dark floor line with one line sensor
+  freezer  Fig. 4.6's alarm against a freezer model whose door opens at 2 s: it warms, the alarm sounds
 
 OUTPUT
   A summary: what each device did and when, the bus load, warnings. --trace prints instead one
@@ -30,6 +34,7 @@ YOUR OWN ROBOT
 EXAMPLES
   x10 sim fig4_4
   x10 sim bumper --html bumper.html
+  x10 sim explorer --duration-ms 20000 --html explorer.html    # the arena seen from above
   x10 sim fig4_6 --clock 100k --duration-ms 4000 --trace --vcd fig4_6.vcd
   x10 sim --report";
 
@@ -37,7 +42,8 @@ EXAMPLES
 #[derive(Args, Debug)]
 #[command(after_help = SIM_HELP)]
 pub struct SimArgs {
-    /// Example robot: fig4_2, fig4_4, fig4_6, bumper or doorbell.
+    /// Example robot: fig4_2, fig4_4, fig4_6, bumper, doorbell, explorer, wall_follower,
+    /// line_follower or freezer.
     #[arg(required_unless_present = "report", value_parser = example)]
     pub program: Option<&'static Example>,
     /// How to run, what to print.

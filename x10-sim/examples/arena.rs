@@ -7,7 +7,8 @@
 //! ```
 //!
 //! With no argument, runs each arena example (explorer, wall_follower, line_follower) for
-//! 60 s of virtual time and prints its speed (the figures of docs/performance.md).
+//! 60 s of virtual time, 5 times, and prints its best speed (the figures of
+//! docs/performance.md).
 
 use std::time::Instant;
 
@@ -15,6 +16,9 @@ use x10_sim::examples;
 use x10_sim::physics::top_view_svg;
 use x10_sim::sim::SimConfig;
 use x10_sim::timeline::Timeline;
+
+/// Runs per example; the fastest is printed.
+const RUNS: usize = 5;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -44,23 +48,33 @@ fn main() {
             duration_ms: ms,
             ..SimConfig::default()
         };
-        let Some(sim) = examples::sim(&name, config) else {
-            eprintln!("{name}: no simulation");
-            std::process::exit(1);
-        };
-        let start = Instant::now();
-        let outcome = match sim.run() {
-            Ok(o) => o,
-            Err(e) => {
-                eprintln!("{name}: {e}");
+        // The best of RUNS (the machine may be busy with other work).
+        let mut best: Option<(f64, x10_sim::sim::SimOutcome, Timeline)> = None;
+        for _ in 0..RUNS {
+            let Some(sim) = examples::sim(&name, config) else {
+                eprintln!("{name}: no simulation");
                 std::process::exit(1);
+            };
+            let start = Instant::now();
+            let outcome = match sim.run() {
+                Ok(o) => o,
+                Err(e) => {
+                    eprintln!("{name}: {e}");
+                    std::process::exit(1);
+                }
+            };
+            let tl = Timeline::new(&world, &outcome);
+            let wall = start.elapsed().as_secs_f64();
+            if best.as_ref().is_none_or(|(w, _, _)| wall < *w) {
+                best = Some((wall, outcome, tl));
             }
+        }
+        let Some((wall, outcome, tl)) = best else {
+            return;
         };
-        let tl = Timeline::new(&world, &outcome);
-        let wall = start.elapsed().as_secs_f64();
         let virt = outcome.end_ns as f64 / 1e9;
         println!(
-            "{name}: {virt:.1} s of virtual time in {wall:.3} s of wall time (run and replay): {:.0}x real time",
+            "{name}: {virt:.1} s of virtual time in {wall:.3} s of wall time (run and replay, best of {RUNS}): {:.0}x real time",
             virt / wall
         );
         if let (Some(path), Some(m)) = (args.get(2), tl.motion()) {
