@@ -367,6 +367,7 @@ impl DeviceTimeline {
             (DeviceState::Servo(None), _) => "released".to_string(),
             (DeviceState::Counts(c), _) => format!("{c} counts"),
             (DeviceState::Celsius(c), _) => format!("{c:.1} °C"),
+            (DeviceState::Distance(mm), _) if !mm.is_finite() => "nothing in range".to_string(),
             (DeviceState::Distance(mm), _) => format!("{mm:.0} mm"),
         }
     }

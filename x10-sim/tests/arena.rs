@@ -197,6 +197,30 @@ fn the_page_has_the_arena_and_its_slider() {
     roxmltree::Document::parse(&svg).expect("well-formed SVG");
 }
 
+#[test]
+fn the_lanes_of_model_sensors_show_what_they_read() {
+    for (name, ms) in [
+        ("explorer", 8_000),
+        ("wall_follower", 3_000),
+        ("line_follower", 3_000),
+        ("freezer", 10_000),
+    ] {
+        let (world, outcome) = run(name, ms);
+        let svg = x10_sim::timeline::timeline_svg(&world, &outcome);
+        roxmltree::Document::parse(&svg).expect("well-formed SVG");
+        let page = x10_sim::timeline::timeline_html(&world, &outcome, name);
+        for bad in [
+            "NaN",
+            "inf",
+            "constant 1000 mm",
+            "constant 0 counts",
+            "constant 20 °C",
+        ] {
+            assert!(!page.contains(bad), "{name}: {bad}");
+        }
+    }
+}
+
 /// The picture in docs/world.md: `cargo run -p x10-sim --example arena -- explorer 20000
 /// docs/arena-explorer.svg` writes it; regenerating gives the same bytes.
 #[test]

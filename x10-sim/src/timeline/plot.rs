@@ -114,7 +114,8 @@ fn value(s: &DeviceState) -> Option<f64> {
         DeviceState::Servo(a) => a.map(f64::from),
         DeviceState::Counts(c) => Some(f64::from(*c)),
         DeviceState::Celsius(c) => Some(f64::from(*c)),
-        DeviceState::Distance(mm) => Some(*mm),
+        // Nothing in range (a ranger reading a model): nothing to draw.
+        DeviceState::Distance(mm) => mm.is_finite().then_some(*mm),
     }
 }
 
@@ -156,6 +157,27 @@ fn scale_of(d: &DeviceTimeline) -> Scale {
             }
         }
     };
+    if d.model.is_some() && is_analog(kind) {
+        // A sensor reading a model: the range of what it read.
+        let read: Vec<(u64, f64)> = d
+            .track
+            .states()
+            .iter()
+            .filter_map(value)
+            .map(|v| (0, v))
+            .collect();
+        let signal = if read.is_empty() {
+            crate::world::Signal::Const(0.0)
+        } else {
+            crate::world::Signal::Steps(read)
+        };
+        let unit = match kind {
+            DeviceKind::Thermistor { .. } => "°C",
+            DeviceKind::Ultrasonic { .. } => "mm",
+            _ => "counts",
+        };
+        return analog(&signal, unit);
+    }
     match kind {
         DeviceKind::DcMotor => Scale {
             lo: -100.0,
