@@ -292,3 +292,70 @@ fn a_servo_travels_at_its_rated_speed() {
         "line 8: servo `led`: `device` names `led`, a led: not a servo"
     );
 }
+
+/// A model pin on a board's ports: `wait_edge` wakes at each edge the integration records and
+/// `take_edges` counts them exactly, while the same ports drive the motors.
+#[test]
+fn a_board_waiting_for_encoder_edges_wakes_at_each_and_counts_them_all() {
+    use std::cell::RefCell;
+
+    use firmware_db::Ports;
+    use x10_microcode::PortKind;
+
+    use crate::exec::{Executor, SimClock};
+    use crate::ports::{Digital, SensorScript, SimPorts};
+
+    let world = robot(Arena::default(), (0.0, 0.0, 0.0))
+        .device(Device::digital_input("tick", SELF, 1, Pin::A))
+        .model("tick", Source::Encoder(Wheel::Left));
+    let clock = SimClock::new();
+    let log = ActuatorLog::new();
+    let engine = Engine::new(
+        world.physics_spec().unwrap(),
+        log.clone(),
+        Some(clock.clone()),
+    )
+    .into_shared();
+    let pin = ModelPin::new(engine.clone(), PinModel::Encoder(Wheel::Left), false);
+    let ports = SimPorts::new("mb", clock.clone(), log, 2, 2).with_sensor(
+        1,
+        SensorScript {
+            a: Digital::Model(pin),
+            ..SensorScript::default()
+        },
+    );
+    let tick = Port::new(PortKind::Sensor, 1).unwrap().pin(Pin::A);
+    let wakes = RefCell::new(Vec::new());
+    let counted = RefCell::new(0u32);
+    let mut ex = Executor::with_clock(&clock);
+    let (p, w, n, c) = (&ports, &wakes, &counted, clock.clone());
+    ex.spawn("board", async move {
+        for port in [1, 2] {
+            let a = Port::actuator(port).unwrap();
+            p.digital_write(a.pin(Pin::A), Level::High).await.unwrap();
+            p.digital_write(a.pin(Pin::B), Level::Low).await.unwrap();
+            p.pwm_duty(a.pin(Pin::A), 255).await.unwrap();
+        }
+        p.latch_edges(tick).unwrap();
+        while c.now_ns() < 1_000_000_000 {
+            p.wait_edge().await;
+            let e = p.take_edges(tick).unwrap();
+            w.borrow_mut().push(c.now_ns());
+            *n.borrow_mut() += u32::from(e.rising) + u32::from(e.falling);
+        }
+    });
+    ex.run_until_ns(1_000_000_000).unwrap();
+    let recorded: Vec<u64> = engine
+        .borrow()
+        .levels(PinModel::Encoder(Wheel::Left))
+        .edges
+        .iter()
+        .map(|(t, _)| *t)
+        .filter(|t| *t <= 1_000_000_000)
+        .collect();
+    assert!(recorded.len() > 40, "{}", recorded.len());
+    // One wake per edge, at its instant (edges are on the 1 ms grid, at most one per step
+    // at this speed), and every edge counted.
+    assert_eq!(*wakes.borrow(), recorded);
+    assert_eq!(*counted.borrow() as usize, recorded.len());
+}
