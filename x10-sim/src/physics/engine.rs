@@ -1069,13 +1069,12 @@ pub(crate) fn slewed(
     let mut next = 0;
     let mut target = angle(initial);
     while t <= end_ns {
-        while let Some((ct, s)) = cmds.get(next).filter(|(ct, _)| *ct <= t) {
+        while let Some((_, s)) = cmds.get(next).filter(|(ct, _)| *ct <= t) {
             let a = angle(*s);
             if at.is_none() {
                 at = a.map(f64::from);
             }
             target = a;
-            let _ = ct;
             next += 1;
         }
         let state = match (target, at) {
