@@ -39,10 +39,14 @@
 //! The record owns `page_count` (at least 2) whole erase pages from `first_page_offset`.
 //! Every valid slot carries a 16-bit sequence number; the newest (in serial-number arithmetic,
 //! so the number may wrap) is the value. A write programs the first erased slot after the
-//! newest one in the same page; when that page has none left, it erases the next page (in
-//! turn) and programs that page's first slot. Slots that are neither valid nor erased (the
-//! leftovers of a cut program) are skipped. A write of the value already stored programs
-//! nothing.
+//! newest one in the same page (with no valid slot anywhere: the first erased slot of page
+//! 0); when that page has none left, it erases the next page (in turn) and programs that
+//! page's first slot. Slots that are neither valid nor erased (the leftovers of a cut program)
+//! are skipped. A write of the value already stored programs nothing.
+//!
+//! [`Record::append_only`] keeps the record in memory that is never erased (one-time
+//! programmable): the same slots, one area, and [`StoreError::Full`] when its last slot is
+//! used.
 //!
 //! Not covered: bits left "weak" by a cut (reading sometimes 0, sometimes 1), and on the
 //! STM32 chips an ECC double error in a double word whose programming was cut (the chip
@@ -72,6 +76,9 @@ pub enum StoreError {
     Geometry,
     /// A programmed slot did not read back as written (the slot is skipped from then on).
     Verify,
+    /// An append-only record ([`Record::append_only`], one-time-programmable memory) has no
+    /// erased slot left: the value stored stays, a new one cannot be kept.
+    Full,
 }
 
 impl<E: NorFlashError> From<E> for StoreError {
@@ -123,6 +130,10 @@ pub struct Record<F> {
     flash: F,
     base: u32,
     pages: u32,
+    /// Bytes per page: the erase size, or the whole area of an append-only record.
+    page_size: u32,
+    /// Whether pages may be erased (not in one-time-programmable memory).
+    erasable: bool,
     /// The newest valid slot, after a scan.
     newest: Option<Newest>,
     /// The first erased slot after [`Record::newest`] in its page, after a scan.
@@ -152,10 +163,44 @@ impl<F: NorFlash> Record<F> {
         {
             return Err(StoreError::Geometry);
         }
+        Self::open(flash, first_page_offset, page_count, erase as u32, true)
+    }
+
+    /// An append-only record on the `len` bytes of `flash` from `offset`, for memory that is
+    /// never erased (the STM32C011's one-time-programmable area): each change takes the next
+    /// slot, `len / 8` changes in the chip's life; then [`Record::write`] answers
+    /// [`StoreError::Full`] and the value stored stays.
+    ///
+    /// # Errors
+    /// [`StoreError::Geometry`] for an area not of whole slots, beyond the flash, or not
+    /// aligned to its write size; the flash's read errors.
+    pub fn append_only(flash: F, offset: u32, len: u32) -> Result<Self, StoreError> {
+        if len < SLOT as u32
+            || !len.is_multiple_of(SLOT as u32)
+            || !offset.is_multiple_of(SLOT as u32)
+            || u64::from(offset) + u64::from(len) > flash.capacity() as u64
+            || len / SLOT as u32 > 0x3FFF
+            || !SLOT.is_multiple_of(F::WRITE_SIZE)
+            || !SLOT.is_multiple_of(F::READ_SIZE)
+        {
+            return Err(StoreError::Geometry);
+        }
+        Self::open(flash, offset, 1, len, false)
+    }
+
+    fn open(
+        flash: F,
+        base: u32,
+        pages: u32,
+        page_size: u32,
+        erasable: bool,
+    ) -> Result<Self, StoreError> {
         let mut r = Record {
             flash,
-            base: first_page_offset,
-            pages: page_count,
+            base,
+            pages,
+            page_size,
+            erasable,
             newest: None,
             free: None,
             scanned: false,
@@ -178,8 +223,8 @@ impl<F: NorFlash> Record<F> {
     /// equal to the one stored programs nothing.
     ///
     /// # Errors
-    /// The flash's errors; [`StoreError::Verify`] when the slot did not read back as written.
-    /// After an error (a power cut included) the record holds the old value or the new one.
+    /// The flash's errors; [`StoreError::Verify`] when the slot did not read back as written;
+    /// [`StoreError::Full`] (append-only records). After an error (a power cut included) the record holds the old value or the new one.
     pub fn write(&mut self, value: u8) -> Result<(), StoreError> {
         self.scan()?;
         if self.newest.map(|n| n.value) == Some(value) {
@@ -190,10 +235,11 @@ impl<F: NorFlash> Record<F> {
         self.scanned = false;
         let at = match self.free {
             Some(at) => at,
+            None if !self.erasable => return Err(StoreError::Full),
             None => {
                 let page = self.newest.map_or(0, |n| (n.at.page + 1) % self.pages);
-                let from = self.base + page * F::ERASE_SIZE as u32;
-                self.flash.erase(from, from + F::ERASE_SIZE as u32)?;
+                let from = self.base + page * self.page_size;
+                self.flash.erase(from, from + self.page_size)?;
                 At { page, slot: 0 }
             }
         };
@@ -233,11 +279,11 @@ impl<F: NorFlash> Record<F> {
     }
 
     fn slots_per_page(&self) -> u32 {
-        (F::ERASE_SIZE / SLOT) as u32
+        self.page_size / SLOT as u32
     }
 
     fn offset(&self, at: At) -> u32 {
-        self.base + at.page * F::ERASE_SIZE as u32 + at.slot * SLOT as u32
+        self.base + at.page * self.page_size + at.slot * SLOT as u32
     }
 
     fn slot(&mut self, at: At) -> Result<[u8; SLOT], StoreError> {
@@ -246,8 +292,8 @@ impl<F: NorFlash> Record<F> {
         Ok(b)
     }
 
-    /// Finds the newest valid slot and the first erased slot after it in its page, unless
-    /// known.
+    /// Finds the newest valid slot and the first erased slot after it in its page (without a
+    /// valid slot: the first erased slot of page 0), unless known.
     fn scan(&mut self) -> Result<(), StoreError> {
         if self.scanned {
             return Ok(());
@@ -265,7 +311,7 @@ impl<F: NorFlash> Record<F> {
                     }
                 } else if free.is_none()
                     && b == [0xFF; SLOT]
-                    && newest.is_some_and(|n| n.at.page == page)
+                    && newest.map_or(page == 0, |n| n.at.page == page)
                 {
                     free = Some(at);
                 }
