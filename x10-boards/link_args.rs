@@ -7,18 +7,22 @@
 
 /// The memory map of the Raspberry Pi Pico (RP2040): the first 256 bytes of the 2 MiB flash
 /// hold the second-stage bootloader (boot2 for the Pico's W25Q080-compatible flash, placed by
-/// embassy-rp's link-rp.x), the image follows; 256 KiB of striped SRAM (SRAM0-3).
+/// embassy-rp's link-rp.x), the image follows; the last 8 KiB (two 4 KiB sectors from
+/// 0x101FE000) are the address record's (`x10_boards::record`), outside the image; 256 KiB
+/// of striped SRAM (SRAM0-3).
 const PICO_MEMORY: &str = "MEMORY {
     BOOT2 : ORIGIN = 0x10000000, LENGTH = 0x100
-    FLASH : ORIGIN = 0x10000100, LENGTH = 2048K - 0x100
+    FLASH : ORIGIN = 0x10000100, LENGTH = 2048K - 0x100 - 8K
     RAM   : ORIGIN = 0x20000000, LENGTH = 256K
 }
 ";
 
-/// The memory map of the STM32G431CB: 128 KiB flash; SRAM1 (16 KiB), SRAM2 (6 KiB) and CCM
-/// SRAM (10 KiB, aliased there) are contiguous from 0x20000000.
+/// The memory map of the STM32G431CB: 128 KiB flash, of which the last 4 KiB (two 2 KiB
+/// pages from 0x0801F000) are the address record's (`x10_boards::record`), outside the
+/// image; SRAM1 (16 KiB), SRAM2 (6 KiB) and CCM SRAM (10 KiB, aliased there) are contiguous
+/// from 0x20000000.
 const G431_MEMORY: &str = "MEMORY {
-    FLASH : ORIGIN = 0x08000000, LENGTH = 128K
+    FLASH : ORIGIN = 0x08000000, LENGTH = 128K - 4K
     RAM   : ORIGIN = 0x20000000, LENGTH = 32K
 }
 ";

@@ -85,3 +85,22 @@ use embassy_stm32::Peripherals;
 
 #[cfg(feature = "motherboard")]
 motherboard_starter!(ports: G431Ports, bus: G431Bus, kind: x10_microcode::BoardKind::G431, name: "STM32G431");
+
+/// The G431's flash driver, blocking (offsets from 0x0800_0000).
+pub type G431Flash = embassy_stm32::flash::Flash<'static, embassy_stm32::flash::Blocking>;
+
+/// The G431's address record: the last two 2 KiB pages of its 128 KiB
+/// ([`crate::record::G431_RECORD_OFFSET`], outside the image's `FLASH` region). The unique ID
+/// is [`crate::stm32::unique_id`].
+///
+/// # Errors
+/// `x10_store`'s: the flash's read errors.
+pub fn address_record(
+    flash: Peri<'static, peripherals::FLASH>,
+) -> Result<x10_store::Record<G431Flash>, x10_store::StoreError> {
+    x10_store::Record::new(
+        G431Flash::new_blocking(flash),
+        crate::record::G431_RECORD_OFFSET,
+        crate::record::RECORD_PAGES,
+    )
+}

@@ -53,6 +53,7 @@ pub mod pico_rules;
 pub mod port_lookup;
 pub mod pulse;
 pub mod pwm;
+pub mod record;
 pub mod stm32_latch;
 
 #[cfg(feature = "time")]

@@ -77,6 +77,8 @@ pub struct Board {
     pub ports: PicoPorts,
     /// The value of the address-select jumpers read at start-up (fitted = 1, bit 0 first).
     pub jumpers: u8,
+    /// The flash, for the address record and the unique ID ([`address_record`]).
+    pub flash: Peri<'static, peripherals::FLASH>,
 }
 
 macro_rules! pico_build {
@@ -151,6 +153,7 @@ macro_rules! pico_build {
                         })),
                     },
                     jumpers,
+                    flash: p.FLASH,
                 }
             }
         }
@@ -158,6 +161,41 @@ macro_rules! pico_build {
 }
 
 pico_table!(pico_build);
+
+/// The RP2040's flash driver over the Pico's 2 MiB, blocking (embassy-rp runs each erase and
+/// program from RAM through the boot ROM's functions, with interrupts off).
+pub type PicoFlash = embassy_rp::flash::Flash<
+    'static,
+    peripherals::FLASH,
+    embassy_rp::flash::Blocking,
+    { crate::record::PICO_FLASH as usize },
+>;
+
+/// The Pico's address record: the last two 4 KiB sectors of its flash
+/// ([`crate::record::PICO_RECORD_OFFSET`], outside the image's `FLASH` region).
+///
+/// # Errors
+/// `x10_store`'s: the flash's read errors.
+pub fn address_record(
+    flash: Peri<'static, peripherals::FLASH>,
+) -> Result<x10_store::Record<PicoFlash>, x10_store::StoreError> {
+    x10_store::Record::new(
+        PicoFlash::new_blocking(flash),
+        crate::record::PICO_RECORD_OFFSET,
+        crate::record::RECORD_PAGES,
+    )
+}
+
+/// The board's 8-byte unique ID: the unique ID of the Pico's flash chip (command 0x4B),
+/// through embassy-rp 0.10's `Flash::blocking_unique_id` (`src/flash.rs` line 235).
+///
+/// # Errors
+/// The flash driver's.
+pub fn unique_id(flash: &mut PicoFlash) -> Result<[u8; 8], x10_store::StoreError> {
+    let mut id = [0u8; 8];
+    flash.blocking_unique_id(&mut id)?;
+    Ok(id)
+}
 
 fn input(pin: Peri<'static, embassy_rp::gpio::AnyPin>) -> Flex<'static> {
     let mut f = Flex::new(pin);

@@ -70,6 +70,17 @@ pub struct Board<U, const S: usize, const A: usize> {
     /// The value of the address-select jumpers read at start-up (fitted = 1, bit 0 first; 0
     /// when the table has none).
     pub jumpers: u8,
+    /// The flash controller, for the address record (`g431::address_record`).
+    pub flash: embassy_stm32::Peri<'static, embassy_stm32::peripherals::FLASH>,
+}
+
+/// The chip's 8-byte unique ID: its 96-bit UID (the `UID` registers, 0x1FFF7590 on the G431,
+/// 0x1FFF7550 on the C011, stm32-metapac 21's `pac.rs` of each chip) folded by
+/// [`crate::record::fold_uid96`]. Verified by reading: `embassy_stm32::uid::uid` (0.6.0,
+/// `src/uid.rs` line 4) copies those 12 bytes.
+#[must_use]
+pub fn unique_id() -> [u8; 8] {
+    crate::record::fold_uid96(&embassy_stm32::uid::uid())
 }
 
 /// Expands a pin table into a chip module's `Board::new` and `PwmUnit`. The chip module
@@ -137,6 +148,7 @@ macro_rules! stm32_build {
                     bus: $crate::stm32::Stm32Bus::new(i2c, embassy_stm32::pac::$i2c, lines, bus.frequency_hz, bus.timeout_us),
                     ports: $crate::stm32::Stm32Ports::new(new_adc(p.ADC1), ADC_BITS, sensors, actuators),
                     jumpers,
+                    flash: p.FLASH,
                 }
             }
         }

@@ -50,6 +50,9 @@ struct Image {
     chip: Option<&'static str>,
     /// The chip's flash in bytes (what an image that does not link overflowed).
     chip_flash: u64,
+    /// Bytes of the chip's flash kept for the address record (`x10_boards::record`): the
+    /// image's `FLASH` region ends before them, and image plus record must fit `chip_flash`.
+    record: u64,
     /// The most the image may take: `cargo xtask size`, and so CI, fails above it.
     budget: Budget,
 }
@@ -93,6 +96,7 @@ const IMAGES: &[Image] = &[
         daughterboard: false,
         chip: None,
         chip_flash: 2048 * 1024 - 256,
+        record: PICO_RECORD,
         // Its size with issue 10's safe defaults (67 692 B before them), rounded up to 256 B.
         budget: Budget {
             flash: MB_PICO_FLASH,
@@ -107,6 +111,7 @@ const IMAGES: &[Image] = &[
         daughterboard: true,
         chip: None,
         chip_flash: 2048 * 1024 - 256,
+        record: PICO_RECORD,
         budget: DB_BUDGET,
     },
     Image {
@@ -117,6 +122,7 @@ const IMAGES: &[Image] = &[
         daughterboard: false,
         chip: None,
         chip_flash: 128 * 1024,
+        record: G431_RECORD,
         // Its size with issue 10's safe defaults (72 260 B before them), rounded up to 256 B.
         budget: Budget {
             flash: MB_G431_FLASH,
@@ -131,6 +137,7 @@ const IMAGES: &[Image] = &[
         daughterboard: true,
         chip: None,
         chip_flash: 128 * 1024,
+        record: G431_RECORD,
         budget: DB_BUDGET,
     },
     Image {
@@ -141,9 +148,16 @@ const IMAGES: &[Image] = &[
         daughterboard: true,
         chip: Some("STM32C011F6Px"),
         chip_flash: 32 * 1024,
+        record: 0,
         budget: DB_BUDGET,
     },
 ];
+
+/// The Pico's address record: its flash's last two 4 KiB sectors (`x10_boards::record`).
+const PICO_RECORD: u64 = 8 * 1024;
+/// The G431's address record: its flash's last two 2 KiB pages.
+const G431_RECORD: u64 = 4 * 1024;
+// The C011 keeps its record in its one-time-programmable area, outside the 32 KiB: 0 B.
 
 /// The daughterboard images' budget: [`DB_GOAL`], with [`DB_STACK`] kept for the stack.
 const DB_BUDGET: Budget = Budget {
@@ -477,7 +491,7 @@ fn kib(bytes: u64) -> String {
 /// the verdicts.
 fn row(image: &Image, flash: u64, ram: Option<u64>) -> (bool, String, String) {
     let b = image.budget;
-    let within = flash <= b.flash && ram.is_none_or(|r| r <= b.ram);
+    let within = flash <= b.flash && ram.is_none_or(|r| r <= b.ram) && fits_chip(image, flash);
     let budget = format!(
         "{} / {}: {}",
         kib(b.flash),
@@ -503,7 +517,29 @@ fn row(image: &Image, flash: u64, ram: Option<u64>) -> (bool, String, String) {
     (within, budget, goal)
 }
 
-/// Runs `cargo xtask size`; `Ok(false)` when an image exceeds its budget.
+/// Whether image and address record together fit the chip's flash.
+fn fits_chip(image: &Image, flash: u64) -> bool {
+    flash + image.record <= image.chip_flash
+}
+
+/// The "image + record" column: both, against the chip's flash.
+fn with_record(image: &Image, flash: u64) -> String {
+    format!(
+        "{} B + {} B = {} of {}: {}",
+        flash,
+        image.record,
+        kib(flash + image.record),
+        kib(image.chip_flash),
+        if fits_chip(image, flash) {
+            "ok"
+        } else {
+            "DOES NOT FIT"
+        }
+    )
+}
+
+/// Runs `cargo xtask size`; `Ok(false)` when an image exceeds its budget or does not fit its
+/// chip with its address record.
 ///
 /// # Errors
 /// Build, metadata and ELF errors.
@@ -529,14 +565,14 @@ fn size(build_first: bool) -> Result<bool, Error> {
                 let u = usage(&elf)?;
                 (u.flash, Some(u.ram))
             }
-            Built::Overflow(n) => (image.chip_flash + n, None),
+            Built::Overflow(n) => (image.chip_flash - image.record + n, None),
         };
         rows.push((image, flash, ram, secs));
     }
     let mut ok = true;
     println!();
-    println!("| image | target | flash | static RAM | budget (flash / RAM) | DB goal: 32 KiB / 6 KiB with 1 KiB of stack | build |");
-    println!("|---|---|---|---|---|---|---|");
+    println!("| image | target | flash | static RAM | budget (flash / RAM) | DB goal: 32 KiB / 6 KiB with 1 KiB of stack | image + address record / chip | build |");
+    println!("|---|---|---|---|---|---|---|---|");
     for (image, flash, ram, secs) in rows {
         let (within, budget, goal) = row(image, flash, ram);
         ok &= within;
@@ -546,7 +582,7 @@ fn size(build_first: bool) -> Result<bool, Error> {
         );
         let secs = secs.map_or("-".to_owned(), |s| format!("{s:.0} s"));
         println!(
-            "| {} | {} | {} B ({}) | {} | {} | {} | {} |",
+            "| {} | {} | {} B ({}) | {} | {} | {} | {} | {} |",
             image.bin,
             image.target,
             flash,
@@ -554,6 +590,7 @@ fn size(build_first: bool) -> Result<bool, Error> {
             ram,
             budget,
             goal,
+            with_record(image, flash),
             secs
         );
     }
@@ -802,6 +839,25 @@ mod tests {
         assert!(ok);
         assert_eq!(goal, "-");
         assert!(!row(image("db-pico").unwrap(), 100, Some(6_145)).0);
+    }
+
+    #[test]
+    fn image_and_record_must_fit_the_chip() {
+        let pico = image("db-pico").unwrap();
+        assert_eq!(
+            with_record(pico, 30_000),
+            "30000 B + 8192 B = 37.3 KiB of 2047.8 KiB: ok"
+        );
+        // The MB image of a chip keeps the same record's place (one memory map per chip).
+        let mb = image("mb-g431").unwrap();
+        assert_eq!(mb.record, 4096);
+        assert!(!fits_chip(mb, 128 * 1024 - 4095));
+        assert!(fits_chip(mb, 128 * 1024 - 4096));
+        let c011 = image("db-c011").unwrap();
+        assert_eq!(
+            with_record(c011, 32_768),
+            "32768 B + 0 B = 32.0 KiB of 32.0 KiB: ok"
+        );
     }
 
     #[test]
