@@ -76,10 +76,10 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             };
             let safe = self.ports().safe_state(port);
             for (pin, duty) in [(Pin::A, safe.pwm[0]), (Pin::B, safe.pwm[1])] {
-                let _ = self.ports().pwm_duty(port.pin(pin), duty).await;
+                let _ = self.ports().pwm_duty(port.pin(pin), duty);
             }
             for (pin, level) in [(Pin::A, safe.digital[0]), (Pin::B, safe.digital[1])] {
-                let _ = self.ports().digital_write(port.pin(pin), level).await;
+                let _ = self.ports().digital_write(port.pin(pin), level);
             }
         }
     }
@@ -163,11 +163,11 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             for (pin, cfg, generation) in watches {
                 if cfg.rising || cfg.falling {
                     let edges = self.ports().take_edges(pin).ok();
-                    let level = self.ports().digital_read(pin).await;
+                    let level = self.ports().digital_read(pin);
                     self.sampled_level(pin, generation, level.ok().map(|l| l.is_high()), edges);
                 }
                 if cfg.analog_window {
-                    if let Ok(v) = self.ports().analog_read(pin.port).await {
+                    if let Ok(v) = self.ports().analog_read(pin.port) {
                         self.sampled_analog(pin, generation, v);
                     }
                 }

@@ -624,26 +624,26 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 self.with(|s| s.pec = on);
                 Done::ok()
             }
-            Op::DigitalRead(pin) => Done::from_port(p.digital_read(pin).await, |l| {
-                Done::value(&[l.is_high() as u8])
-            }),
+            Op::DigitalRead(pin) => {
+                Done::from_port(p.digital_read(pin), |l| Done::value(&[l.is_high() as u8]))
+            }
             Op::DigitalWrite(pin, level) => {
-                Done::from_port(p.digital_write(pin, level).await, |_| Done::ok())
+                Done::from_port(p.digital_write(pin, level), |_| Done::ok())
             }
             Op::PulseIn {
                 pin,
                 edge,
                 timeout_ms,
             } => self.start_pulse(seq, pin, edge, timeout_ms),
-            Op::PwmDuty(pin, duty) => Done::from_port(p.pwm_duty(pin, duty).await, |_| Done::ok()),
+            Op::PwmDuty(pin, duty) => Done::from_port(p.pwm_duty(pin, duty), |_| Done::ok()),
             Op::PwmFrequency(port, hz) => {
-                Done::from_port(p.pwm_frequency(port, hz).await, |_| Done::ok())
+                Done::from_port(p.pwm_frequency(port, hz), |_| Done::ok())
             }
             Op::PwmPulseWidth(pin, us) => {
-                Done::from_port(p.pwm_pulse_width(pin, us).await, |_| Done::ok())
+                Done::from_port(p.pwm_pulse_width(pin, us), |_| Done::ok())
             }
             Op::AnalogRead(port) => {
-                Done::from_port(p.analog_read(port).await, |v| Done::value(&v.to_le_bytes()))
+                Done::from_port(p.analog_read(port), |v| Done::value(&v.to_le_bytes()))
             }
             Op::SerialWrite(..) | Op::SerialRead(..) | Op::SerialConfig(..) => {
                 Done::status(Status::Unsupported)
@@ -729,7 +729,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 return Done::status(Status::PortOutOfRange);
             };
             for (bit, pin) in [(0, x10_microcode::Pin::A), (1, x10_microcode::Pin::B)] {
-                match self.ports.digital_read(port.pin(pin)).await {
+                match self.ports.digital_read(port.pin(pin)) {
                     Ok(level) => {
                         if level.is_high() {
                             r.digital |= 1 << (2 * u32::from(i) + bit);
@@ -738,7 +738,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                     Err(e) => return Done::status(port_status(e)),
                 }
             }
-            match self.ports.analog_read(port).await {
+            match self.ports.analog_read(port) {
                 Ok(v) => {
                     if let Some(slot) = r.analog.get_mut(usize::from(i)) {
                         *slot = v;

@@ -219,22 +219,22 @@ impl Ports for QuietPorts {
     fn adc_bits(&self) -> u8 {
         12
     }
-    async fn digital_read(&self, _pin: PinRef) -> Result<Level, PortError> {
+    fn digital_read(&self, _pin: PinRef) -> Result<Level, PortError> {
         Ok(Level::Low)
     }
-    async fn digital_write(&self, _pin: PinRef, _level: Level) -> Result<(), PortError> {
+    fn digital_write(&self, _pin: PinRef, _level: Level) -> Result<(), PortError> {
         Ok(())
     }
-    async fn pwm_duty(&self, _pin: PinRef, _duty: u8) -> Result<(), PortError> {
+    fn pwm_duty(&self, _pin: PinRef, _duty: u8) -> Result<(), PortError> {
         Ok(())
     }
-    async fn pwm_frequency(&self, _port: Port, _hz: u16) -> Result<(), PortError> {
+    fn pwm_frequency(&self, _port: Port, _hz: u16) -> Result<(), PortError> {
         Ok(())
     }
-    async fn pwm_pulse_width(&self, _pin: PinRef, _us: u16) -> Result<(), PortError> {
+    fn pwm_pulse_width(&self, _pin: PinRef, _us: u16) -> Result<(), PortError> {
         Ok(())
     }
-    async fn analog_read(&self, _port: Port) -> Result<u16, PortError> {
+    fn analog_read(&self, _port: Port) -> Result<u16, PortError> {
         Ok(0)
     }
     async fn pulse_in(

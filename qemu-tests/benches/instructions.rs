@@ -107,32 +107,32 @@ impl Ports for NoopPorts {
         12
     }
 
-    async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
+    fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
         black_box(pin);
         Ok(Level::from_bool(black_box(LEVEL)))
     }
 
-    async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
+    fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
         black_box((pin, level));
         Ok(())
     }
 
-    async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
+    fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
         black_box((pin, duty));
         Ok(())
     }
 
-    async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
+    fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
         black_box((port, hz));
         Ok(())
     }
 
-    async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
+    fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
         black_box((pin, us));
         Ok(())
     }
 
-    async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
+    fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         black_box(port);
         Ok(black_box(ANALOG))
     }

@@ -119,7 +119,7 @@ impl Ports for FakePorts {
         12
     }
 
-    async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
+    fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
         self.record(PortOp::DigitalRead(pin));
         let i = self.check(pin.port)?;
         let high = match pin.port.kind() {
@@ -129,27 +129,27 @@ impl Ports for FakePorts {
         Ok(Level::from_bool(high))
     }
 
-    async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
+    fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
         self.record(PortOp::DigitalWrite(pin, level));
         self.check(pin.port).map(|_| ())
     }
 
-    async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
+    fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
         self.record(PortOp::PwmDuty(pin, duty));
         self.check(pin.port).map(|_| ())
     }
 
-    async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
+    fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
         self.record(PortOp::PwmFrequency(port, hz));
         self.check(port).map(|_| ())
     }
 
-    async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
+    fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
         self.record(PortOp::PwmPulseWidth(pin, us));
         self.check(pin.port).map(|_| ())
     }
 
-    async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
+    fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         self.record(PortOp::AnalogRead(port));
         let i = self.check(port)?;
         Ok(self.analog.borrow()[i])

@@ -922,7 +922,7 @@ impl Ports for PicoPorts {
     /// `SIO.GPIO_IN`, not [`PortError::Busy`]: the daughterboard's event sampler reads the
     /// level of a pin with events right after taking its edges, and drops them when the read
     /// fails.
-    async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
+    fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
         let high = match self.digital(pin) {
             Ok(mut f) => {
                 f.set_as_input();
@@ -934,14 +934,14 @@ impl Ports for PicoPorts {
         Ok(Level::from_bool(high))
     }
 
-    async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
+    fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
         let mut f = self.digital(pin)?;
         f.set_level(level.is_high().into());
         f.set_as_output();
         Ok(())
     }
 
-    async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
+    fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
         let mut u = port_lookup::take(self.pwm(pin.port)?)?;
         let mut out = u.out;
         out[pin.pin.index()] = Output::Duty(duty);
@@ -949,14 +949,14 @@ impl Ports for PicoPorts {
         u.apply(timing, out)
     }
 
-    async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
+    fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
         let mut u = port_lookup::take(self.pwm(port)?)?;
         let timing = rp2040_slice(u.sys_hz, hz).ok_or(PortError::Unsupported)?;
         let out = u.out;
         u.apply(timing, out)
     }
 
-    async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
+    fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
         let mut u = port_lookup::take(self.pwm(pin.port)?)?;
         let mut out = u.out;
         out[pin.pin.index()] = Output::PulseUs(us);
@@ -967,7 +967,7 @@ impl Ports for PicoPorts {
     /// # Errors
     /// As the trait; a conversion the ADC flags as bad is answered [`PortError::Busy`] (worth
     /// a retry).
-    async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
+    fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         let sensor = port_lookup::sensor(&self.sensors, port)?;
         let mut ch = port_lookup::take(&sensor.analog)?;
         let mut adc = port_lookup::take(&self.adc)?;

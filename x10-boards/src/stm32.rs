@@ -985,7 +985,7 @@ impl<U: PwmTimer, const S: usize, const A: usize> Stm32Ports<U, S, A> {
     }
 
     /// Sets one output of a port, or changes nothing when it does not fit the period.
-    async fn set_output(&self, pin: PinRef, out: Output) -> Result<(), PortError> {
+    fn set_output(&self, pin: PinRef, out: Output) -> Result<(), PortError> {
         let mut guard = port_lookup::take(self.pwm(pin.port)?)?;
         let (unit, outs) = &mut *guard;
         let c = compare(unit, out).ok_or(PortError::Unsupported)?;
@@ -1010,24 +1010,24 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
         self.adc_bits
     }
 
-    async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
+    fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
         let mut f = self.digital(pin)?;
         f.set_as_input(Pull::Down);
         Ok(Level::from_bool(f.is_high()))
     }
 
-    async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
+    fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
         let mut f = self.digital(pin)?;
         f.set_level(level.is_high().into());
         f.set_as_output(Speed::Low);
         Ok(())
     }
 
-    async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
-        self.set_output(pin, Output::Duty(duty)).await
+    fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
+        self.set_output(pin, Output::Duty(duty))
     }
 
-    async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
+    fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
         let mut guard = port_lookup::take(self.pwm(port)?)?;
         let (unit, outs) = &mut *guard;
         if !stm32_frequency_ok(unit.timer_hz(), hz) {
@@ -1049,11 +1049,11 @@ impl<U: PwmTimer, const S: usize, const A: usize> Ports for Stm32Ports<U, S, A> 
         Ok(())
     }
 
-    async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
-        self.set_output(pin, Output::PulseUs(us)).await
+    fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
+        self.set_output(pin, Output::PulseUs(us))
     }
 
-    async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
+    fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         let sensor = port_lookup::sensor(&self.sensors, port)?;
         let mut ch = port_lookup::take(&sensor.analog)?;
         let mut adc = port_lookup::take(&self.adc)?;

@@ -7,8 +7,9 @@
 //!   (robot task → request channel → dispatcher → bus → real daughterboard runtime → reply →
 //!   pending table → robot task), the mean of N back-to-back calls, as the thesis measured
 //!   (Tables 4.2 and 4.3: 20 consecutive calls). Virtual time only advances on the bus and in
-//!   the port model ([`x10_sim::ports::PortsTiming`]: a 2 µs ADC conversion); CPU time is not
-//!   modelled, so the internal board's figures are the port model alone.
+//!   the scripted signals (port calls take no virtual time, as on the boards, where they are
+//!   synchronous; the boards' 2 µs ADC conversion is not modelled); CPU time is not modelled,
+//!   so the internal board's figures are 0.
 //! * **wire**: the wire-time minimum of the same bytes ([`x10_sim::timing`]): START, 9 bits per
 //!   byte, repeated START for reads, STOP; no `t_BUF`, no stretching.
 //! * **thesis**: the means the thesis measured on an Arduino Mega (bus at 230–300 kHz).
@@ -227,9 +228,9 @@ pub fn latency_table(samples: u32) -> Result<String, SimError> {
         s,
         "Frames: digitalOut and pwm are one write (4 and 5 bytes); digitalIn and analog are one\n\
          write-then-read (4 bytes, repeated START, 4 and 5 reply bytes). Back-to-back calls include\n\
-         the bus free time t_BUF between transactions; analog includes the 2 us ADC conversion during\n\
-         which the DB stretches SCL. CPU time is not simulated, so internal calls cost only the port\n\
-         model (0 us GPIO/PWM, 2 us ADC); the thesis's internal figures are Arduino CPU time."
+         the bus free time t_BUF between transactions. CPU time is not simulated, nor the boards'\n\
+         2 us ADC conversion (port calls are synchronous and take no virtual time), so internal\n\
+         calls take none; the thesis's internal figures are Arduino CPU time."
     );
     if failures > 0 {
         let _ = writeln!(

@@ -79,6 +79,12 @@ impl EdgeCount {
 /// serves other requests, so implementations keep their pins behind interior mutability
 /// (a `RefCell` or a blocking mutex per pin) and answer [`PortError::Busy`] for a pin that is
 /// in use.
+///
+/// Reads and settings (GPIO, PWM, ADC) are synchronous: on every board they complete at once
+/// (a register write; an ADC conversion of about 2 µs waited for), and an `async fn` here
+/// costs the state machine of an `await` in every caller: making them synchronous saved
+/// 0.9 KiB of flash on db-pico (docs/boards.md "Sizes"). Only [`Ports::pulse_in`] and
+/// [`Ports::wait_edge`], which wait for the outside world, are `async`.
 #[allow(async_fn_in_trait)]
 pub trait Ports {
     /// Number of sensor ports (at most 64; a scan reports at most 8).
@@ -94,37 +100,37 @@ pub trait Ports {
     ///
     /// # Errors
     /// [`PortError::NoSuchPin`], [`PortError::Busy`].
-    async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError>;
+    fn digital_read(&self, pin: PinRef) -> Result<Level, PortError>;
 
     /// Drives a digital pin (making it an output first).
     ///
     /// # Errors
     /// [`PortError::NoSuchPin`], [`PortError::Busy`].
-    async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError>;
+    fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError>;
 
     /// Sets the duty cycle (0–255) of PWM pin A or B of an actuator port.
     ///
     /// # Errors
     /// [`PortError::NoSuchPin`], [`PortError::Unsupported`].
-    async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError>;
+    fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError>;
 
     /// Sets the PWM frequency of both PWM pins of an actuator port.
     ///
     /// # Errors
     /// [`PortError::Unsupported`] when the hardware cannot produce `hz`.
-    async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError>;
+    fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError>;
 
     /// Sets the high time of each PWM period in µs (servo pulses).
     ///
     /// # Errors
     /// [`PortError::Unsupported`] when longer than the period or not supported.
-    async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError>;
+    fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError>;
 
     /// Reads the analog input of a sensor port, in `0..2^adc_bits`.
     ///
     /// # Errors
     /// [`PortError::NoSuchPin`], [`PortError::Unsupported`].
-    async fn analog_read(&self, port: Port) -> Result<u16, PortError>;
+    fn analog_read(&self, port: Port) -> Result<u16, PortError>;
 
     /// Measures one pulse on a digital pin: waits for `edge`, then for the opposite edge, and
     /// returns the time between them in µs. Gives up after `timeout_ms` in all.

@@ -6,8 +6,10 @@
 //! outputs) are recorded in a shared [`ActuatorLog`] as timestamped changes, so tests can ask
 //! what a pin was at any instant.
 //!
-//! Port operations take the virtual time of [`PortsTiming`] (an ADC conversion by default);
-//! CPU time is not modelled.
+//! Reads and settings take no virtual time: they are synchronous calls of
+//! [`firmware_db::Ports`], as on the boards, where they complete at once (the boards' 2 µs
+//! ADC conversion is not modelled, nor is CPU time). Pulse-in and edge waits take the time
+//! of the scripted signals.
 
 use std::cell::RefCell;
 use std::fmt;
@@ -303,27 +305,6 @@ impl Default for SensorScript {
     }
 }
 
-/// Virtual time each port operation takes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct PortsTiming {
-    /// A digital read or write.
-    pub gpio_ns: Nanos,
-    /// A PWM setting.
-    pub pwm_ns: Nanos,
-    /// An ADC conversion.
-    pub adc_ns: Nanos,
-}
-
-impl PortsTiming {
-    /// GPIO and PWM instantaneous; an ADC conversion of 2 µs (the RP2040's 96 cycles at
-    /// 48 MHz).
-    pub const DEFAULT: PortsTiming = PortsTiming {
-        gpio_ns: 0,
-        pwm_ns: 0,
-        adc_ns: 2_000,
-    };
-}
-
 /// What changed on an output.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Change {
@@ -570,7 +551,6 @@ fn replace<T: PartialEq>(slot: &mut T, value: T) -> bool {
 pub struct SimPorts {
     board: String,
     clock: SimClock,
-    timing: PortsTiming,
     adc_bits: u8,
     sensors: Vec<SensorScript>,
     actuator_inputs: Vec<[Digital; 2]>,
@@ -581,8 +561,8 @@ pub struct SimPorts {
 
 impl SimPorts {
     /// A board named `board` with `sensor_ports` idle sensor ports (inputs low, analog 0),
-    /// `actuator_ports` actuator ports, a 10-bit ADC (the thesis's Arduino figures), default
-    /// timing, recording into `log`.
+    /// `actuator_ports` actuator ports, a 10-bit ADC (the thesis's Arduino figures),
+    /// recording into `log`.
     pub fn new(
         board: impl Into<String>,
         clock: SimClock,
@@ -595,7 +575,6 @@ impl SimPorts {
         SimPorts {
             board: board.into(),
             clock,
-            timing: PortsTiming::DEFAULT,
             adc_bits: 10,
             sensors: vec![SensorScript::default(); s],
             actuator_inputs: vec![[Digital::Const(false), Digital::Const(false)]; a],
@@ -621,25 +600,18 @@ impl SimPorts {
         self
     }
 
-    /// Sets the operation timing.
-    pub fn with_timing(mut self, timing: PortsTiming) -> SimPorts {
-        self.timing = timing;
-        self
-    }
-
     /// Sets the ADC resolution (1–16 bits).
     pub fn with_adc_bits(mut self, bits: u8) -> SimPorts {
         self.adc_bits = bits.clamp(1, 16);
         self
     }
 
-    /// The same board (scripts, timing, safe states, log) as it is after power-up: every
+    /// The same board (scripts, safe states, log) as it is after power-up: every
     /// output undriven, PWM off. The simulator builds one per (re)boot of a board.
     pub fn fresh(&self) -> SimPorts {
         SimPorts {
             board: self.board.clone(),
             clock: self.clock.clone(),
-            timing: self.timing,
             adc_bits: self.adc_bits,
             sensors: self.sensors.clone(),
             actuator_inputs: self.actuator_inputs.clone(),
@@ -814,16 +786,9 @@ impl SimPorts {
         n
     }
 
-    async fn take(&self, ns: Nanos) {
-        if ns > 0 {
-            self.clock.sleep_ns(ns).await;
-        }
-    }
-
     /// A PWM setting of actuator `pin`'s port: `set` changes its state (saying whether
-    /// anything changed) or refuses; then the setting takes its time, and `change` is
-    /// recorded for `pin` if anything changed.
-    async fn set_pwm(
+    /// anything changed) or refuses; `change` is recorded for `pin` if anything changed.
+    fn set_pwm(
         &self,
         pin: PinRef,
         change: Change,
@@ -840,7 +805,6 @@ impl SimPorts {
                 .ok_or(PortError::NoSuchPin)?;
             set(a)?
         };
-        self.take(self.timing.pwm_ns).await;
         if changed {
             self.record(pin, change);
         }
@@ -861,32 +825,30 @@ impl Ports for SimPorts {
         self.adc_bits
     }
 
-    async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
+    fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
         self.check_not_busy(pin)?;
         let level = self.input(pin)?.level_at(self.clock.now_ns());
         // Reading makes the pin an input.
         if let Some(slot) = self.state.borrow_mut().out(pin) {
             *slot = None;
         }
-        self.take(self.timing.gpio_ns).await;
         Ok(Level::from_bool(level))
     }
 
-    async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
+    fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
         self.check_not_busy(pin)?;
         let changed = {
             let mut st = self.state.borrow_mut();
             let slot = st.out(pin).ok_or(PortError::NoSuchPin)?;
             replace(slot, Some(level))
         };
-        self.take(self.timing.gpio_ns).await;
         if changed {
             self.record(pin, Change::Digital(level));
         }
         Ok(())
     }
 
-    async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
+    fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
         self.set_pwm(pin, Change::Duty(duty), |a| {
             let slot = a
                 .duty
@@ -894,20 +856,18 @@ impl Ports for SimPorts {
                 .ok_or(PortError::NoSuchPin)?;
             Ok(replace(slot, duty))
         })
-        .await
     }
 
-    async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
+    fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
         if hz == 0 {
             return Err(PortError::Unsupported);
         }
         self.set_pwm(port.into(), Change::Frequency(hz), |a| {
             Ok(replace(&mut a.freq, Some(hz)))
         })
-        .await
     }
 
-    async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
+    fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
         self.set_pwm(pin, Change::PulseWidth(us), |a| {
             // The period of the current frequency (50 Hz servo default).
             let period_us = 1_000_000 / u32::from(a.freq.unwrap_or(50).max(1));
@@ -920,10 +880,9 @@ impl Ports for SimPorts {
                 .ok_or(PortError::NoSuchPin)?;
             Ok(replace(slot, Some(us)))
         })
-        .await
     }
 
-    async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
+    fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         if port.kind() != PortKind::Sensor {
             return Err(PortError::Unsupported);
         }
@@ -931,9 +890,7 @@ impl Ports for SimPorts {
             .sensors
             .get(usize::from(port.index()))
             .ok_or(PortError::NoSuchPin)?;
-        // Sampled at the start of the conversion.
         let v = script.analog.value_at(self.clock.now_ns());
-        self.take(self.timing.adc_ns).await;
         let max = if self.adc_bits >= 16 {
             u16::MAX
         } else {
@@ -1181,23 +1138,21 @@ mod tests {
         let s1a = pin(PortKind::Sensor, 1, Pin::A);
         ex.spawn("t", async move {
             let push = |v: String| r.borrow_mut().push(v);
-            p.digital_write(a1a, Level::High).await.unwrap();
-            p.digital_write(a1a, Level::High).await.unwrap();
-            p.pwm_duty(a1a, 128).await.unwrap();
-            let v = p.digital_read(s1a).await;
+            p.digital_write(a1a, Level::High).unwrap();
+            p.digital_write(a1a, Level::High).unwrap();
+            p.pwm_duty(a1a, 128).unwrap();
+            let v = p.digital_read(s1a);
             push(format!("{v:?}"));
             clock.sleep_until(x10_hal::time::Instant(5_000)).await;
-            let v = p.digital_read(s1a).await;
+            let v = p.digital_read(s1a);
             push(format!("{v:?}"));
-            let v = p.analog_read(s1a.port).await;
+            let v = p.analog_read(s1a.port);
             push(format!("{v:?}"));
-            let v = p.pwm_duty(s1a, 1).await;
+            let v = p.pwm_duty(s1a, 1);
             push(format!("{v:?}"));
-            let v = p
-                .digital_write(pin(PortKind::Actuator, 3, Pin::A), Level::Low)
-                .await;
+            let v = p.digital_write(pin(PortKind::Actuator, 3, Pin::A), Level::Low);
             push(format!("{v:?}"));
-            p.digital_write(a1a, Level::Low).await.unwrap();
+            p.digital_write(a1a, Level::Low).unwrap();
         });
         ex.run_until_ns(1_000_000_000).unwrap();
         assert_eq!(
@@ -1214,8 +1169,10 @@ mod tests {
         assert_eq!(changes.len(), 3);
         assert_eq!(changes[0].change, Change::Digital(Level::High));
         assert_eq!(changes[1].change, Change::Duty(128));
-        assert_eq!(changes[2].t_ns, 5_002_000);
-        assert_eq!(log.level_at("db09", a1a, 5_000_000), Some(Level::High));
+        // Port calls take no virtual time: the write after the analog read at 5 ms is at 5 ms.
+        assert_eq!(changes[2].t_ns, 5_000_000);
+        assert_eq!(log.level_at("db09", a1a, 4_999_999), Some(Level::High));
+        assert_eq!(log.level_at("db09", a1a, 5_000_000), Some(Level::Low));
         assert_eq!(log.level_at("db09", a1a, 6_000_000), Some(Level::Low));
         assert_eq!(log.duty_at("db09", a1a, 0), 128);
         assert_eq!(changes[0].to_string(), "db09 A1.A high");
@@ -1285,8 +1242,8 @@ mod tests {
             // after the last answered one: answered).
             for at_ms in [10, 30, 70] {
                 clock.sleep_until_ns(at_ms * 1_000_000).await;
-                p.digital_write(trig, Level::High).await.unwrap();
-                p.digital_write(trig, Level::Low).await.unwrap();
+                p.digital_write(trig, Level::High).unwrap();
+                p.digital_write(trig, Level::Low).unwrap();
                 let r = p.pulse_in(echo, Edge::Rising, 5).await;
                 o.borrow_mut().push((clock.now_ns(), r));
             }
@@ -1348,21 +1305,21 @@ mod tests {
             push(p.pulse_in(s1b, Edge::Rising, 5).await);
             // A trigger pulse ending at 10 ms: the echo is 10.5 ms to 11.5 ms.
             clock.sleep_until_ns(10_000_000).await;
-            p.digital_write(s1a, Level::High).await.unwrap();
-            p.digital_write(s1a, Level::Low).await.unwrap();
+            p.digital_write(s1a, Level::High).unwrap();
+            p.digital_write(s1a, Level::Low).unwrap();
             clock.sleep_until_ns(10_400_000).await;
             push(p.pulse_in(s1b, Edge::Rising, 30).await);
             // Too late for the same echo: it already rose.
             clock.sleep_until_ns(20_000_000).await;
-            p.digital_write(s1a, Level::High).await.unwrap();
-            p.digital_write(s1a, Level::Low).await.unwrap();
+            p.digital_write(s1a, Level::High).unwrap();
+            p.digital_write(s1a, Level::Low).unwrap();
             clock.sleep_until_ns(20_600_000).await;
             push(p.pulse_in(s1b, Edge::Rising, 30).await);
             // Free-running: 0.5 ms after the pulse-in starts.
             push(p.pulse_in(s2b, Edge::Rising, 30).await);
             push(p.pulse_in(s2b, Edge::Falling, 3).await);
             // A digital read of an echo pin reads low.
-            push(p.digital_read(s2b).await.map(|l| u32::from(l.is_high())));
+            push(p.digital_read(s2b).map(|l| u32::from(l.is_high())));
         });
         ex.run_until_ns(1_000_000_000).unwrap();
         assert_eq!(

@@ -238,7 +238,7 @@ impl Ports for FakePorts {
         12
     }
 
-    async fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
+    fn digital_read(&self, pin: PinRef) -> Result<Level, PortError> {
         self.log.borrow_mut().push(PortOp::DigitalRead(pin));
         self.check(pin)?;
         let high = self
@@ -250,29 +250,29 @@ impl Ports for FakePorts {
         Ok(Level::from_bool(high))
     }
 
-    async fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
+    fn digital_write(&self, pin: PinRef, level: Level) -> Result<(), PortError> {
         self.log.borrow_mut().push(PortOp::DigitalWrite(pin, level));
         self.check(pin)?;
         self.set_level(pin, level.is_high());
         Ok(())
     }
 
-    async fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
+    fn pwm_duty(&self, pin: PinRef, duty: u8) -> Result<(), PortError> {
         self.log.borrow_mut().push(PortOp::PwmDuty(pin, duty));
         self.check(pin)
     }
 
-    async fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
+    fn pwm_frequency(&self, port: Port, hz: u16) -> Result<(), PortError> {
         self.log.borrow_mut().push(PortOp::PwmFrequency(port, hz));
         self.check(port.into())
     }
 
-    async fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
+    fn pwm_pulse_width(&self, pin: PinRef, us: u16) -> Result<(), PortError> {
         self.log.borrow_mut().push(PortOp::PwmPulseWidth(pin, us));
         self.check(pin)
     }
 
-    async fn analog_read(&self, port: Port) -> Result<u16, PortError> {
+    fn analog_read(&self, port: Port) -> Result<u16, PortError> {
         self.log.borrow_mut().push(PortOp::AnalogRead(port));
         self.check(port.into())?;
         Ok(self
