@@ -294,7 +294,7 @@ async fn serve<M: RawMutex, P: Ports, B: MultiMaster>(
         Err(_) => return false,
     };
     if let Some(n) = write {
-        db.handle_write(rx.get(..n).unwrap_or(rx), read).await;
+        db.handle_write(rx.get(..n).unwrap_or(rx), read);
     }
     if read {
         let len = db.take_reply(tx);

@@ -93,14 +93,13 @@ fn pulse_in_answers_pending_runs_concurrently_and_replies_by_event() {
     let script = async {
         // t = 100: pulse-in rising on S1.B, timeout 50 ms
         clock.sleep_until(Instant(100)).await;
-        db.handle_write(&[0x13, 0x09, 0x81, 0x2A, 50, 0], true)
-            .await;
+        db.handle_write(&[0x13, 0x09, 0x81, 0x2A, 50, 0], true);
         assert_eq!(take_reply(&db), [0x2A, 0x01, 0x00]);
         // while it measures, other requests are served
         clock.sleep_until(Instant(1_000)).await;
-        db.handle_write(&[0x00, 0x09, 0x00, 0x2B], true).await;
+        db.handle_write(&[0x00, 0x09, 0x00, 0x2B], true);
         assert_eq!(take_reply(&db), [0x2B, 0x00, 0x00]);
-        db.handle_write(&[0x10, 0x09, 0x80, 0x2C], true).await;
+        db.handle_write(&[0x10, 0x09, 0x80, 0x2C], true);
         assert_eq!(take_reply(&db), [0x2C, 0x00, 0x01, 0x00]);
         // no deferred reply yet at t = 2_599
         clock.sleep_until(Instant(2_599)).await;
@@ -162,7 +161,7 @@ fn pulse_in_timeout_and_default_timeout_are_reported_in_the_deferred_reply() {
         10_000,
         join(db.run_background(&clock), async {
             // no timeout in the request: the board's default (1000 ms) is passed to the port
-            db.handle_write(&[0x14, 0x09, 0x80, 0x07], true).await;
+            db.handle_write(&[0x14, 0x09, 0x80, 0x07], true);
         }),
     );
     let log = db.ports().take_log();
@@ -193,8 +192,8 @@ fn two_pulse_ins_on_different_pins_run_at_the_same_time() {
         .extend([(5_000, Ok(11)), (3_000, Ok(22))]);
     let got = run(&clock, async {
         let script = async {
-            db.handle_write(&[0x13, 0x09, 0x80, 0x01], true).await;
-            db.handle_write(&[0x13, 0x09, 0x82, 0x02], true).await;
+            db.handle_write(&[0x13, 0x09, 0x80, 0x01], true);
+            db.handle_write(&[0x13, 0x09, 0x82, 0x02], true);
             let _boot = db.next_event().await;
             let a = db.next_event().await;
             let ta = clock.now();
@@ -218,7 +217,7 @@ fn failsafe_trips_at_exactly_the_timeout_once_per_silence() {
     let mut bg = core::pin::pin!(bg);
     // t = 0: boot; the MB sets a 100 ms failsafe at t = 1 000
     run_until(&clock, 1_000, bg.as_mut());
-    embassy_futures::block_on(db.handle_write(&[0x03, 0x09, 0x00, 0x01, 100, 0], false));
+    db.handle_write(&[0x03, 0x09, 0x00, 0x01, 100, 0], false);
     let _ = events(&db);
     let _ = db.ports().take_log();
     run_until(&clock, 100_999, bg.as_mut());
@@ -237,7 +236,7 @@ fn failsafe_trips_at_exactly_the_timeout_once_per_silence() {
     run_until(&clock, 500_000, bg.as_mut());
     assert_eq!(db.diagnostics().failsafe_trips, 1);
     // a heartbeat at t = 500 000 re-arms it: trips again at 600 000
-    embassy_futures::block_on(db.handle_write(&[0x02, 0x09, 0x00, 0x02], false));
+    db.handle_write(&[0x02, 0x09, 0x00, 0x02], false);
     run_until(&clock, 599_999, bg.as_mut());
     assert_eq!(db.diagnostics().failsafe_trips, 1);
     run_until(&clock, 600_000, bg.as_mut());
@@ -247,7 +246,7 @@ fn failsafe_trips_at_exactly_the_timeout_once_per_silence() {
     run_until(&clock, 699_999, bg.as_mut());
     assert_eq!(db.diagnostics().failsafe_trips, 2);
     // turning it off: never trips
-    embassy_futures::block_on(db.handle_write(&[0x03, 0x09, 0x00, 0x03, 0, 0], false));
+    db.handle_write(&[0x03, 0x09, 0x00, 0x03, 0, 0], false);
     run_until(&clock, 2_000_000, bg.as_mut());
     assert_eq!(db.diagnostics().failsafe_trips, 2);
 }
@@ -276,7 +275,7 @@ fn pin_changes_are_sampled_on_a_fixed_grid() {
     run_until(&clock, 1_000, bg.as_mut());
     let _ = events(&db);
     // rising edges only on S1.A, from t = 1 000: samples at 11 000, 21 000, ...
-    embassy_futures::block_on(db.handle_write(&[0x04, 0x09, 0x80, 0x01, 0x01, 0, 0, 0, 0], false));
+    db.handle_write(&[0x04, 0x09, 0x80, 0x01, 0x01, 0, 0, 0, 0], false);
     run_until(&clock, 15_000, bg.as_mut()); // baseline (low) taken at 11 000
     db.ports().set_level(s1a, true);
     run_until(&clock, 20_999, bg.as_mut());
@@ -320,9 +319,7 @@ fn analog_window_reports_first_sample_and_crossings() {
     let _ = events(&db);
     db.ports().analog.borrow_mut().insert(2, 500);
     // window 0..=1000 on S2, sampled every 10 ms from t = 0
-    embassy_futures::block_on(
-        db.handle_write(&[0x04, 0x09, 0x82, 0x01, 0x04, 0, 0, 0xE8, 0x03], false),
-    );
+    db.handle_write(&[0x04, 0x09, 0x82, 0x01, 0x04, 0, 0, 0xE8, 0x03], false);
     run_until(&clock, 10_000, bg.as_mut());
     let evs = events(&db);
     assert_eq!(
@@ -359,7 +356,7 @@ fn a_queued_pulse_in_times_out_counted_from_its_acceptance() {
                 (0x82, 3, 50),
                 (0x83, 4, 40),
             ] {
-                db.handle_write(&[0x13, 0x09, port, seq, ms, 0], true).await;
+                db.handle_write(&[0x13, 0x09, port, seq, ms, 0], true);
                 assert_eq!(take_reply(&db), [seq, 0x01, 0x00]);
             }
             let _boot = db.next_event().await;

@@ -4,7 +4,6 @@
 mod common;
 
 use common::{FakePorts, PortOp, TestClock};
-use embassy_futures::block_on;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{Daughterboard, DbConfig, OutEvent, EVENT_QUEUE_LEN};
 use x10_microcode::test_support::{a, s};
@@ -23,13 +22,13 @@ fn board() -> Db {
 
 /// A write-then-read: the request, then the reply bytes.
 fn exchange(db: &Db, request: &[u8]) -> Vec<u8> {
-    block_on(db.handle_write(request, true));
+    db.handle_write(request, true);
     read(db)
 }
 
 /// A plain write (no read follows).
 fn write(db: &Db, request: &[u8]) {
-    block_on(db.handle_write(request, false));
+    db.handle_write(request, false);
 }
 
 fn read(db: &Db) -> Vec<u8> {

@@ -134,7 +134,7 @@ impl<P: Ports> Motherboard<P> {
             // Every request is read back, outputs too (it costs no bus): a refusal ends the
             // call in its status, never in `Ok` followed by a `rejected` event.
             let (frame, pec) = self.core.frame_to_send(&job);
-            self.internal.handle_write(&frame, true).await;
+            self.internal.handle_write(&frame, true);
             let mut reply = [0u8; REPLY_BUF_LEN];
             let n = self.internal.take_reply(&mut reply);
             self.core.finish_transfer(&job, pec, Ok(reply.get(..n)));
@@ -162,7 +162,7 @@ impl<P: Ports> Motherboard<P> {
                 frame.truncate(n);
                 let job = Job::own(board, seq, Some(0), frame);
                 let (tx, pec) = self.core.frame_to_send(&job);
-                self.internal.handle_write(&tx, true).await;
+                self.internal.handle_write(&tx, true);
                 let mut reply = [0u8; REPLY_BUF_LEN];
                 let n = self.internal.take_reply(&mut reply);
                 let read = reply.get(..n).unwrap_or(&[]);

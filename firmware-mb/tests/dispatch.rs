@@ -561,19 +561,17 @@ fn a_stale_pec_setting_is_corrected_from_the_boards_replies() {
     assert_eq!(second.unwrap()[..], [0x02, 0x01]);
     // the other way round: the board restarted (PEC off) and its boot event was lost
     let (first, second) = w.sim(async {
-        w.db9
-            .handle_write(
-                &[
-                    0x07,
-                    0x09,
-                    0x00,
-                    0x77,
-                    0x00,
-                    pec::compute(0x12, &[0x07, 0x09, 0x00, 0x77, 0x00]),
-                ],
-                false,
-            )
-            .await;
+        w.db9.handle_write(
+            &[
+                0x07,
+                0x09,
+                0x00,
+                0x77,
+                0x00,
+                pec::compute(0x12, &[0x07, 0x09, 0x00, 0x77, 0x00]),
+            ],
+            false,
+        );
         let first = w.mb.call(addr(9), Op::AnalogRead(s(1))).await;
         let second = w.mb.call(addr(9), Op::AnalogRead(s(1))).await;
         (first, second)

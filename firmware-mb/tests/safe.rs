@@ -87,7 +87,7 @@ fn after_a_boot_pec_is_turned_on_again_before_anything_else_reaches_the_board() 
         // DB 9 restarts: PEC off, and its boot event reaches the motherboard.
         w.at(10_000).await;
         let off = req_pec(9, &[0x07, 0x09, 0x00, 0x50, 0x00]);
-        w.db9.handle_write(&off, false).await;
+        w.db9.handle_write(&off, false);
         assert!(!w.db9.pec_enabled());
         let boot = common::boot_event(9, &w.db9.identity());
         w.bus.to_mb(boot);
@@ -280,9 +280,9 @@ fn a_board_whose_boot_event_was_lost_is_prepared_again_when_it_refuses_our_pec()
             // DB 9 restarts: PEC and failsafe off; its boot event never arrives.
             w.at(10_000).await;
             let off = req_pec(9, &[0x07, 0x09, 0x00, 0x50, 0x00]);
-            w.db9.handle_write(&off, false).await;
+            w.db9.handle_write(&off, false);
             let no_failsafe = [0x03, 0x09, 0x00, 0x51, 0x00, 0x00];
-            w.db9.handle_write(&no_failsafe, false).await;
+            w.db9.handle_write(&no_failsafe, false);
             assert!(!w.db9.pec_enabled());
             let high = Op::DigitalWrite(a1b, x10_microcode::Level::High);
             let first = w.mb.call(db(9), high).await;

@@ -22,7 +22,7 @@ fn board() -> Db {
 
 /// A write-then-read: the reply bytes land in `buf`, their count is returned.
 fn exchange(db: &Db, request: &[u8], buf: &mut [u8; 40]) -> usize {
-    block_on(db.handle_write(request, true));
+    db.handle_write(request, true);
     db.take_reply(buf)
 }
 
@@ -75,7 +75,7 @@ mod tests {
             &[0x21, 0x09, 0x00, 0x05, 0xE8, 0x03], // 1000 Hz, A1
             &[0x22, 0x09, 0x01, 0x06, 0xDC, 0x05], // 1500 µs, A1.B
         ] {
-            block_on(db.handle_write(frame, false));
+            db.handle_write(frame, false);
         }
         assert_eq!(
             &db.ports().take_log()[..],
@@ -179,8 +179,7 @@ mod tests {
         let script = async {
             let mut buf = [0u8; 40];
             // Pulse-in rising on S1.B, timeout 50 ms, sequence 0x2A.
-            db.handle_write(&[0x13, 0x09, 0x81, 0x2A, 50, 0], true)
-                .await;
+            db.handle_write(&[0x13, 0x09, 0x81, 0x2A, 50, 0], true);
             let n = db.take_reply(&mut buf);
             assert_eq!(&buf[..n], &[0x2A, 0x01, 0x00]);
             loop {

@@ -1,6 +1,6 @@
 //! Small memory routines for the images: `memcpy`, `memmove`, `memset` and their ARM EABI
-//! forms (`__aeabi_memcpy`, `__aeabi_memclr4`, …), byte at a time; and the 64-bit unsigned
-//! division behind `__aeabi_uldivmod` (`__udivmoddi4`), a bit at a time.
+//! forms (`__aeabi_memcpy`, `__aeabi_memclr4`, …), byte at a time; and the 64-bit and
+//! 32-bit unsigned divisions (`__udivmoddi4`, `__udivsi3`, `__udivmodsi4`), a bit at a time.
 //!
 //! Why: the images must fit the 32 KiB of an STM32C011 (issue 12), and the word-at-a-time
 //! versions compiler-builtins links in take 2.3 KiB (Cortex-M0+) to 3.3 KiB (Cortex-M4) of
@@ -18,8 +18,15 @@
 //! division. compiler-builtins' `__aeabi_uldivmod` (weak too) calls the `__udivmoddi4`
 //! exported here.
 //!
-//! The loops themselves ([`copy_forward`], [`copy_backward`], [`fill`], [`divmod_u64`]) are
-//! plain functions, tested on the host.
+//! 32-bit division: the Cortex-M0+ has no divide instruction, and compiler-builtins'
+//! `__aeabi_uidiv` / `__aeabi_uidivmod` (weak) end in a 398-byte division routine; the
+//! strong `__udivsi3`, `__aeabi_uidiv`, `__umodsi3` and `__udivmodsi4` here take
+//! [`divmod_u32`] (94 bytes; 32 steps a division; the images divide when they set a PWM
+//! frequency or a timeout): -0.3 KiB on db-pico and db-c011 (issue 24). The Cortex-M4 divides
+//! in hardware and never calls them.
+//!
+//! The loops themselves ([`copy_forward`], [`copy_backward`], [`fill`], [`divmod_u64`],
+//! [`divmod_u32`]) are plain functions, tested on the host.
 
 use core::ptr::{read_volatile, write_volatile};
 
@@ -105,10 +112,59 @@ pub fn divmod_u64(n: u64, d: u64) -> (u64, u64) {
     (q, r)
 }
 
+/// `(n / d, n % d)` for 32-bit numbers, one quotient bit per step as [`divmod_u64`].
+/// Division by 0 gives `(u32::MAX, n)`.
+pub fn divmod_u32(n: u32, d: u32) -> (u32, u32) {
+    if d == 0 {
+        return (u32::MAX, n);
+    }
+    let mut q = 0u32;
+    let mut r = 0u32;
+    let mut bit = 32;
+    while bit > 0 {
+        bit -= 1;
+        let carry = r >> 31;
+        r = (r << 1) | ((n >> bit) & 1);
+        q <<= 1;
+        if carry != 0 || r >= d {
+            r = r.wrapping_sub(d);
+            q |= 1;
+        }
+    }
+    (q, r)
+}
+
 #[cfg(all(feature = "small-mem", target_os = "none"))]
 #[allow(unsafe_code, missing_docs, clippy::missing_safety_doc)]
 mod exported {
-    use super::{copy, copy_forward, divmod_u64, fill};
+    use super::{copy, copy_forward, divmod_u32, divmod_u64, fill};
+
+    /// 32-bit unsigned division on the Cortex-M0+ (no divide instruction): compiler-builtins'
+    /// `__aeabi_uidiv` and `__aeabi_uidivmod` (weak) end in these.
+    #[no_mangle]
+    pub extern "C" fn __udivsi3(n: u32, d: u32) -> u32 {
+        divmod_u32(n, d).0
+    }
+
+    #[no_mangle]
+    pub extern "C" fn __aeabi_uidiv(n: u32, d: u32) -> u32 {
+        divmod_u32(n, d).0
+    }
+
+    #[no_mangle]
+    pub extern "C" fn __umodsi3(n: u32, d: u32) -> u32 {
+        divmod_u32(n, d).1
+    }
+
+    #[no_mangle]
+    pub unsafe extern "C" fn __udivmodsi4(n: u32, d: u32, rem: *mut u32) -> u32 {
+        let (q, r) = divmod_u32(n, d);
+        if !rem.is_null() {
+            // SAFETY: a non-null `rem` points at a u32 (the caller's contract).
+            unsafe { *rem = r };
+        }
+        q
+    }
 
     /// `n / d`, and `n % d` into `*rem` when it is not null (the C signature compiler-builtins'
     /// `__aeabi_uldivmod` calls).
@@ -277,12 +333,44 @@ mod tests {
         assert_eq!(divmod_u64(5, 0), (u64::MAX, 5));
     }
 
+    #[test]
+    fn divides_32_bit_numbers_as_the_hardware_does() {
+        let samples = [
+            0u32,
+            1,
+            2,
+            3,
+            7,
+            1_000,
+            125_000_000,
+            0x7FFF_FFFF,
+            0x8000_0000,
+            0x8000_0001,
+            u32::MAX - 1,
+            u32::MAX,
+        ];
+        for &n in &samples {
+            for &d in &samples[1..] {
+                assert_eq!(divmod_u32(n, d), (n / d, n % d), "{n} / {d}");
+            }
+        }
+        // The RP2040's PWM divider: 125 MHz over 1 kHz.
+        assert_eq!(divmod_u32(125_000_000, 1_000), (125_000, 0));
+        assert_eq!(divmod_u32(5, 0), (u32::MAX, 5));
+    }
+
     proptest::proptest! {
         #[test]
         fn divides_any_pair(n in proptest::num::u64::ANY, d in 1..=u64::MAX, shift in 0..64u32) {
             // Divisors of every size, not only large ones.
             let d = (d >> shift).max(1);
             proptest::prop_assert_eq!(divmod_u64(n, d), (n / d, n % d));
+        }
+
+        #[test]
+        fn divides_any_32_bit_pair(n in proptest::num::u32::ANY, d in 1..=u32::MAX, shift in 0..32u32) {
+            let d = (d >> shift).max(1);
+            proptest::prop_assert_eq!(divmod_u32(n, d), (n / d, n % d));
         }
     }
 }

@@ -227,7 +227,7 @@ impl MultiMaster for LoopBus {
             Some(Node::Absent) | None => return Err(BusError::Nack),
         };
         if let Some(d) = db {
-            d.handle_write(bytes, false).await;
+            d.handle_write(bytes, false);
         }
         Ok(())
     }
@@ -258,7 +258,7 @@ impl MultiMaster for LoopBus {
         read.fill(0xFF);
         match what {
             Do::Db(d) => {
-                d.handle_write(bytes, true).await;
+                d.handle_write(bytes, true);
                 let mut buf = [0u8; 40];
                 let n = d.take_reply(&mut buf).min(read.len());
                 read[..n].copy_from_slice(&buf[..n]);
