@@ -73,3 +73,113 @@ macro_rules! c011_build {
 }
 
 c011_table!(c011_build);
+
+/// The C011's 1 KiB one-time-programmable area (0x1FFF7000, 128 double words that are never
+/// erased) as NOR flash, for its address record ([`address_record`]). Offsets are from the
+/// area's start. `erase` always fails (nothing erases OTP; an append-only record never asks).
+///
+/// A double word is programmed as embassy-stm32 0.6.0 programs one of the main flash
+/// (`src/flash/common.rs` 120-135 `write_chunk_unlocked`; `src/flash/c.rs` 13-51 `unlock`,
+/// `enable_blocking_write`, `blocking_write`, 103-127 `wait_ready_blocking`,
+/// `clear_all_err`): wait for `BSY` to clear, clear the error flags, unlock with the two
+/// keys, set `PG`, write the two words, wait for `BSY`, read the error flags, clear `PG`, lock.
+/// Verified by reading only (no C011 here), and that the same sequence programs the OTP area
+/// is taken from ST's STM32G0 and STM32WB manuals (one-time-programmable 1 KiB at 0x1FFF7000,
+/// double-word programming, a double word with any bit at 0 cannot be programmed again),
+/// not from RM0490 itself: re-check on a board.
+pub struct C011Otp {
+    _flash: Peri<'static, peripherals::FLASH>,
+}
+
+impl C011Otp {
+    /// Takes the flash controller.
+    pub fn new(flash: Peri<'static, peripherals::FLASH>) -> Self {
+        C011Otp { _flash: flash }
+    }
+}
+
+impl embedded_storage::nor_flash::ErrorType for C011Otp {
+    type Error = embedded_storage::nor_flash::NorFlashErrorKind;
+}
+
+impl embedded_storage::nor_flash::ReadNorFlash for C011Otp {
+    const READ_SIZE: usize = 1;
+
+    #[allow(unsafe_code)]
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        let base = crate::record::c011_otp_address(offset, bytes.len(), 1)?;
+        for (a, b) in (base..).zip(bytes.iter_mut()) {
+            // SAFETY: `a` lies in the OTP area (checked above), readable memory.
+            *b = unsafe { core::ptr::read_volatile(a as *const u8) };
+        }
+        Ok(())
+    }
+
+    fn capacity(&self) -> usize {
+        crate::record::C011_OTP_LEN as usize
+    }
+}
+
+impl embedded_storage::nor_flash::NorFlash for C011Otp {
+    const WRITE_SIZE: usize = 8;
+    const ERASE_SIZE: usize = crate::record::C011_OTP_LEN as usize;
+
+    fn erase(&mut self, _from: u32, _to: u32) -> Result<(), Self::Error> {
+        Err(embedded_storage::nor_flash::NorFlashErrorKind::Other)
+    }
+
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        let base = crate::record::c011_otp_address(offset, bytes.len(), 8)?;
+        for (a, w) in (base..).step_by(8).zip(bytes.chunks_exact(8)) {
+            let lo = u32::from_le_bytes([w[0], w[1], w[2], w[3]]);
+            let hi = u32::from_le_bytes([w[4], w[5], w[6], w[7]]);
+            program_double_word(a, lo, hi)?;
+        }
+        Ok(())
+    }
+}
+
+/// Programs one double word at `address` (see [`C011Otp`]).
+#[allow(unsafe_code)]
+fn program_double_word(
+    address: u32,
+    lo: u32,
+    hi: u32,
+) -> Result<(), embedded_storage::nor_flash::NorFlashErrorKind> {
+    use core::sync::atomic::{fence, Ordering};
+    let f = embassy_stm32::pac::FLASH;
+    while f.sr().read().bsy() {}
+    // The error flags are write-1-to-clear: writing back what was read clears them.
+    f.sr().modify(|_| {});
+    if f.cr().read().lock() {
+        f.keyr().write_value(0x4567_0123);
+        f.keyr().write_value(0xCDEF_89AB);
+    }
+    f.cr().write(|w| w.set_pg(true));
+    fence(Ordering::SeqCst);
+    // SAFETY: `address` is a double word of the OTP area (checked by the caller), which
+    // takes two word writes while PG is set.
+    unsafe {
+        core::ptr::write_volatile(address as *mut u32, lo);
+        fence(Ordering::SeqCst);
+        core::ptr::write_volatile((address + 4) as *mut u32, hi);
+    }
+    fence(Ordering::SeqCst);
+    while f.sr().read().bsy() {}
+    let sr = f.sr().read();
+    f.cr().write(|w| w.set_pg(false));
+    f.cr().modify(|w| w.set_lock(true));
+    crate::record::c011_program_outcome(sr.progerr(), sr.wrperr(), sr.pgaerr())
+}
+
+/// The C011's address record: append-only in its one-time-programmable area (128 changes in
+/// the chip's life, then `StoreError::Full` with the last value kept). The unique ID is
+/// [`crate::stm32::unique_id`].
+///
+/// # Errors
+/// `x10_store`'s: the area's read errors.
+pub fn address_record(
+    flash: Peri<'static, peripherals::FLASH>,
+) -> Result<x10_store::Record<C011Otp>, x10_store::StoreError> {
+    x10_store::Record::append_only(C011Otp::new(flash), 0, crate::record::C011_OTP_LEN)
+}

@@ -8,8 +8,11 @@
 //! * STM32G431CB (128 KiB, 2 KiB pages): the last two pages, [`G431_RECORD_OFFSET`].
 //! * STM32C011F6 (32 KiB, 2 KiB pages): two pages would leave the image 28 KiB; the record's
 //!   place there is the chip's 1 KiB one-time-programmable area ([`C011_OTP_ADDRESS`],
-//!   `x10_store::Record::append_only`: 128 address changes in the chip's life), whose driver
-//!   is not written yet (`docs/boards.md`).
+//!   `x10_store::Record::append_only`: 128 address changes in the chip's life), through
+//!   `c011::C011Otp` (its address and outcome decisions here: [`c011_otp_address`],
+//!   [`c011_program_outcome`]).
+
+use embedded_storage::nor_flash::NorFlashErrorKind;
 
 /// The Pico's flash: 2 MiB.
 pub const PICO_FLASH: u32 = 2048 * 1024;
@@ -32,6 +35,44 @@ pub const C011_OTP_LEN: u32 = 1024;
 
 /// The pages a record takes (they alternate).
 pub const RECORD_PAGES: u32 = 2;
+
+/// The address of `len` bytes at `offset` in the C011's one-time-programmable area, both
+/// multiples of `align` (1 to read, 8, a double word, to program).
+///
+/// # Errors
+/// `OutOfBounds` beyond the area's [`C011_OTP_LEN`] bytes, `NotAligned`.
+pub fn c011_otp_address(offset: u32, len: usize, align: u32) -> Result<u32, NorFlashErrorKind> {
+    let len = u32::try_from(len).map_err(|_| NorFlashErrorKind::OutOfBounds)?;
+    match offset.checked_add(len) {
+        Some(end) if end <= C011_OTP_LEN => {}
+        _ => return Err(NorFlashErrorKind::OutOfBounds),
+    }
+    if !offset.is_multiple_of(align) || !len.is_multiple_of(align) {
+        return Err(NorFlashErrorKind::NotAligned);
+    }
+    Ok(C011_OTP_ADDRESS + offset)
+}
+
+/// The outcome of a double-word program from the flash status register's error flags after
+/// `BSY` cleared (`PROGERR`: the double word was not erased, e.g. an OTP word already
+/// written; `WRPERR`: protected; `PGAERR`: misaligned), as embassy-stm32 0.6.0's
+/// `wait_ready_blocking` tells them (`src/flash/c.rs` 103-120).
+///
+/// # Errors
+/// `NotAligned` for `PGAERR`, `Other` for the others.
+pub fn c011_program_outcome(
+    progerr: bool,
+    wrperr: bool,
+    pgaerr: bool,
+) -> Result<(), NorFlashErrorKind> {
+    if pgaerr {
+        Err(NorFlashErrorKind::NotAligned)
+    } else if progerr || wrperr {
+        Err(NorFlashErrorKind::Other)
+    } else {
+        Ok(())
+    }
+}
 
 /// The 8-byte unique ID of an STM32 chip from its 96-bit UID (the 12 bytes at `UID_BASE`,
 /// as `embassy_stm32::uid::uid()` reads them: bytes 0 to 3 the die's X and Y coordinates on
@@ -101,6 +142,52 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn the_otp_area_is_addressed_within_its_1_kib() {
+        assert_eq!(c011_otp_address(0, 8, 8), Ok(0x1FFF_7000));
+        assert_eq!(c011_otp_address(1016, 8, 8), Ok(0x1FFF_73F8));
+        assert_eq!(c011_otp_address(1017, 7, 1), Ok(0x1FFF_73F9));
+        assert_eq!(c011_otp_address(0, 1024, 1), Ok(0x1FFF_7000));
+        assert_eq!(
+            c011_otp_address(1024, 8, 8),
+            Err(NorFlashErrorKind::OutOfBounds)
+        );
+        assert_eq!(
+            c011_otp_address(1020, 8, 1),
+            Err(NorFlashErrorKind::OutOfBounds)
+        );
+        assert_eq!(
+            c011_otp_address(u32::MAX, 8, 8),
+            Err(NorFlashErrorKind::OutOfBounds)
+        );
+        assert_eq!(
+            c011_otp_address(4, 8, 8),
+            Err(NorFlashErrorKind::NotAligned)
+        );
+        assert_eq!(
+            c011_otp_address(8, 4, 8),
+            Err(NorFlashErrorKind::NotAligned)
+        );
+        assert_eq!(c011_otp_address(0, 0, 8), Ok(0x1FFF_7000));
+    }
+
+    #[test]
+    fn program_flags_give_these_outcomes() {
+        assert_eq!(c011_program_outcome(false, false, false), Ok(()));
+        assert_eq!(
+            c011_program_outcome(true, false, false),
+            Err(NorFlashErrorKind::Other)
+        );
+        assert_eq!(
+            c011_program_outcome(false, true, false),
+            Err(NorFlashErrorKind::Other)
+        );
+        assert_eq!(
+            c011_program_outcome(true, true, true),
+            Err(NorFlashErrorKind::NotAligned)
+        );
     }
 
     #[test]
