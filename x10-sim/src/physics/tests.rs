@@ -330,9 +330,9 @@ fn a_board_waiting_for_encoder_edges_wakes_at_each_and_counts_them_all() {
     ex.spawn("board", async move {
         for port in [1, 2] {
             let a = Port::actuator(port).unwrap();
-            p.digital_write(a.pin(Pin::A), Level::High).await.unwrap();
-            p.digital_write(a.pin(Pin::B), Level::Low).await.unwrap();
-            p.pwm_duty(a.pin(Pin::A), 255).await.unwrap();
+            p.digital_write(a.pin(Pin::A), Level::High).unwrap();
+            p.digital_write(a.pin(Pin::B), Level::Low).unwrap();
+            p.pwm_duty(a.pin(Pin::A), 255).unwrap();
         }
         p.latch_edges(tick).unwrap();
         while c.now_ns() < 1_000_000_000 {
