@@ -115,7 +115,7 @@ fn the_wall_follower_never_comes_within_5_cm_of_a_wall_in_60_s() {
 fn the_line_follower_stays_on_the_circle() {
     let (world, outcome) = run("line_follower", 30_000);
     let tl = Timeline::new(&world, &outcome);
-    assert_eq!(tl.time_on_line_ns("eye"), Some(13_274_000_000));
+    assert_eq!(tl.time_on_line_ns("eye"), Some(13_191_000_000));
     let m = tl.motion().unwrap();
     let mut swept = 0.0;
     let mut last = None;
