@@ -1,7 +1,7 @@
 //! Configuration of a daughterboard: who it is and how its background work is timed.
 
 use x10_hal::retry::RetryPolicy;
-use x10_microcode::{Address, BoardKind, Capabilities, ResetReason};
+use x10_microcode::{Address, BoardKind, Capabilities, ResetReason, Uid};
 
 /// Parses one decimal component of the crate version at compile time (0 if it does not fit).
 const fn version_part(s: &str) -> u8 {
@@ -53,6 +53,9 @@ pub struct DbConfig {
     /// Why the board started, reported by its `boot` event (the image reads it from the
     /// chip at start-up; [`ResetReason::PowerOn`] by default).
     pub reset_reason: ResetReason,
+    /// The board's unique ID (the image reads it from the chip; all zero by default), sent in
+    /// its `boot` and `announce` events and matched against every `assign`.
+    pub uid: Uid,
 }
 
 impl DbConfig {
@@ -67,6 +70,7 @@ impl DbConfig {
             default_pulse_timeout_ms: 1_000,
             failsafe_timeout_ms: 0,
             reset_reason: ResetReason::PowerOn,
+            uid: Uid([0; Uid::LEN]),
         }
     }
 }

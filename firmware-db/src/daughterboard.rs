@@ -9,13 +9,14 @@ use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use heapless::Vec;
 use x10_microcode::{
-    pec, Address, Batch, BatchResults, Capabilities, Diagnostics, Edge, EventConfig, EventKind,
-    Identity, Op, PinRef, Port, PortKind, Reply, RequestFrame, ScanResult, Status, MAX_PAYLOAD,
-    MAX_REPLY_LEN, PROTOCOL_VERSION,
+    pec, Address, Batch, BatchResults, BootInfo, Capabilities, Diagnostics, Edge, EventConfig,
+    EventKind, Identity, Op, PinRef, Port, PortKind, Reply, RequestFrame, ScanResult, Status,
+    MAX_PAYLOAD, MAX_REPLY_LEN, PROTOCOL_VERSION,
 };
 
 use crate::config::{DbConfig, FIRMWARE_VERSION};
 use crate::event::OutEvent;
+use crate::record::{AddressRecord, NoRecord, StoreError};
 use x10_hal::ports::{EdgeCount, PortError, Ports};
 
 /// Events the queue holds before it overflows.
@@ -155,6 +156,8 @@ pub(crate) struct State {
     watch_generation: u16,
     /// Pins with a pulse-in queued or running.
     pub(crate) pulse_pins: Vec<PinRef, DEFERRED_QUEUE_LEN>,
+    /// The address the board keeps now and moves to once its answer has gone out.
+    moving: Option<Address>,
 }
 
 /// What the header of a request says, as far as it could be read.
@@ -192,9 +195,16 @@ struct Head {
 ///
 /// `M` is the raw mutex guarding the shared state (`CriticalSectionRawMutex` on boards,
 /// `NoopRawMutex` on a single-threaded executor). Nothing here blocks or panics on bus input.
-pub struct Daughterboard<M: RawMutex, P: Ports> {
+///
+/// `R` is where the board keeps an address given over the bus ([`AddressRecord`]); a board
+/// built with [`Daughterboard::new`] keeps none ([`NoRecord`]).
+pub struct Daughterboard<M: RawMutex, P: Ports, R: AddressRecord = NoRecord> {
     ports: P,
     config: DbConfig,
+    record: Mutex<M, RefCell<R>>,
+    /// Signalled with the new address once the board has answered the request that gave it
+    /// one (see [`Daughterboard::moved`]).
+    moved: Signal<M, Address>,
     state: Mutex<M, RefCell<State>>,
     events: Channel<M, OutEvent, EVENT_QUEUE_LEN>,
     pub(crate) jobs: Channel<M, PulseJob, DEFERRED_QUEUE_LEN>,
@@ -209,13 +219,24 @@ pub struct Daughterboard<M: RawMutex, P: Ports> {
     pub(crate) wake: Signal<M, ()>,
 }
 
-impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
-    /// A daughterboard on `ports`. Nothing runs until the transport and
+impl<M: RawMutex, P: Ports> Daughterboard<M, P, NoRecord> {
+    /// A daughterboard on `ports` that keeps no address of its own (`set_address` is answered
+    /// `unsupported`). Nothing runs until the transport and
     /// [`Daughterboard::run_background`] are polled.
     pub fn new(ports: P, config: DbConfig) -> Self {
+        Self::with_record(ports, config, NoRecord)
+    }
+}
+
+impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
+    /// A daughterboard on `ports` that keeps an address given over the bus in `record`
+    /// (`config.address` is where it starts: [`crate::start_address`]).
+    pub fn with_record(ports: P, config: DbConfig, record: R) -> Self {
         Daughterboard {
             ports,
             config,
+            record: Mutex::new(RefCell::new(record)),
+            moved: Signal::new(),
             state: Mutex::new(RefCell::new(State {
                 pec: false,
                 diag: Diagnostics::default(),
@@ -227,6 +248,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
                 watches: Vec::new(),
                 watch_generation: 0,
                 pulse_pins: Vec::new(),
+                moving: None,
             })),
             events: Channel::new(),
             jobs: Channel::new(),
@@ -236,7 +258,7 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         }
     }
 
-    pub(crate) fn with<R>(&self, f: impl FnOnce(&mut State) -> R) -> R {
+    pub(crate) fn with<T>(&self, f: impl FnOnce(&mut State) -> T) -> T {
         self.state.lock(|s| f(&mut s.borrow_mut()))
     }
 
@@ -268,6 +290,16 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         }
     }
 
+    /// The payload of `boot` and `announce` without the ID (which [`Self::encode_event`]
+    /// appends, so the queue holds 8 bytes less per event).
+    pub(crate) fn boot_info(&self) -> [u8; BootInfo::LEN_NO_UID] {
+        let mut b = [0u8; BootInfo::LEN_NO_UID];
+        let (id, reason) = b.split_at_mut(Identity::LEN);
+        id.copy_from_slice(&self.identity().to_bytes());
+        reason.fill(self.config.reset_reason.to_byte());
+        b
+    }
+
     /// A copy of the diagnostics counters.
     pub fn diagnostics(&self) -> Diagnostics {
         self.with(|s| s.diag)
@@ -288,6 +320,39 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         self.events.len()
     }
 
+    /// True while the board has no address ([`Address::UNADDRESSED`]): it announces itself
+    /// and takes nothing but an `assign` with its own ID.
+    pub fn is_unaddressed(&self) -> bool {
+        self.config.address.is_unaddressed()
+    }
+
+    /// Returns the address the board was given (`assign`, `set_address`) and has kept, once
+    /// its answer is out: the image restarts the board there (on a chip: a reset; the
+    /// simulator: a restart of the board on its node, at the new address).
+    pub async fn moved(&self) -> Address {
+        self.moved.wait().await
+    }
+
+    /// After a transaction was served: a move decided by it takes effect once no reply is
+    /// held any more (the reply to `set_address` has been read).
+    pub(crate) fn served(&self) {
+        if let Some(a) = self.with(|s| s.moving.filter(|_| s.reply.is_none())) {
+            self.moved.signal(a);
+        }
+    }
+
+    /// Keeps `address` in the record and marks the move; the status to answer.
+    fn keep_address(&self, address: Address) -> Status {
+        match self.record.lock(|r| r.borrow_mut().store(address)) {
+            Ok(()) => {
+                self.with(|s| s.moving = Some(address));
+                Status::Ok
+            }
+            Err(StoreError::NoRecord) => Status::Unsupported,
+            Err(StoreError::Failed) => Status::Busy,
+        }
+    }
+
     /// Executes one write addressed to this board (`bytes` as received, PEC byte included
     /// when PEC is on). `read_follows` is true when the transaction continues with a read
     /// after a repeated START (`Incoming::WriteRead`).
@@ -305,10 +370,13 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// at once. Not being an `async fn` saves the state machines of the execution path
     /// (0.55 KiB of flash on db-pico, issue 24).
     pub fn handle_write(&self, bytes: &[u8], read_follows: bool) {
-        let pec_on = self.pec_enabled();
+        // An unaddressed board checks every frame (nothing reaches 0x77 without its check).
+        let pec_on = self.pec_enabled() || self.is_unaddressed();
         let (head, done) = self.execute_frame(bytes, pec_on);
         self.with(|s| count_status(&mut s.diag, done.status));
-        if head.expects_reply || read_follows {
+        if self.is_unaddressed() {
+            // Nothing is read at 0x77 and nothing is reported from there but `announce`.
+        } else if head.expects_reply || read_follows {
             // In the PEC mode the board has now: the reply to a `set_pec` the board applied
             // is sent in the new mode, so that a motherboard reading it back knows the
             // switch happened (with PEC on: a reply with a valid PEC byte).
@@ -391,8 +459,18 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
     /// could switch PEC on, and one flipped bit in it must not go unseen) into `buf`; returns
     /// the length, 0 if `buf` is too short.
     pub fn encode_event(&self, ev: &OutEvent, mb: Address, buf: &mut [u8]) -> usize {
-        let e = ev.as_event(self.config.address);
-        let r = if self.pec_enabled() || ev.kind == EventKind::Boot {
+        let mut e = ev.as_event(self.config.address);
+        // `boot` and `announce` carry the board's ID after what was queued.
+        let mut with_uid = [0u8; BootInfo::LEN];
+        if e.always_checked() {
+            let (info, uid) = with_uid.split_at_mut(BootInfo::LEN_NO_UID);
+            if let Some(src) = ev.payload.get(..BootInfo::LEN_NO_UID) {
+                info.copy_from_slice(src);
+            }
+            uid.copy_from_slice(&self.config.uid.0);
+            e.payload = &with_uid;
+        }
+        let r = if self.pec_enabled() || e.always_checked() {
             e.emit_with_pec(mb, buf)
         } else {
             e.emit(buf)
@@ -521,6 +599,9 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
         let body = if pec_on {
             match pec::strip(self.config.address.addr_byte(false), bytes) {
                 Ok(b) => b,
+                // `who_is_there` is taken without its check too: the motherboard's start-up
+                // sweep cannot know the board's PEC setting, and it changes nothing.
+                Err(_) if !self.is_unaddressed() && matches!(bytes, [0x0b, _, 0, _]) => bytes,
                 Err(e) => return (head, Done::status(e.status())),
             }
         } else {
@@ -537,6 +618,16 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             Ok(op) => op,
             Err(e) => return (head, Done::status(e.status())),
         };
+        if self.is_unaddressed() {
+            // Only `assign`, and only with this board's ID: everything else is dropped (an
+            // assign for another board is no error).
+            let status = match op {
+                Op::Assign { uid, address } if uid == self.config.uid => self.keep_address(address),
+                Op::Assign { .. } => Status::Ok,
+                _ => Status::BadArgument,
+            };
+            return (head, Done::status(status));
+        }
         head.expects_reply = op.expects_reply();
         head.crc16_reply = !op.reply_len().is_exact();
         let done = match op {
@@ -655,8 +746,21 @@ impl<M: RawMutex, P: Ports> Daughterboard<M, P> {
             Op::SerialWrite(..) | Op::SerialRead(..) | Op::SerialConfig(..) => {
                 Done::status(Status::Unsupported)
             }
-            // A batch cannot hold a batch (the parser refuses it).
-            Op::Batch(_) => Done::status(Status::BadArgument),
+            // A batch cannot hold a batch (the parser refuses it). An `assign` reaches only
+            // unaddressed boards (`execute_frame`): a board with an address ignores it.
+            Op::Batch(_) | Op::Assign { .. } => Done::status(Status::BadArgument),
+            Op::SetAddress(a) => Done::status(self.keep_address(a)),
+            Op::Blink(secs) => Done::from_port(p.blink(secs), |_| Done::ok()),
+            Op::WhoIsThere => {
+                self.push_event(
+                    EventKind::Announce,
+                    PinRef::from_byte(0),
+                    None,
+                    Status::Ok,
+                    &self.boot_info(),
+                );
+                Done::ok()
+            }
             Op::Scan => self.scan(),
         }
     }

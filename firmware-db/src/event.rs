@@ -3,8 +3,9 @@
 use heapless::Vec;
 use x10_microcode::{Address, BootInfo, Event, EventKind, PinRef, Status};
 
-/// Largest payload of an event this runtime produces (the boot event's [`BootInfo`]).
-pub const EVENT_PAYLOAD_LEN: usize = BootInfo::LEN;
+/// Largest payload of an event this runtime queues (the boot event's [`BootInfo`] without the
+/// board's ID, which is appended when the event is encoded).
+pub const EVENT_PAYLOAD_LEN: usize = BootInfo::LEN_NO_UID;
 
 /// An event in the queue of a daughterboard, before the sender's address and the PEC are
 /// added. The transport turns it into an [`Event`] with [`OutEvent::as_event`].

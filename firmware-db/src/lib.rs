@@ -27,9 +27,11 @@
 )]
 
 mod background;
+pub use background::{ANNOUNCE_MIN_US, ANNOUNCE_WINDOW_US};
 mod config;
 mod daughterboard;
 mod event;
+mod record;
 mod target;
 
 pub use config::{DbConfig, TargetConfig, ALL_CAPABILITIES, FIRMWARE_VERSION};
@@ -38,6 +40,7 @@ pub use daughterboard::{
     REPLY_BUF_LEN,
 };
 pub use event::{OutEvent, EVENT_PAYLOAD_LEN};
+pub use record::{start_address, AddressRecord, NoRecord, StoreError};
 pub use target::{run, run_target, MAX_EVENT_YIELDS, MB_GONE_RETRY_US};
 /// The board's ports (defined in `x10-hal`, so that board crates need not depend on this one).
 pub use x10_hal::ports::{self, EdgeCount, PortError, Ports, SafeState};

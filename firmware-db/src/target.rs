@@ -12,6 +12,7 @@ use x10_microcode::MAX_FRAME_LEN;
 use crate::config::TargetConfig;
 use crate::daughterboard::{bump, Daughterboard};
 use crate::event::OutEvent;
+use crate::record::AddressRecord;
 use x10_hal::ports::Ports;
 
 /// Attempts of one event that may be NACKed because the board was being addressed without
@@ -75,8 +76,8 @@ pub const MB_GONE_RETRY_US: u64 = 100_000;
 /// up reaches it as soon as it is.
 ///
 /// Run it next to [`Daughterboard::run_background`] (or use [`run`], which joins both).
-pub async fn run_target<M, P, B, C>(
-    db: &Daughterboard<M, P>,
+pub async fn run_target<M, P, R, B, C>(
+    db: &Daughterboard<M, P, R>,
     mut bus: B,
     clock: C,
     config: TargetConfig,
@@ -84,12 +85,13 @@ pub async fn run_target<M, P, B, C>(
 where
     M: RawMutex,
     P: Ports,
+    R: AddressRecord,
     B: MultiMaster,
     C: Clock,
 {
     let mut rx = [0u8; MAX_FRAME_LEN];
     let mut tx = [0u8; MAX_FRAME_LEN];
-    let mut jitter = Jitter::new(db.address().get());
+    let mut jitter = Jitter::new(db);
     // False once an event could not be delivered, until the MB shows it is back.
     let mut mb_present = true;
     // The head event, kept while the MB is gone.
@@ -160,13 +162,20 @@ where
     }
 }
 
-/// The board's source of random delays (xorshift32, seeded by its address: boards differ, a
-/// simulation replays exactly).
-struct Jitter(u32);
+/// The board's source of random delays (xorshift32, seeded by its address, or while it is
+/// unaddressed by its unique ID: boards differ, a simulation replays exactly).
+pub(crate) struct Jitter(u32);
 
 impl Jitter {
-    fn new(address: u8) -> Jitter {
-        Jitter((u32::from(address) << 24 | 0x5A_5A5A).wrapping_mul(0x9E37_79B9) | 1)
+    pub(crate) fn new<M: RawMutex, P: Ports, R: AddressRecord>(
+        db: &Daughterboard<M, P, R>,
+    ) -> Jitter {
+        let seed = if db.is_unaddressed() {
+            db.config().uid.hash32()
+        } else {
+            u32::from(db.address().get()) << 24 | 0x5A_5A5A
+        };
+        Jitter(seed.wrapping_mul(0x9E37_79B9) | 1)
     }
 
     fn next(&mut self) -> u32 {
@@ -179,7 +188,7 @@ impl Jitter {
     }
 
     /// Uniform in `[0, n)` (0 when `n` is 0).
-    fn below(&mut self, n: u32) -> u32 {
+    pub(crate) fn below(&mut self, n: u32) -> u32 {
         if n == 0 {
             0
         } else {
@@ -212,8 +221,8 @@ impl Jitter {
 
 /// One attempt to write `ev` to the MB, while it is taken to be gone. True when delivered
 /// (counted in `events_sent`).
-async fn try_once<M: RawMutex, P: Ports, B: MultiMaster>(
-    db: &Daughterboard<M, P>,
+async fn try_once<M: RawMutex, P: Ports, R: AddressRecord, B: MultiMaster>(
+    db: &Daughterboard<M, P, R>,
     bus: &mut B,
     config: &TargetConfig,
     ev: &OutEvent,
@@ -241,10 +250,16 @@ async fn try_once<M: RawMutex, P: Ports, B: MultiMaster>(
 
 /// A daughterboard on the bus, complete: [`Daughterboard::run_background`] and
 /// [`run_target`] joined. Never returns.
-pub async fn run<M, P, B, C>(db: &Daughterboard<M, P>, bus: B, clock: C, config: TargetConfig) -> !
+pub async fn run<M, P, R, B, C>(
+    db: &Daughterboard<M, P, R>,
+    bus: B,
+    clock: C,
+    config: TargetConfig,
+) -> !
 where
     M: RawMutex,
     P: Ports,
+    R: AddressRecord,
     B: MultiMaster,
     C: Clock,
 {
@@ -258,8 +273,8 @@ where
 
 /// After [`MultiMaster::addressed`] returned: receives that transaction and serves it, never
 /// raced. True when one addressed to the board was served (see [`serve`]).
-async fn receive<M: RawMutex, P: Ports, B: MultiMaster>(
-    db: &Daughterboard<M, P>,
+async fn receive<M: RawMutex, P: Ports, R: AddressRecord, B: MultiMaster>(
+    db: &Daughterboard<M, P, R>,
     bus: &mut B,
     addressed: Result<(), BusError>,
     rx: &mut [u8],
@@ -274,8 +289,8 @@ async fn receive<M: RawMutex, P: Ports, B: MultiMaster>(
 
 /// Serves one transaction; true when it was addressed to the board (including a write too
 /// long for the buffer).
-async fn serve<M: RawMutex, P: Ports, B: MultiMaster>(
-    db: &Daughterboard<M, P>,
+async fn serve<M: RawMutex, P: Ports, R: AddressRecord, B: MultiMaster>(
+    db: &Daughterboard<M, P, R>,
     bus: &mut B,
     incoming: Result<Incoming, BusError>,
     rx: &[u8],
@@ -300,14 +315,15 @@ async fn serve<M: RawMutex, P: Ports, B: MultiMaster>(
         let len = db.take_reply(tx);
         let _ = bus.respond(tx.get(..len).unwrap_or(&[])).await;
     }
+    db.served();
     true
 }
 
 /// Delivers one event, retrying while serving the listener (see [`run_target`]). False when
 /// the attempts that count are used up (the MB is taken to be gone; the event is kept).
 #[allow(clippy::too_many_arguments)]
-async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
-    db: &Daughterboard<M, P>,
+async fn deliver<M: RawMutex, P: Ports, R: AddressRecord, B: MultiMaster, C: Clock>(
+    db: &Daughterboard<M, P, R>,
     bus: &mut B,
     clock: &C,
     config: &TargetConfig,
@@ -384,8 +400,8 @@ async fn deliver<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
 
 /// Serves the listener until `until`, or, with `stop_when_addressed`, until the first
 /// transaction addressed to the board has been served. True when one was served.
-async fn listen_until<M: RawMutex, P: Ports, B: MultiMaster, C: Clock>(
-    db: &Daughterboard<M, P>,
+async fn listen_until<M: RawMutex, P: Ports, R: AddressRecord, B: MultiMaster, C: Clock>(
+    db: &Daughterboard<M, P, R>,
     bus: &mut B,
     clock: &C,
     until: Instant,

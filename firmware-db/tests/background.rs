@@ -54,20 +54,23 @@ fn boot_applies_safe_state_and_queues_a_boot_event() {
         (evs[0].kind, evs[0].seq, evs[0].status),
         (EventKind::Boot, 0, Status::Ok)
     );
-    // The identity, then why the board started (power-on by default).
+    // The identity, then why the board started (power-on by default); the ID is added when
+    // the event is encoded (the queue holds 11 bytes per event, not 19).
     let mut boot = db.identity().to_bytes().to_vec();
     boot.push(0);
     assert_eq!(evs[0].payload[..], boot[..]);
 }
 
-/// The boot event carries the reset reason of the configuration, and always its check (a
-/// CRC-16 after this 17-byte frame), though PEC is off after a start: one flipped bit in it
-/// must not go unseen (issue 22 item 7).
+/// The boot event carries the reset reason of the configuration and the board's ID, and always
+/// its check (a CRC-16 after this 25-byte frame), though PEC is off after a start: one flipped
+/// bit in it must not go unseen (issue 22 item 7). The CRC was computed independently (a
+/// bitwise CRC-16/IBM-3740 in Python over `10` and the 25 bytes).
 #[test]
 fn the_boot_event_says_why_the_board_started_and_is_always_checked() {
     let clock = TestClock::new();
     let mut cfg = DbConfig::new(Address::external(9).unwrap(), BoardKind::SIMULATED);
     cfg.reset_reason = x10_microcode::ResetReason::Watchdog;
+    cfg.uid = x10_microcode::Uid([0x10, 0x20, 0x30, 0x40, 0x50, 0x60, 0x70, 0x80]);
     let db: Db = Daughterboard::new(FakePorts::new(clock.clone(), 2, 2), cfg);
     run_until(&clock, 1, db.run_background(&clock));
     let boot = db.try_next_event().unwrap();
@@ -77,10 +80,11 @@ fn the_boot_event_says_why_the_board_started_and_is_always_checked() {
     assert_eq!(
         buf[..n],
         [
-            0x09, 0x07, 0x00, 0x00, 0x00, 0x0B, // source 9, boot, seq 0, ok, 11 bytes
+            0x09, 0x07, 0x00, 0x00, 0x00, 0x13, // source 9, boot, seq 0, ok, 19 bytes
             0x01, 0x00, 0x01, 0x00, 0x01, 0x02, 0x02, 0xFD, 0x01, 0x0C, // identity
             0x01, // reset reason: watchdog
-            0x71, 0xD6, // CRC-16/IBM-3740 over 0x10 and the frame, low byte first
+            0x10, 0x20, 0x30, 0x40, 0x50, 0x60, 0x70, 0x80, // the ID
+            0xE3, 0x46, // CRC-16/IBM-3740 over 0x10 and the frame, low byte first
         ]
     );
 }

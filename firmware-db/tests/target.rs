@@ -27,12 +27,14 @@ fn setup() -> (TestClock, Db, FakeBus, TargetConfig) {
     (clock, db, bus, tcfg)
 }
 
-/// The boot event as it goes on the bus: identity, reset reason (power-on), and always its
-/// check (a CRC-16: the frame is 17 bytes), whatever the board's PEC setting.
+/// The boot event as it goes on the bus: identity, reset reason (power-on), the board's ID
+/// (all zero here), and always its check (a CRC-16: the frame is 25 bytes), whatever the
+/// board's PEC setting.
 fn boot_frame(db: &Db) -> Vec<u8> {
-    let mut f = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x0B];
+    let mut f = vec![0x09, 0x07, 0x00, 0x00, 0x00, 0x13];
     f.extend_from_slice(&db.identity().to_bytes());
     f.push(0x00);
+    f.extend_from_slice(&[0; 8]);
     let n = f.len();
     f.resize(n + pec::check_len(n), 0);
     pec::append(MB << 1, &mut f, n).unwrap();
@@ -338,7 +340,7 @@ fn events_carry_pec_when_negotiated_and_overruns_count_as_bad_length() {
 fn the_boot_event_is_checked_before_and_after_the_mb_turned_pec_on() {
     let (clock, db, bus, tcfg) = setup();
     // The boot event's first attempt is NACKed; while the board waits to retry, the MB turns
-    // PEC on. Both attempts carry the check (a CRC-16: the boot event is 17 bytes).
+    // PEC on. Both attempts carry the check (a CRC-16: the boot event is 25 bytes).
     bus.script_writes(&[Err(BusError::Nack)]);
     let fut = run(&db, bus.clone(), &clock, tcfg);
     let mut fut = core::pin::pin!(fut);
@@ -346,7 +348,7 @@ fn the_boot_event_is_checked_before_and_after_the_mb_turned_pec_on() {
     bus.push(Txn::Write(vec![0x07, 0x09, 0x00, 0x01, 0x01])); // set_pec(1)
     run_until(&clock, 10_000, fut.as_mut());
     let checked = boot_frame(&db);
-    assert_eq!(checked.len(), 6 + 11 + 2);
+    assert_eq!(checked.len(), 6 + 19 + 2);
     let writes: Vec<Vec<u8>> = bus
         .take_ops()
         .into_iter()

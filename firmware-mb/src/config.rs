@@ -2,7 +2,7 @@
 
 use firmware_db::DbConfig;
 use x10_hal::retry::RetryPolicy;
-use x10_microcode::{Address, BoardKind};
+use x10_microcode::{Address, BoardKind, Uid};
 
 /// How the motherboard runtime behaves. Build it with [`MbConfig::new`] and change fields as
 /// needed.
@@ -57,6 +57,10 @@ pub struct MbConfig {
     /// single write: `Ok` once the board acknowledged the bytes. The internal board is
     /// always read back (it costs no bus).
     pub confirm_outputs: bool,
+    /// Addresses a person chose (plug and play): an unaddressed board named here (by its ID,
+    /// or as the only board of its kind) is given this address; no other board is ever given
+    /// one of them. Default: none.
+    pub pinned: &'static [PinnedAddress],
 }
 
 impl MbConfig {
@@ -87,6 +91,7 @@ impl MbConfig {
             pec: true,
             failsafe_ms: Self::DEFAULT_FAILSAFE_MS,
             confirm_outputs: true,
+            pinned: &[],
         }
     }
 
@@ -107,4 +112,25 @@ impl MbConfig {
     pub(crate) const fn manages_boards(&self) -> bool {
         self.pec || self.failsafe_ms > 0
     }
+}
+
+/// Which boards a pinned address is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum PinBy {
+    /// The board with this ID.
+    Uid(Uid),
+    /// The only board of this kind (while there is one; a second of the kind gets an address
+    /// of its own, and neither takes this one).
+    Kind(BoardKind),
+}
+
+/// An address a person chose (`MbConfig::pinned`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PinnedAddress {
+    /// The board meant.
+    pub by: PinBy,
+    /// Its address (`0x08..=0x76`, not the motherboard's own).
+    pub address: Address,
 }

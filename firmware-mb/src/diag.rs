@@ -85,6 +85,20 @@ pub struct MbDiagnostics {
     pub unexpected_reads: u32,
     /// Listener errors.
     pub listener_errors: u32,
+    /// `announce` events received (plug and play: from unaddressed boards, and boards
+    /// answering `who_is_there`).
+    pub announces: u32,
+    /// `assign` frames sent to unaddressed boards.
+    pub assigns: u32,
+    /// Announces from unaddressed boards that got no address (no directory, no room, no free
+    /// address, or no ID).
+    pub unassigned: u32,
+    /// Boards first known by their ID (from a `boot` or an `announce`).
+    pub boards_found: u32,
+    /// Known boards that stopped answering (a request to them ended in a NACK).
+    pub boards_lost: u32,
+    /// Two IDs heard from one address (two boards answer there).
+    pub collisions: u32,
 }
 
 impl MbDiagnostics {
@@ -127,6 +141,12 @@ impl MbDiagnostics {
             pec_resyncs: 0,
             unexpected_reads: 0,
             listener_errors: 0,
+            announces: 0,
+            assigns: 0,
+            unassigned: 0,
+            boards_found: 0,
+            boards_lost: 0,
+            collisions: 0,
         }
     }
 }

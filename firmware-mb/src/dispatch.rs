@@ -54,6 +54,9 @@ impl MbCore {
         let mut rx = [0u8; MAX_FRAME_LEN];
         let mut nth: u32 = 0;
         loop {
+            if self.plug_and_play(&mut bus, &mut rx).await {
+                continue;
+            }
             let t_now = now();
             let timeout = self.config.request_timeout_us;
             let next = self.with(|t| t.boards.keepalive.next(t_now, false, timeout));
@@ -138,6 +141,9 @@ impl MbCore {
         };
         if let Err(e) = r {
             warn!("keepalive of board {} failed: {}", board.get(), e);
+            if e == LinkError::Nack {
+                self.board_gone(board);
+            }
         }
         let t_now = now();
         self.with(|t| {
@@ -145,6 +151,83 @@ impl MbCore {
                 .keepalive
                 .done(board, op, r.is_ok(), t_now, &mut t.diag)
         });
+    }
+
+    /// Plug-and-play work, before anything else (see [`crate::directory`]): an `assign` to
+    /// send to the unaddressed boards, else the next address of the start-up sweep. True when
+    /// there was some.
+    ///
+    /// * `assign`: written to [`Address::UNADDRESSED`] with its check, retried as a request
+    ///   is (NACKs and lost arbitrations, listening meanwhile) until the request timeout; a
+    ///   single write, never read (several unaddressed boards may acknowledge it).
+    /// * The sweep: `who_is_there` (no check: a board takes it with or without one, and it
+    ///   changes nothing) written once to each address `0x08..=0x76` but the motherboard's;
+    ///   every board there answers with an `announce` (routed as any event). Nobody there:
+    ///   a NACK, not retried. A lost arbitration is tried again after listening (an event
+    ///   won the bus).
+    async fn plug_and_play<B: MultiMaster>(&self, bus: &mut B, rx: &mut [u8]) -> bool {
+        let mb = self.config.address;
+        let work = self.with(|t| {
+            t.directory
+                .take_assign()
+                .map(Ok)
+                .or_else(|| t.directory.next_sweep(mb).map(Err))
+        });
+        let (db, op, deadline) = match work {
+            None => return false,
+            Some(Ok((uid, address))) => (
+                Address::UNADDRESSED,
+                Op::Assign { uid, address },
+                now().plus_us(self.config.request_timeout_us),
+            ),
+            // One attempt (lost arbitrations aside).
+            Some(Err(a)) => (a, Op::WhoIsThere, now()),
+        };
+        let seq = self.with(|t| t.requests.fresh_seq(db));
+        let mut frame = [0u8; MAX_FRAME_LEN];
+        let req = Request { db, seq, op };
+        let emitted = if op == Op::WhoIsThere {
+            req.emit(&mut frame)
+        } else {
+            req.emit_with_pec(&mut frame)
+        };
+        let Some(bytes) = emitted.ok().and_then(|n| frame.get(..n)) else {
+            return true;
+        };
+        let mut backoff = Backoff::new(self.config.retry, self.config.seed ^ u32::from(seq));
+        loop {
+            match bus.write(db.get(), bytes).await {
+                Ok(()) => {
+                    if db.is_unaddressed() {
+                        self.with(|t| bump(&mut t.diag.assigns));
+                    }
+                    return true;
+                }
+                Err(e) => {
+                    let again = e == BusError::ArbitrationLost || now() < deadline;
+                    if !again || !self.after_failure(bus, e, &mut backoff, db.get(), rx).await {
+                        if db.is_unaddressed() {
+                            warn!("assign failed");
+                        }
+                        return true;
+                    }
+                }
+            }
+        }
+    }
+
+    /// A request to `board` went unanswered (NACK after every retry): a board the directory
+    /// knows there is reported gone (counted in `boards_lost`, logged).
+    fn board_gone(&self, board: Address) {
+        if self.with(|t| {
+            let lost = t.directory.lost(board);
+            if lost {
+                bump(&mut t.diag.boards_lost);
+            }
+            lost
+        }) {
+            warn!("board {} stopped answering", board.get());
+        }
     }
 
     /// After [`MultiMaster::addressed`] returned: receives and serves that transaction, never
@@ -253,6 +336,9 @@ impl MbCore {
                 Err(e) => {
                     if !self.after_failure(bus, e, &mut backoff, addr, rx).await {
                         warn!("request {} to {} failed", meta.seq, addr);
+                        if e == BusError::Nack {
+                            self.board_gone(meta.db);
+                        }
                         self.finish_transfer(job, pec, Err(e));
                         return;
                     }

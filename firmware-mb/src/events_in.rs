@@ -40,7 +40,7 @@ impl EventBook {
                 | EventKind::FailsafeTripped
                 | EventKind::Overflow
                 | EventKind::Boot
-        );
+        ) || (ev.kind == EventKind::Announce && !ev.source.is_unaddressed());
         if !counted {
             return;
         }

@@ -6,7 +6,12 @@ use x10_microcode::{Address, Op, Payload, PinRef};
 
 use crate::config::MbConfig;
 use crate::diag::MbDiagnostics;
+use crate::directory::{BoardQuery, KnownBoard};
 use crate::mb_core::MbCore;
+use crate::mb_core::{now, sleep_until};
+
+/// How often [`X10::wait_for_board`] looks (5 ms).
+pub const WAIT_FOR_BOARD_POLL_US: u64 = 5_000;
 
 /// The robot programs' handle on the running motherboard: one concrete, `Copy` type, the same
 /// on every board and in the simulator, so a robot program is a plain `async fn` that takes
@@ -67,6 +72,68 @@ impl X10 {
     /// As [`MbCore::wait_event`].
     pub async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
         self.core.wait_event(db, pin).await
+    }
+
+    /// The boards the motherboard knows by their unique ID (plug and play; present or not,
+    /// see [`KnownBoard::present`]), copied into `out` in the order they were first heard;
+    /// returns how many were copied (at most `out.len()`).
+    pub fn boards(&self, out: &mut [KnownBoard]) -> usize {
+        self.core.with(|t| {
+            out.iter_mut()
+                .zip(t.directory.boards())
+                .map(|(o, b)| *o = *b)
+                .count()
+        })
+    }
+
+    /// The known board that `q` names (present or not), if any.
+    pub fn board(&self, q: BoardQuery) -> Option<KnownBoard> {
+        self.core.with(|t| t.directory.find(q))
+    }
+
+    /// Waits until a board that `q` names is present (its `boot` or `announce` came in), at
+    /// most `timeout_us`; looks every [`WAIT_FOR_BOARD_POLL_US`].
+    ///
+    /// # Errors
+    /// [`LinkError::Timeout`] when none is present by then.
+    pub async fn wait_for_board(
+        &self,
+        q: BoardQuery,
+        timeout_us: u64,
+    ) -> Result<KnownBoard, LinkError> {
+        let deadline = now().plus_us(timeout_us);
+        loop {
+            if let Some(b) = self.board(q).filter(|b| b.present) {
+                return Ok(b);
+            }
+            let t = now();
+            if t >= deadline {
+                return Err(LinkError::Timeout);
+            }
+            sleep_until(t.plus_us(WAIT_FOR_BOARD_POLL_US).min(deadline)).await;
+        }
+    }
+
+    /// Moves the board at `old` to `new` (`set_address`, Dynamixel's ID write): the board
+    /// keeps `new` in its record, answers, and starts again there; the motherboard then
+    /// finds it at `new` by its `boot` event.
+    ///
+    /// # Errors
+    /// As [`X10::call`]; `LinkError::Status(unsupported)` from a board that keeps no
+    /// address (a build-time override), `busy` when its record could not be written.
+    pub async fn set_address(&self, old: Address, new: Address) -> Result<(), LinkError> {
+        self.core.call(old, Op::SetAddress(new)).await?;
+        self.core.with(|t| t.directory.moved(old, new));
+        Ok(())
+    }
+
+    /// Blinks the status LED of the board at `db` for `secs` seconds (0 stops), to find it
+    /// by eye.
+    ///
+    /// # Errors
+    /// As [`X10::call`]; `LinkError::Status(unsupported)` from a board without one.
+    pub async fn blink(&self, db: Address, secs: u8) -> Result<(), LinkError> {
+        self.core.call(db, Op::Blink(secs)).await.map(|_| ())
     }
 
     /// The motherboard's counters.

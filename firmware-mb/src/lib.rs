@@ -42,6 +42,7 @@ mod diag;
 mod observe;
 // 2. Bookkeeping, one thing each (pure: no waiting, no I/O): the events received per board,
 // the keepalive schedule, the pending requests, the event waiters.
+mod directory;
 mod events_in;
 mod keepalive;
 mod requests;
@@ -62,9 +63,10 @@ mod handle;
 // 8. The top: the motherboard and its tasks.
 mod motherboard;
 
-pub use config::MbConfig;
+pub use config::{MbConfig, PinBy, PinnedAddress};
 pub use diag::MbDiagnostics;
-pub use handle::X10;
+pub use directory::{choose_address, BoardQuery, KnownBoard, COLLISION_WINDOW_US};
+pub use handle::{WAIT_FOR_BOARD_POLL_US, X10};
 pub use jobs::REQUEST_QUEUE_LEN;
 pub use keepalive::KEEPALIVE_RAM_BYTES;
 pub use mb_core::MbCore;

@@ -16,6 +16,7 @@ use x10_microcode::{Address, Op, Request, MAX_FRAME_LEN};
 
 use crate::config::MbConfig;
 use crate::diag::bump;
+use crate::directory::KnownBoard;
 use crate::handle::X10;
 use crate::jobs::Job;
 use crate::keepalive::{KeepaliveOp, Next};
@@ -58,6 +59,17 @@ impl<P: Ports> Motherboard<P> {
     /// traces robot calls this way; boards leave it unset).
     pub fn with_observer(mut self, observer: &'static dyn CallObserver) -> Self {
         self.core.observer = Some(observer);
+        self
+    }
+
+    /// The same motherboard, knowing boards by their unique ID in `entries` (plug and play:
+    /// it gives unaddressed boards an address, sweeps the bus once at start, reports boards
+    /// that stop answering and collisions; see `docs/protocol.md`, "Addresses over the
+    /// bus"). One entry per board it can know (a board uses its entry for good: 16 bytes
+    /// each). Without this call none of that happens: announces are counted in `unassigned`
+    /// and dropped.
+    pub fn with_directory(self, entries: &'static mut [KnownBoard]) -> Self {
+        self.core.with(|t| t.directory.set_storage(entries));
         self
     }
 

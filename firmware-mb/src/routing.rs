@@ -11,7 +11,9 @@ use x10_microcode::{
 };
 
 use crate::diag::bump;
+use crate::directory::Heard;
 use crate::mb_core::{now, MbCore};
+use crate::table::Table;
 use crate::waiters::WaiterTicket;
 
 /// Unregisters an event waiter whose future is dropped; an event already delivered to it goes
@@ -68,9 +70,12 @@ impl MbCore {
         });
         let with_pec = || Event::parse_with_pec(self.config.address, bytes);
         let unchecked = || {
-            Event::parse(bytes).and_then(|ev| match ev.kind {
-                EventKind::Boot => Err(x10_microcode::Error::CrcMismatch),
-                _ => Ok(ev),
+            Event::parse(bytes).and_then(|ev| {
+                if ev.always_checked() {
+                    Err(x10_microcode::Error::CrcMismatch)
+                } else {
+                    Ok(ev)
+                }
             })
         };
         let parsed = if pec_on {
@@ -196,10 +201,14 @@ impl MbCore {
                 warn!("board {} dropped events", ev.source.get());
                 self.with(|t| bump(&mut t.diag.overflows));
             }
+            EventKind::Announce => self.announced(ev),
             EventKind::Boot => {
                 let boot = BootInfo::parse(ev.payload).ok();
                 let reason = boot.map_or(ResetReason::Unknown(0xFF), |b| b.reset_reason);
                 info!("board {} booted ({})", ev.source.get(), reason.name());
+                if let Some(b) = &boot {
+                    self.seen(ev.source, b);
+                }
                 self.with(|t| {
                     if let Some(b) = boot {
                         t.boards.identified(ev.source, &b.identity);
@@ -217,6 +226,70 @@ impl MbCore {
             EventKind::Unknown(_) => self.with(|t| bump(&mut t.diag.bad_events)),
         }
         self.notify_keepalive();
+    }
+
+    /// A board said who it is from `source` (its `boot`, or an `announce` answering
+    /// `who_is_there`): recorded in the directory; a second ID from one address is a
+    /// collision, counted and logged, never merged.
+    fn seen(&self, source: Address, info: &BootInfo) {
+        let t_now = now();
+        let heard = self.with(|t| {
+            let h = t.directory.seen(source, info, t_now);
+            match h {
+                Heard::New => bump(&mut t.diag.boards_found),
+                Heard::Collision => bump(&mut t.diag.collisions),
+                _ => {}
+            }
+            h
+        });
+        if heard == Heard::Collision {
+            warn!("two boards answer at {}: collision", source.get());
+        }
+    }
+
+    /// An `announce`: from an unaddressed board, an address is chosen and an `assign` queued
+    /// for the dispatcher; from a board with an address, as [`MbCore::seen`]. One without a
+    /// valid `BootInfo` with an ID is counted in `bad_events` and dropped.
+    fn announced(&self, ev: &Event<'_>) {
+        let info = match BootInfo::parse(ev.payload) {
+            Ok(b) if b.uid.is_some() => b,
+            _ => {
+                self.with(|t| bump(&mut t.diag.bad_events));
+                return;
+            }
+        };
+        self.with(|t| bump(&mut t.diag.announces));
+        if !ev.source.is_unaddressed() {
+            self.seen(ev.source, &info);
+            return;
+        }
+        let t_now = now();
+        let heard = self.with(|t| {
+            let Table {
+                directory,
+                boards,
+                diag,
+                ..
+            } = t;
+            let h = directory.announced(
+                &info,
+                self.config.pinned,
+                self.config.address,
+                |a| boards.ports_known(a),
+                t_now,
+            );
+            if h == Heard::NoRoom {
+                bump(&mut diag.unassigned);
+            }
+            h
+        });
+        if let Heard::Assign(a) = heard {
+            info!("unaddressed board gets {}", a.get());
+            // The dispatcher looks at its work again.
+            self.notify_keepalive();
+        } else {
+            warn!("unaddressed board: no address for it");
+        }
     }
 
     /// Waits for the next pin-change or analog-threshold event from `pin` on board `db`. An

@@ -16,6 +16,7 @@
 
 use crate::boards::Boards;
 use crate::diag::MbDiagnostics;
+use crate::directory::Directory;
 use crate::events_in::EventBook;
 use embassy_sync::waitqueue::MultiWakerRegistration;
 
@@ -30,6 +31,8 @@ pub(crate) struct Table {
     pub(crate) boards: Boards,
     pub(crate) events_in: EventBook,
     pub(crate) diag: MbDiagnostics,
+    /// Boards known by their unique ID (plug and play).
+    pub(crate) directory: Directory,
     /// Callers waiting for a pending slot (or a sequence number) to be free.
     pub(crate) slot_waiters: MultiWakerRegistration<SLOT_WAITERS>,
     /// How many callers wait for a slot: while any does, a new caller waits behind them, so
@@ -50,6 +53,7 @@ impl Table {
             boards: Boards::new(),
             events_in: EventBook::new(),
             diag: MbDiagnostics::new(),
+            directory: Directory::new(),
             slot_waiters: MultiWakerRegistration::new(),
             slot_waiting: 0,
         }

@@ -9,8 +9,9 @@
 //! * Each jumper input has its internal pull-up on; a jumper fitted to GND reads low and sets
 //!   its bit. Jumper *k* adds 2^k: with three jumpers one image serves eight boards
 //!   (`base ..= base + 7`).
-//! * [`check_base`] makes sure every jumper setting gives an address in `0x08..=0x77` other
-//!   than the MB's, again at build time.
+//! * [`check_base`] makes sure every jumper setting gives an address in `0x08..=0x76` other
+//!   than the MB's, again at build time. `0x77` is where unaddressed boards listen (plug and
+//!   play: `docs/protocol.md`, "Addresses over the bus"), never a board's or the MB's address.
 //!
 //! The default base is 9, the light-sensor board of the thesis's Figure 4.4 program.
 
@@ -27,7 +28,7 @@ pub const MB_DEFAULT: u8 = 0x08;
 pub enum AddressError {
     /// Not a decimal or `0x` hexadecimal number below 256.
     NotANumber,
-    /// Outside `0x08..=0x77` (or would be with some jumper setting).
+    /// Outside `0x08..=0x76` (or would be with some jumper setting).
     OutOfRange,
     /// Equal to the motherboard's address (or would be with some jumper setting).
     TakenByMotherboard,
@@ -75,7 +76,7 @@ pub const fn check_base(base: u8, jumpers: u32, mb: u8) -> Result<u8, AddressErr
         return Err(AddressError::OutOfRange);
     }
     let top = base as u32 + (1u32 << jumpers) - 1;
-    if base < Address::MIN_EXTERNAL || top > Address::MAX_EXTERNAL as u32 {
+    if base < Address::MIN_EXTERNAL || top >= Address::UNADDRESSED.get() as u32 {
         return Err(AddressError::OutOfRange);
     }
     if base <= mb && mb as u32 <= top {
@@ -88,7 +89,7 @@ pub const fn check_base(base: u8, jumpers: u32, mb: u8) -> Result<u8, AddressErr
 /// `option_env!("X10_MB_ADDR")`), or [`MB_DEFAULT`].
 ///
 /// # Errors
-/// As [`parse`]; [`AddressError::OutOfRange`] outside `0x08..=0x77`.
+/// As [`parse`]; [`AddressError::OutOfRange`] outside `0x08..=0x76`.
 pub const fn build_mb(env: Option<&str>) -> Result<u8, AddressError> {
     let mb = match env {
         Some(s) => match parse(s) {
@@ -97,7 +98,7 @@ pub const fn build_mb(env: Option<&str>) -> Result<u8, AddressError> {
         },
         None => MB_DEFAULT,
     };
-    if mb < Address::MIN_EXTERNAL || mb > Address::MAX_EXTERNAL {
+    if mb < Address::MIN_EXTERNAL || mb >= Address::UNADDRESSED.get() {
         return Err(AddressError::OutOfRange);
     }
     Ok(mb)
@@ -160,9 +161,11 @@ mod tests {
     #[test]
     fn base_must_leave_room_for_every_jumper_setting() {
         assert_eq!(check_base(0x08, 3, 0x30), Ok(0x08));
-        assert_eq!(check_base(0x70, 3, 0x08), Ok(0x70));
-        assert_eq!(check_base(0x71, 3, 0x08), Err(AddressError::OutOfRange));
-        assert_eq!(check_base(0x77, 0, 0x08), Ok(0x77));
+        assert_eq!(check_base(0x6f, 3, 0x08), Ok(0x6f));
+        assert_eq!(check_base(0x70, 3, 0x08), Err(AddressError::OutOfRange));
+        assert_eq!(check_base(0x76, 0, 0x08), Ok(0x76));
+        // 0x77 is where unaddressed boards listen.
+        assert_eq!(check_base(0x77, 0, 0x08), Err(AddressError::OutOfRange));
         assert_eq!(check_base(0x07, 0, 0x30), Err(AddressError::OutOfRange));
         assert_eq!(check_base(0x09, 7, 0x08), Err(AddressError::OutOfRange));
     }
@@ -204,6 +207,8 @@ mod tests {
         assert_eq!(build_mb(None), Ok(0x08));
         assert_eq!(build_mb(Some("0x30")), Ok(0x30));
         assert_eq!(build_mb(Some("0x78")), Err(AddressError::OutOfRange));
+        assert_eq!(build_mb(Some("0x77")), Err(AddressError::OutOfRange));
+        assert_eq!(build_mb(Some("0x76")), Ok(0x76));
         assert_eq!(build_mb(Some("")), Err(AddressError::NotANumber));
     }
 
@@ -219,7 +224,8 @@ mod tests {
     #[test]
     fn address_adds_jumpers() {
         assert_eq!(address(0x10, 5), Ok(Address::external(0x15).unwrap()));
-        assert_eq!(address(0x77, 1), Err(AddressError::OutOfRange));
+        assert_eq!(address(0x76, 1), Err(AddressError::OutOfRange));
+        assert_eq!(address(0x76, 0), Ok(Address::external(0x76).unwrap()));
         assert_eq!(address(0xff, 1), Err(AddressError::OutOfRange));
     }
 }

@@ -30,14 +30,14 @@ use crate::board::{init, Board, Bus, Ports, JUMPERS, KIND, NAME};
 /// (A `panic!` in a `const` is a compile error naming the variable: it never runs on the board.)
 const MB: u8 = match address::build_mb(option_env!("X10_MB_ADDR")) {
     Ok(a) => a,
-    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
+    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x76"),
 };
 
 /// [`MB`] as an address (checked at build time: a `panic!` in a `const` never runs on the
 /// board).
 const MB_ADDRESS: Address = match Address::external(MB) {
     Ok(a) => a,
-    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
+    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x76"),
 };
 
 /// The base address, checked at build time for every jumper setting.
@@ -45,10 +45,10 @@ const MB_ADDRESS: Address = match Address::external(MB) {
 const BASE: u8 = match address::build_base(option_env!("X10_DB_ADDR"), JUMPERS as u32, MB) {
     Ok(b) => b,
     Err(_) if JUMPERS == 0 => {
-        panic!("X10_DB_ADDR must be in 0x08..=0x77 and differ from X10_MB_ADDR")
+        panic!("X10_DB_ADDR must be in 0x08..=0x76 and differ from X10_MB_ADDR")
     }
     Err(_) => panic!(
-        "X10_DB_ADDR plus every jumper setting (0..2^jumpers) must stay in 0x08..=0x77 and miss X10_MB_ADDR"
+        "X10_DB_ADDR plus every jumper setting (0..2^jumpers) must stay in 0x08..=0x76 and miss X10_MB_ADDR"
     ),
 };
 

@@ -31,9 +31,9 @@ pub enum StartError {
 pub const MB_ADDRESS: Address = match crate::address::build_mb(option_env!("X10_MB_ADDR")) {
     Ok(a) => match Address::external(a) {
         Ok(a) => a,
-        Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
+        Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x76"),
     },
-    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x77"),
+    Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x76"),
 };
 
 /// Defines `start_motherboard` for one board: the `static` motherboard, its task, and the

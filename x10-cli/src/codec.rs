@@ -27,7 +27,7 @@ use serde_json::{Map, Value};
 use x10_microcode::{
     pec, Address, BatchResults, BootInfo, Diagnostics, Edge, Event, EventConfig, EventKind,
     Identity, Op, Pin, PinRef, Port, PortKind, Reply, Request, ResetReason, ScanResult, Status,
-    MAX_FRAME_LEN, MAX_REQUEST_DATA,
+    Uid, MAX_FRAME_LEN, MAX_REQUEST_DATA,
 };
 
 mod hex;
@@ -146,6 +146,10 @@ const OPS: &[OpInfo] = ops! {
     system read_diagnostics  0x05 Board []                  true;
     system clear_diagnostics 0x06 Board []                  false;
     system set_pec           0x07 Board [on]                false;
+    system assign            0x08 Board [uid address]       false;
+    system set_address       0x09 Board [address]           true;
+    system blink             0x0a Board [secs]              false;
+    system who_is_there      0x0b Board []                  false;
     io     input             0x10 Pin   []                  true;
     io     low               0x11 Pin   []                  false;
     io     high              0x12 Pin   []                  false;
@@ -358,8 +362,8 @@ fn batch_results(results: Input<'_>) -> Result<Vec<u8>> {
 
 /// The decoded value of an event payload, by kind: `level` (and `rising_edges`,
 /// `falling_edges` from a 5-byte `pin_change`), `value` and `inside`, `width_us`,
-/// `timeout_ms`, `dropped` (and `dropped_total` from a 6-byte `overflow`), `identity` and
-/// `reset_reason` (`boot`).
+/// `timeout_ms`, `dropped` (and `dropped_total` from a 6-byte `overflow`), `identity`,
+/// `reset_reason` and `uid` (`boot`, `announce`).
 #[derive(Serialize, Deserialize, Default)]
 struct EventValue {
     level: Option<u8>,
@@ -373,6 +377,7 @@ struct EventValue {
     dropped_total: Option<u32>,
     identity: Option<Identity>,
     reset_reason: Option<ResetReason>,
+    uid: Option<Uid>,
 }
 
 impl EventValue {
@@ -401,10 +406,11 @@ impl EventValue {
                 v.dropped = le16(a, b);
                 v.dropped_total = Some(u32::from_le_bytes([c, d, e, f]));
             }
-            (EventKind::Boot, p) => {
+            (EventKind::Boot | EventKind::Announce, p) => {
                 if let Ok(b) = BootInfo::parse(p) {
                     v.identity = Some(b.identity);
                     v.reset_reason = Some(b.reset_reason);
+                    v.uid = b.uid;
                 } else {
                     // A board of an earlier version: the identity alone.
                     v.identity = Identity::parse(p).ok();
@@ -445,15 +451,20 @@ impl EventValue {
                 p
             }),
             // Without a reset reason: the identity alone, as a board of an earlier version.
-            EventKind::Boot => self.identity.map(|identity| match self.reset_reason {
-                Some(reset_reason) => BootInfo {
-                    identity,
-                    reset_reason,
-                }
-                .to_bytes()
-                .to_vec(),
-                None => identity.to_bytes().to_vec(),
-            }),
+            EventKind::Boot | EventKind::Announce => {
+                self.identity.map(|identity| match self.reset_reason {
+                    Some(reset_reason) => {
+                        let (b, n) = BootInfo {
+                            identity,
+                            reset_reason,
+                            uid: self.uid,
+                        }
+                        .to_bytes();
+                        b.get(..n).unwrap_or(&[]).to_vec()
+                    }
+                    None => identity.to_bytes().to_vec(),
+                })
+            }
             EventKind::Rejected | EventKind::Unknown(_) => None,
         };
         Ok(bytes.unwrap_or_default())
@@ -639,6 +650,9 @@ struct OpHead {
 struct OpFields {
     timeout_ms: Option<u16>,
     on: Option<bool>,
+    uid: Option<Uid>,
+    address: Option<u8>,
+    secs: Option<u8>,
     duty: Option<u8>,
     hz: Option<u16>,
     us: Option<u16>,
@@ -660,6 +674,14 @@ fn data_from_fields(o: Input<'_>, info: &OpInfo, pin: Option<PinRef>) -> Result<
         },
         ("system", "event_enable") => Op::EventEnable(pin, o.parse::<EventConfig>()?),
         ("system", "set_pec") => Op::SetPec(need(f.on, "on", &what)?),
+        ("system", "assign") => Op::Assign {
+            uid: need(f.uid, "uid", &what)?,
+            address: assignable(need(f.address, "address", &what)?)?,
+        },
+        ("system", "set_address") => {
+            Op::SetAddress(assignable(need(f.address, "address", &what)?)?)
+        }
+        ("system", "blink") => Op::Blink(need(f.secs, "secs", &what)?),
         ("io", "pulse_in_rising" | "pulse_in_falling") => Op::PulseIn {
             pin,
             edge: if info.operation == "pulse_in_rising" {
@@ -693,6 +715,12 @@ fn data_from_fields(o: Input<'_>, info: &OpInfo, pin: Option<PinRef>) -> Result<
         .emit_data(&mut data)
         .map_err(|e| CodecError::new(format!("{what}: {e}")))?;
     Ok(data.get(..n).unwrap_or(&[]).to_vec())
+}
+
+/// An address a board may be given (`0x08..=0x76`).
+fn assignable(raw: u8) -> Result<Address> {
+    Address::assignable(raw)
+        .map_err(|_| CodecError::new(format!("`address` must be 0x08..=0x76, got {raw:#04x}")))
 }
 
 /// The data of a batch: its items, each `fn_op, port, len, data`.

@@ -173,6 +173,17 @@ pub trait Ports {
         core::future::pending::<()>().await
     }
 
+    /// Blinks the board's status LED for `secs` seconds (0 stops it), so that a person can
+    /// find the board (`blink`, plug and play). The board times the blinking itself. A board
+    /// without a status LED answers [`PortError::Unsupported`] (the default).
+    ///
+    /// # Errors
+    /// [`PortError::Unsupported`].
+    fn blink(&self, secs: u8) -> Result<(), PortError> {
+        let _ = secs;
+        Err(PortError::Unsupported)
+    }
+
     /// The safe state of an actuator port (default: all low).
     fn safe_state(&self, port: Port) -> SafeState {
         let _ = port;

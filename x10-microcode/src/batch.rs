@@ -58,7 +58,7 @@ impl<'a> Batch<'a> {
                 return Err(Error::NestedBatch);
             }
             let op = Op::parse(fn_op, port, data)?;
-            if op.is_deferred() {
+            if op.is_deferred() || op.moves_board() {
                 return Err(Error::BadArgument);
             }
             reply += RESULT_HEADER + op.reply_capacity();
@@ -139,7 +139,7 @@ impl<'b> BatchWriter<'b> {
         if matches!(op, Op::Batch(_)) {
             return Err(Error::NestedBatch);
         }
-        if op.is_deferred() {
+        if op.is_deferred() || op.moves_board() {
             return Err(Error::BadArgument);
         }
         op.validate()?;

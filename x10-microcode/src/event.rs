@@ -41,8 +41,14 @@ pub enum EventKind {
     Rejected,
     /// 0x06: the event queue overflowed; payload: number of events dropped (u16 LE).
     Overflow,
-    /// 0x07: the board (re)started; payload: the [`crate::Identity`] of the board.
+    /// 0x07: the board (re)started; payload: a [`crate::BootInfo`] (identity, reset reason,
+    /// unique ID). Always sent with its check.
     Boot,
+    /// 0x08: a board says who it is (plug and play): an unaddressed board, from
+    /// [`Address::UNADDRESSED`], until the MB assigns it an address; or any board asked by
+    /// `who_is_there`, from its own address. Payload: a [`crate::BootInfo`] with the unique ID.
+    /// Always sent with its check.
+    Announce,
     /// Any other code.
     Unknown(u8),
 }
@@ -58,6 +64,7 @@ impl EventKind {
             5 => EventKind::Rejected,
             6 => EventKind::Overflow,
             7 => EventKind::Boot,
+            8 => EventKind::Announce,
             x => EventKind::Unknown(x),
         }
     }
@@ -72,6 +79,7 @@ impl EventKind {
             EventKind::Rejected => 5,
             EventKind::Overflow => 6,
             EventKind::Boot => 7,
+            EventKind::Announce => 8,
             EventKind::Unknown(x) => x,
         }
     }
@@ -86,13 +94,14 @@ impl EventKind {
             EventKind::Rejected => "rejected",
             EventKind::Overflow => "overflow",
             EventKind::Boot => "boot",
+            EventKind::Announce => "announce",
             EventKind::Unknown(_) => "unknown",
         }
     }
 
     /// Inverse of [`EventKind::name`] for the known kinds.
     pub fn from_name(name: &str) -> Option<EventKind> {
-        (1u8..=7)
+        (1u8..=8)
             .map(EventKind::from_byte)
             .find(|k| k.name() == name)
     }
@@ -294,6 +303,12 @@ impl<'a> Event<'a> {
     /// [`Error::PecMismatch`] or as [`Event::parse`].
     pub fn parse_with_pec(mb: Address, bytes: &'a [u8]) -> Result<Event<'a>> {
         Self::parse(pec::strip(mb.addr_byte(false), bytes)?)
+    }
+
+    /// True for the kinds that are always sent with their check, whatever the board's PEC
+    /// setting (`boot`, `announce`): they are sent before the MB could switch PEC on.
+    pub fn always_checked(&self) -> bool {
+        matches!(self.kind, EventKind::Boot | EventKind::Announce)
     }
 
     /// Encoded length, PEC excluded.

@@ -70,7 +70,7 @@ pub use system::{
     BoardKind, BootInfo, Capabilities, Diagnostics, EventConfig, Identity, ResetReason, ScanResult,
     DIAGNOSTIC_NAMES,
 };
-pub use types::{Address, Edge, Level, Pin, PinRef, Port, PortKind};
+pub use types::{Address, Edge, Level, Pin, PinRef, Port, PortKind, Uid};
 
 /// Result type of this crate.
 pub type Result<T> = core::result::Result<T, Error>;

@@ -88,6 +88,10 @@ impl Operand {
     pub const SYS_READ_DIAGNOSTICS: u8 = 5;
     pub const SYS_CLEAR_DIAGNOSTICS: u8 = 6;
     pub const SYS_SET_PEC: u8 = 7;
+    pub const SYS_ASSIGN: u8 = 8;
+    pub const SYS_SET_ADDRESS: u8 = 9;
+    pub const SYS_BLINK: u8 = 10;
+    pub const SYS_WHO_IS_THERE: u8 = 11;
     pub const IO_INPUT: u8 = 0;
     pub const IO_LOW: u8 = 1;
     pub const IO_HIGH: u8 = 2;
@@ -128,6 +132,25 @@ pub enum Op<'a> {
     ClearDiagnostics,
     /// System 7, PEC on (1) or off (0) from the next frame on (data: 1 byte). No reply.
     SetPec(bool),
+    /// System 8, plug and play: the board whose unique ID is `uid` takes `address` (data:
+    /// the ID, 8 bytes, then the address, 1 byte in `0x08..=0x76`). Written to
+    /// [`crate::Address::UNADDRESSED`], always with its check; every other board ignores it.
+    /// No reply (nothing is ever read at that address).
+    Assign {
+        /// The board meant.
+        uid: crate::Uid,
+        /// Its new address.
+        address: crate::Address,
+    },
+    /// System 9, the board keeps a new address (data: 1 byte in `0x08..=0x76`) and moves
+    /// there once its reply (`ok`, empty) has been read.
+    SetAddress(crate::Address),
+    /// System 10, blink the status LED for this many seconds (data: 1 byte; 0 stops), to
+    /// find the board by eye. No reply; a board without an LED refuses it (`unsupported`).
+    Blink(u8),
+    /// System 11, every board at the address queues an `announce` event from that address
+    /// (two IDs for one address: a collision). No reply.
+    WhoIsThere,
     /// IO 0, read a digital pin (thesis `digitalIn`): reply payload 1 byte, 0 or 1.
     DigitalRead(PinRef),
     /// IO 1 / IO 2, drive a digital pin (thesis `digitalOut`). No reply.
@@ -256,6 +279,26 @@ impl<'a> Op<'a> {
                         [_] => Err(Error::BadArgument),
                         _ => Err(Error::BadLength),
                     },
+                    Operand::SYS_ASSIGN => match data {
+                        [uid @ .., a] if uid.len() == crate::Uid::LEN => {
+                            crate::Address::assignable(*a).and_then(|address| {
+                                Ok(Op::Assign {
+                                    uid: crate::Uid::parse(uid)?,
+                                    address,
+                                })
+                            })
+                        }
+                        _ => Err(Error::BadLength),
+                    },
+                    Operand::SYS_SET_ADDRESS => match *data {
+                        [a] => crate::Address::assignable(a).map(Op::SetAddress),
+                        _ => Err(Error::BadLength),
+                    },
+                    Operand::SYS_BLINK => match *data {
+                        [secs] => Ok(Op::Blink(secs)),
+                        _ => Err(Error::BadLength),
+                    },
+                    Operand::SYS_WHO_IS_THERE => no_data(data).map(|_| Op::WhoIsThere),
                     _ => Err(unknown),
                 }?;
                 no_port(port)?;
@@ -369,7 +412,11 @@ impl<'a> Op<'a> {
             | Op::EventEnable(..)
             | Op::ReadDiagnostics
             | Op::ClearDiagnostics
-            | Op::SetPec(_) => Function::System,
+            | Op::SetPec(_)
+            | Op::Assign { .. }
+            | Op::SetAddress(_)
+            | Op::Blink(_)
+            | Op::WhoIsThere => Function::System,
             Op::DigitalRead(_) | Op::DigitalWrite(..) | Op::PulseIn { .. } => Function::Io,
             Op::PwmDuty(..) | Op::PwmFrequency(..) | Op::PwmPulseWidth(..) => Function::Pwm,
             Op::AnalogRead(_) => Function::Analog,
@@ -390,6 +437,10 @@ impl<'a> Op<'a> {
             Op::ReadDiagnostics => Operand::SYS_READ_DIAGNOSTICS,
             Op::ClearDiagnostics => Operand::SYS_CLEAR_DIAGNOSTICS,
             Op::SetPec(_) => Operand::SYS_SET_PEC,
+            Op::Assign { .. } => Operand::SYS_ASSIGN,
+            Op::SetAddress(_) => Operand::SYS_SET_ADDRESS,
+            Op::Blink(_) => Operand::SYS_BLINK,
+            Op::WhoIsThere => Operand::SYS_WHO_IS_THERE,
             Op::DigitalRead(_) => Operand::IO_INPUT,
             Op::DigitalWrite(_, Level::Low) => Operand::IO_LOW,
             Op::DigitalWrite(_, Level::High) => Operand::IO_HIGH,
@@ -438,6 +489,10 @@ impl<'a> Op<'a> {
             | Op::ReadDiagnostics
             | Op::ClearDiagnostics
             | Op::SetPec(_)
+            | Op::Assign { .. }
+            | Op::SetAddress(_)
+            | Op::Blink(_)
+            | Op::WhoIsThere
             | Op::Batch(_)
             | Op::Scan => None,
         }
@@ -460,6 +515,10 @@ impl<'a> Op<'a> {
             Op::ReadDiagnostics => "read_diagnostics",
             Op::ClearDiagnostics => "clear_diagnostics",
             Op::SetPec(_) => "set_pec",
+            Op::Assign { .. } => "assign",
+            Op::SetAddress(_) => "set_address",
+            Op::Blink(_) => "blink",
+            Op::WhoIsThere => "who_is_there",
             Op::DigitalRead(_) => "input",
             Op::DigitalWrite(_, Level::Low) => "low",
             Op::DigitalWrite(_, Level::High) => "high",
@@ -493,8 +552,14 @@ impl<'a> Op<'a> {
             | Op::DigitalRead(_)
             | Op::DigitalWrite(..)
             | Op::AnalogRead(_)
+            | Op::WhoIsThere
             | Op::Scan => 0,
-            Op::SetPec(_) | Op::PwmDuty(..) | Op::SerialRead(..) => 1,
+            Op::SetPec(_)
+            | Op::SetAddress(_)
+            | Op::Blink(_)
+            | Op::PwmDuty(..)
+            | Op::SerialRead(..) => 1,
+            Op::Assign { .. } => crate::Uid::LEN + 1,
             Op::SetFailsafe { .. } | Op::PwmFrequency(..) | Op::PwmPulseWidth(..) => 2,
             Op::PulseIn { timeout_ms, .. } => {
                 if timeout_ms.is_some() {
@@ -517,6 +582,15 @@ impl<'a> Op<'a> {
     pub fn emit_data(&self, buf: &mut [u8]) -> Result<usize> {
         match *self {
             Op::SetPec(on) => copy_into(buf, &[on as u8]),
+            Op::SetAddress(a) => copy_into(buf, &[a.get()]),
+            Op::Blink(secs) => copy_into(buf, &[secs]),
+            Op::Assign { uid, address } => {
+                let mut b = [0u8; crate::Uid::LEN + 1];
+                let (u, a) = b.split_at_mut(crate::Uid::LEN);
+                u.copy_from_slice(&uid.0);
+                a.fill(address.get());
+                copy_into(buf, &b)
+            }
             Op::PwmDuty(_, d) => copy_into(buf, &[d]),
             Op::SerialRead(_, n) => copy_into(buf, &[n]),
             Op::SetFailsafe { timeout_ms: v }
@@ -559,6 +633,7 @@ impl<'a> Op<'a> {
             self,
             Op::Ping
                 | Op::Identify
+                | Op::SetAddress(_)
                 | Op::ReadDiagnostics
                 | Op::DigitalRead(_)
                 | Op::PulseIn { .. }
@@ -583,6 +658,13 @@ impl<'a> Op<'a> {
             Op::Batch(b) => b.reply_capacity(),
             _ => 0,
         }
+    }
+
+    /// True for the plug-and-play operations that change or report where a board is
+    /// (`assign`, `set_address`, `who_is_there`): never in a batch (`bad_argument`), each is
+    /// a transaction of its own.
+    pub const fn moves_board(&self) -> bool {
+        matches!(self, Op::Assign { .. } | Op::SetAddress(_) | Op::WhoIsThere)
     }
 
     /// True for long operations whose value arrives later in a deferred-reply event.
@@ -622,6 +704,10 @@ impl<'a> Op<'a> {
             | Op::EventEnable(..)
             | Op::ClearDiagnostics
             | Op::SetPec(_)
+            | Op::Assign { .. }
+            | Op::SetAddress(_)
+            | Op::Blink(_)
+            | Op::WhoIsThere
             | Op::DigitalWrite(..)
             | Op::PwmDuty(..)
             | Op::PwmFrequency(..)

@@ -251,6 +251,12 @@ fn op_entries<M: SerializeMap>(m: &mut M, op: &Op<'_>) -> Result<(), M::Error> {
             m.serialize_entry("high", &cfg.high)
         }
         Op::SetPec(on) => m.serialize_entry("on", &on),
+        Op::Assign { uid, address } => {
+            m.serialize_entry("uid", &uid)?;
+            m.serialize_entry("address", &address)
+        }
+        Op::SetAddress(address) => m.serialize_entry("address", &address),
+        Op::Blink(secs) => m.serialize_entry("secs", &secs),
         Op::PwmDuty(_, duty) => m.serialize_entry("duty", &duty),
         Op::PwmFrequency(_, hz) => m.serialize_entry("hz", &hz),
         Op::PwmPulseWidth(_, us) => m.serialize_entry("us", &us),
@@ -266,6 +272,7 @@ fn op_entries<M: SerializeMap>(m: &mut M, op: &Op<'_>) -> Result<(), M::Error> {
         | Op::DigitalWrite(..)
         | Op::AnalogRead(_)
         | Op::SerialWrite(..)
+        | Op::WhoIsThere
         | Op::Scan => Ok(()),
     }
 }
@@ -293,7 +300,10 @@ impl Serialize for Event<'_> {
         // Events about the whole board name no pin (byte 2 = 0).
         let board = matches!(
             self.kind,
-            EventKind::FailsafeTripped | EventKind::Overflow | EventKind::Boot
+            EventKind::FailsafeTripped
+                | EventKind::Overflow
+                | EventKind::Boot
+                | EventKind::Announce
         ) && self.pin.to_byte() == 0;
         let mut m = s.serialize_map(None)?;
         m.serialize_entry("source", &self.source)?;

@@ -1,7 +1,7 @@
 //! Payloads of the system functions and of scan: identity, diagnostics, event configuration,
 //! scan results.
 
-use crate::{Error, Result};
+use crate::{Error, Result, Uid};
 
 /// Board kind codes reported by `identify`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
@@ -108,9 +108,10 @@ impl ResetReason {
     }
 }
 
-/// Payload of the `boot` event: the board's [`Identity`] (10 bytes), then why it started
-/// (1 byte). A receiver reads the identity from the first 10 bytes and ignores bytes it does
-/// not know after the reason.
+/// Payload of the `boot` and `announce` events: the board's [`Identity`] (10 bytes), why it
+/// started (1 byte), then its unique ID (8 bytes, [`Uid`]). A receiver reads the identity from
+/// the first 10 bytes and ignores bytes it does not know after the ID. A board of an earlier
+/// version sent 11 bytes (no ID): that parses with `uid: None`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct BootInfo {
@@ -118,34 +119,52 @@ pub struct BootInfo {
     pub identity: Identity,
     /// Why the board started.
     pub reset_reason: ResetReason,
+    /// The board's unique ID (`None` from a board of an earlier version).
+    pub uid: Option<Uid>,
 }
 
 impl BootInfo {
-    /// Encoded length.
-    pub const LEN: usize = Identity::LEN + 1;
+    /// Encoded length without the ID (a board of an earlier version).
+    pub const LEN_NO_UID: usize = Identity::LEN + 1;
+    /// Encoded length with the ID, as this version sends it.
+    pub const LEN: usize = Self::LEN_NO_UID + Uid::LEN;
 
-    /// Parses a `boot` event's payload.
+    /// Parses a `boot` or `announce` event's payload.
     ///
     /// # Errors
-    /// [`Error::BadLength`] when it is shorter than [`BootInfo::LEN`].
+    /// [`Error::BadLength`] when it is shorter than [`BootInfo::LEN_NO_UID`], or longer but
+    /// shorter than [`BootInfo::LEN`] (a cut ID).
     pub fn parse(payload: &[u8]) -> Result<BootInfo> {
         let id = payload.get(..Identity::LEN).ok_or(Error::BadLength)?;
         let reason = *payload.get(Identity::LEN).ok_or(Error::BadLength)?;
+        let uid = match payload.get(Self::LEN_NO_UID..) {
+            Some([]) | None => None,
+            Some(rest) => Some(Uid::parse(rest)?),
+        };
         Ok(BootInfo {
             identity: Identity::parse(id)?,
             reset_reason: ResetReason::from_byte(reason),
+            uid,
         })
     }
 
-    /// Encodes the payload.
-    pub fn to_bytes(&self) -> [u8; Self::LEN] {
+    /// Encodes the payload: [`BootInfo::LEN`] bytes with an ID, [`BootInfo::LEN_NO_UID`]
+    /// without (the rest of the array is then zero). Returns the array and the length used.
+    pub fn to_bytes(&self) -> ([u8; Self::LEN], usize) {
         let mut b = [0u8; Self::LEN];
-        let (id, reason) = b.split_at_mut(Identity::LEN);
+        let (id, rest) = b.split_at_mut(Identity::LEN);
         id.copy_from_slice(&self.identity.to_bytes());
+        let (reason, uid) = rest.split_at_mut(1);
         if let Some(r) = reason.first_mut() {
             *r = self.reset_reason.to_byte();
         }
-        b
+        match self.uid {
+            Some(u) => {
+                uid.copy_from_slice(&u.0);
+                (b, Self::LEN)
+            }
+            None => (b, Self::LEN_NO_UID),
+        }
     }
 }
 

@@ -25,6 +25,30 @@ impl Address {
     pub const MIN_EXTERNAL: u8 = 0x08;
     /// Highest external address.
     pub const MAX_EXTERNAL: u8 = 0x77;
+    /// The address every *unaddressed* daughterboard listens at (plug and play,
+    /// `docs/protocol.md`, "Addresses over the bus"): the top of the external range, so the
+    /// addresses a motherboard gives out (`0x08..=0x76`) stay one block. Only ever written to
+    /// (`assign`), never read from: several unaddressed boards may acknowledge one write
+    /// together, none of them ever drives data onto the bus here.
+    pub const UNADDRESSED: Address = Address(0x77);
+
+    /// Checks an address a board may be given over the bus (`assign`, `set_address`): an
+    /// external address other than [`Address::UNADDRESSED`].
+    ///
+    /// # Errors
+    /// [`Error::BadArgument`] unless `raw` is in `0x08..=0x76`.
+    pub const fn assignable(raw: u8) -> Result<Address> {
+        if raw >= Self::MIN_EXTERNAL && raw < Self::UNADDRESSED.0 {
+            Ok(Address(raw))
+        } else {
+            Err(Error::BadArgument)
+        }
+    }
+
+    /// True for [`Address::UNADDRESSED`].
+    pub const fn is_unaddressed(self) -> bool {
+        self.0 == Self::UNADDRESSED.0
+    }
 
     /// Checks an address.
     ///
@@ -88,6 +112,57 @@ impl fmt::Display for Address {
         } else {
             write!(f, "{:#04x}", self.0)
         }
+    }
+}
+
+/// A board's unique ID: 8 bytes, sent as they are (no byte order to choose). An RP2040 board
+/// reports its flash chip's 64-bit unique ID as read; an STM32 board its 96-bit UID folded to
+/// 64 bits (the fold lives with the chip code, in `x10-boards`). The motherboard keys
+/// addresses by it and the unaddressed state's random delays are seeded from it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(transparent)
+)]
+pub struct Uid(pub [u8; 8]);
+
+impl Uid {
+    /// Encoded length.
+    pub const LEN: usize = 8;
+
+    /// The first [`Uid::LEN`] bytes of `bytes`.
+    ///
+    /// # Errors
+    /// [`Error::BadLength`] when there are fewer.
+    pub fn parse(bytes: &[u8]) -> Result<Uid> {
+        let b = bytes.get(..Self::LEN).ok_or(Error::BadLength)?;
+        let mut u = [0u8; Self::LEN];
+        u.copy_from_slice(b);
+        Ok(Uid(u))
+    }
+
+    /// A 32-bit mix of the ID (FNV-1a, then a multiply-xorshift finaliser): the seed of a
+    /// board's delays and the start of the motherboard's search for a free address. Two IDs
+    /// that differ in one bit give unrelated values.
+    pub fn hash32(self) -> u32 {
+        let mut h = self.0.iter().fold(0x811c_9dc5u32, |h, b| {
+            (h ^ u32::from(*b)).wrapping_mul(0x0100_0193)
+        });
+        h ^= h >> 16;
+        h = h.wrapping_mul(0x7feb_352d);
+        h ^= h >> 15;
+        h
+    }
+}
+
+impl fmt::Display for Uid {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for b in self.0 {
+            write!(f, "{b:02x}")?;
+        }
+        Ok(())
     }
 }
 

@@ -171,6 +171,12 @@ fn op_fields(m: &mut Flat, prefix: &str, op: &Op<'_>) {
             put(m, p("high"), Val::Int(c.high.into()));
         }
         Op::SetPec(on) => put(m, p("on"), Val::Bool(on)),
+        Op::Assign { uid, address } => {
+            put(m, p("uid"), list(&uid.0));
+            put(m, p("address"), Val::Int(address.get().into()));
+        }
+        Op::SetAddress(address) => put(m, p("address"), Val::Int(address.get().into())),
+        Op::Blink(secs) => put(m, p("secs"), Val::Int(secs.into())),
         Op::PulseIn { timeout_ms, .. } => put(
             m,
             p("timeout_ms"),
@@ -273,7 +279,7 @@ fn event_fields(e: &Event<'_>) -> Flat {
     put(&mut m, "event", kind);
     let board_kind = matches!(
         e.kind,
-        EventKind::FailsafeTripped | EventKind::Overflow | EventKind::Boot
+        EventKind::FailsafeTripped | EventKind::Overflow | EventKind::Boot | EventKind::Announce
     );
     let pin = (!(board_kind && e.pin.to_byte() == 0)).then_some(e.pin);
     port_keys(&mut m, "", pin);
@@ -320,7 +326,7 @@ fn event_fields(e: &Event<'_>) -> Flat {
                 Val::Int(u32::from_le_bytes([c, d, e, f]).into()),
             );
         }
-        (EventKind::Boot, p) => match x10_microcode::BootInfo::parse(p) {
+        (EventKind::Boot | EventKind::Announce, p) => match x10_microcode::BootInfo::parse(p) {
             Ok(b) => {
                 identity_fields(&mut m, &b.identity);
                 put(
@@ -328,6 +334,9 @@ fn event_fields(e: &Event<'_>) -> Flat {
                     "reset_reason",
                     Val::Str(b.reset_reason.name().into()),
                 );
+                if let Some(uid) = b.uid {
+                    put(&mut m, "uid", list(&uid.0));
+                }
             }
             // A board of an earlier version: the identity alone.
             Err(_) => identity_fields(&mut m, &Identity::parse(p).unwrap()),
@@ -484,10 +493,10 @@ fn every_example_frame_decodes_to_what_the_document_says() {
     }
     // Every operation and every event kind has an example; every kind has examples with PEC
     // and refused examples.
-    assert_eq!(ops.len(), 22, "operations with an example: {ops:?}");
+    assert_eq!(ops.len(), 26, "operations with an example: {ops:?}");
     assert_eq!(
         event_kinds.len(),
-        8,
+        9,
         "event kinds with an example: {event_kinds:?}"
     );
     for kind in ["request", "reply", "event"] {

@@ -32,7 +32,7 @@ fn unknown_function() {
 fn unknown_operand_of_every_function() {
     // First unused operand of each function, and the last one.
     let cases: &[(u8, u8)] = &[
-        (0x0, 0x8),
+        (0x0, 0xc),
         (0x1, 0x5),
         (0x2, 0x3),
         (0x3, 0x1),
@@ -597,6 +597,7 @@ fn event_kind_codes() {
         "rejected",
         "overflow",
         "boot",
+        "announce",
     ];
     for (i, name) in names.iter().enumerate() {
         let code = i as u8 + 1;
@@ -606,7 +607,7 @@ fn event_kind_codes() {
         assert_eq!(EventKind::from_name(name), Some(k));
         assert_eq!(k.to_string(), *name);
     }
-    for b in std::iter::once(0u8).chain(8..=0xff) {
+    for b in std::iter::once(0u8).chain(9..=0xff) {
         assert_eq!(EventKind::from_byte(b), EventKind::Unknown(b));
         assert_eq!(EventKind::Unknown(b).to_byte(), b);
     }

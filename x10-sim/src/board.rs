@@ -1,15 +1,17 @@
 //! A simulated daughterboard: the real `firmware-db` runtime on [`SimPorts`] and a
 //! [`crate::bus::SimPort`], restarted from scratch whenever the bus resets its node.
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::future::{poll_fn, Future};
 use std::pin::pin;
 use std::rc::Rc;
 
-use embassy_futures::select::select;
+use embassy_futures::select::{select3, Either3};
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
-use firmware_db::{Daughterboard, DbConfig, TargetConfig};
-use x10_microcode::{Address, BoardKind, Diagnostics};
+use firmware_db::{
+    start_address, AddressRecord, Daughterboard, DbConfig, StoreError, TargetConfig,
+};
+use x10_microcode::{Address, BoardKind, Diagnostics, ResetReason, Uid};
 
 use crate::bus::{NodeConfig, NodeId, Role, SimBus};
 use crate::ports::SimPorts;
@@ -36,6 +38,52 @@ impl Notes {
     pub fn lines(&self) -> Vec<TraceLine> {
         self.lines.borrow().clone()
     }
+}
+
+/// A board's simulated address record: what it keeps across its resets, in memory (the
+/// image's power-cut-safe flash record, as far as the runtime can tell). Cloning shares it.
+#[derive(Clone, Debug, Default)]
+pub struct SimRecord {
+    kept: Rc<Cell<Option<Address>>>,
+    writes: Rc<Cell<u32>>,
+    /// The board has a build-time address: it keeps none (`set_address` is `unsupported`).
+    fixed: bool,
+}
+
+impl SimRecord {
+    /// The address kept, if any.
+    pub fn kept(&self) -> Option<Address> {
+        self.kept.get()
+    }
+
+    /// Record writes so far.
+    pub fn writes(&self) -> u32 {
+        self.writes.get()
+    }
+}
+
+impl AddressRecord for SimRecord {
+    fn load(&mut self) -> Option<Address> {
+        self.kept.get()
+    }
+
+    fn store(&mut self, address: Address) -> Result<(), StoreError> {
+        if self.fixed {
+            return Err(StoreError::NoRecord);
+        }
+        self.kept.set(Some(address));
+        self.writes.set(self.writes.get() + 1);
+        Ok(())
+    }
+}
+
+/// The sim's unique ID of a board named `name` (FNV-1a over the name, 64 bits, little-endian):
+/// the same name always gives the same ID.
+pub fn uid_of_name(name: &str) -> Uid {
+    let h = name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+    });
+    Uid(h.to_le_bytes())
 }
 
 /// The diagnostics counters of a running board, as of its task's last poll (shared; cloning
@@ -74,6 +122,35 @@ pub struct DbBoard {
     pub diagnostics: DiagnosticsCell,
     /// When the board's PEC setting changed (ground truth for checking frames).
     pub pec: PecLog,
+    /// Its build-time address (an override, which always wins); `None`: it starts at the
+    /// address its record keeps, or unaddressed.
+    pub override_address: Option<Address>,
+    /// Its unique ID.
+    pub uid: Uid,
+    /// Its address record, kept across resets.
+    pub record: SimRecord,
+    /// When it is powered up (ns; a board plugged in while the robot runs), 0 at the start.
+    pub power_on_ns: u64,
+    /// Every address it started at, with the time (ground truth: `0x77` while unaddressed).
+    pub addresses: AddressLog,
+}
+
+/// Every address a board started at, with the time (ns). Cloning shares it.
+#[derive(Clone, Debug, Default)]
+pub struct AddressLog {
+    starts: Rc<RefCell<Vec<(u64, Address)>>>,
+}
+
+impl AddressLog {
+    /// Every start so far: (time in ns, address).
+    pub fn starts(&self) -> Vec<(u64, Address)> {
+        self.starts.borrow().clone()
+    }
+
+    /// The address of the last start (`None` before the first).
+    pub fn current(&self) -> Option<Address> {
+        self.starts.borrow().last().map(|(_, a)| *a)
+    }
 }
 
 /// Every change of a board's PEC setting, with its time (ns): `false` at each boot, then
@@ -106,8 +183,10 @@ impl DbBoard {
     /// A dual-role board at `address` (external), named `dbXX` after its address, sending
     /// events to `mb`.
     pub fn new(address: Address, mb: Address, ports: SimPorts) -> DbBoard {
+        let name = board_name(address);
+        let uid = uid_of_name(&name);
         DbBoard {
-            name: board_name(address),
+            name,
             config: DbConfig::new(address, BoardKind::SIMULATED),
             target: TargetConfig::new(mb),
             ports,
@@ -115,12 +194,40 @@ impl DbBoard {
             resettable: false,
             diagnostics: DiagnosticsCell::default(),
             pec: PecLog::default(),
+            override_address: Some(address),
+            uid,
+            record: SimRecord {
+                fixed: true,
+                ..SimRecord::default()
+            },
+            power_on_ns: 0,
+            addresses: AddressLog::default(),
         }
+    }
+
+    /// A dual-role board called `name` without a build-time address (plug and play): it
+    /// starts at the address its record keeps (none at first: unaddressed, at `0x77`), with
+    /// ID `uid`, sending events to `mb`.
+    pub fn unaddressed(name: &str, uid: Uid, mb: Address, ports: SimPorts) -> DbBoard {
+        DbBoard {
+            name: name.to_string(),
+            config: DbConfig::new(Address::UNADDRESSED, BoardKind::SIMULATED),
+            override_address: None,
+            uid,
+            record: SimRecord::default(),
+            ..DbBoard::new(Address::UNADDRESSED, mb, ports)
+        }
+    }
+
+    /// The address the board starts at now (its override, else its record, else
+    /// unaddressed).
+    pub fn start_address(&self) -> Address {
+        start_address(self.override_address, &mut self.record.clone())
     }
 
     /// The bus node for this board.
     pub fn node_config(&self) -> NodeConfig {
-        let mut n = NodeConfig::new(self.name.clone(), Some(self.config.address.get()))
+        let mut n = NodeConfig::new(self.name.clone(), Some(self.start_address().get()))
             .with_role(self.role);
         n.resettable = self.resettable;
         n
@@ -130,11 +237,25 @@ impl DbBoard {
     /// node waits until it is up again and boots afresh.
     pub async fn run(&self, bus: SimBus, node: NodeId, notes: Notes) {
         let clock = bus.clock().clone();
+        let mut moved = false;
         loop {
             let generation = bus.reset_generation(node);
             clock.sleep_until_ns(bus.alive_from(node)).await;
-            let db: Daughterboard<NoopRawMutex, SimPorts> =
-                Daughterboard::new(self.ports.fresh(), self.config);
+            // Where it starts: its override, else what its record keeps, else unaddressed.
+            let address = self.start_address();
+            bus.set_node_address(node, Some(address.get()));
+            self.addresses
+                .starts
+                .borrow_mut()
+                .push((clock.now_ns(), address));
+            let mut config = self.config;
+            config.address = address;
+            config.uid = self.uid;
+            if moved {
+                config.reset_reason = ResetReason::Software;
+            }
+            let db: Daughterboard<NoopRawMutex, SimPorts, SimRecord> =
+                Daughterboard::with_record(self.ports.fresh(), config, self.record.clone());
             let serve = async {
                 let runtime = firmware_db::run(&db, bus.port(node), clock.clone(), self.target);
                 let mut runtime = pin!(runtime);
@@ -149,18 +270,33 @@ impl DbBoard {
                 .await
             };
             self.pec.note(clock.now_ns(), db.pec_enabled());
-            select(serve, bus.wait_reset(node, generation)).await;
+            let end = select3(serve, bus.wait_reset(node, generation), db.moved()).await;
             // Power is gone: PWM outputs stop now, not when the next boot sets them.
             db.ports().power_off();
             self.diagnostics.set(db.diagnostics());
-            notes.push(TraceLine::new(
-                clock.now_ns(),
-                Severity::Warn,
-                self.name.clone(),
-                format!(
+            moved = matches!(end, Either3::Third(_));
+            let text = match end {
+                Either3::Third(to) => {
+                    // The board keeps its new address and starts again there at once.
+                    bus.restart_node(node);
+                    format!("takes address {to}: firmware restarts there")
+                }
+                _ if bus.alive_from(node) >= crate::sim::UNPLUGGED_NS => "unplugged".to_string(),
+                _ => format!(
                     "reset: firmware restarts at {}",
                     crate::trace::timestamp(bus.alive_from(node))
                 ),
+            };
+            let severity = if moved {
+                Severity::Info
+            } else {
+                Severity::Warn
+            };
+            notes.push(TraceLine::new(
+                clock.now_ns(),
+                severity,
+                self.name.clone(),
+                text,
             ));
         }
     }

@@ -160,8 +160,9 @@ fn reset_restarts_the_firmware_and_sends_boot_again() {
         bus2.reset_node(db, 5_000_000);
     });
     ex.run_until_ns(100_000_000).unwrap();
-    // A boot event (16 bytes) takes 1.5 ms at 100 kHz.
-    assert_eq!(*boots.borrow(), vec![1, 56]);
+    // A boot event (the address byte, 25 bytes and its CRC-16: 28 bytes of 9 bits) takes
+    // 2.5 ms at 100 kHz; it is seen when it ends.
+    assert_eq!(*boots.borrow(), vec![2, 57]);
     let n = notes.lines();
     assert_eq!(n.len(), 1);
     assert_eq!(

@@ -419,7 +419,7 @@ struct Request {
     waker: Option<Waker>,
 }
 
-#[derive(Debug)]
+#[derive(Clone, Copy, Debug)]
 enum DeliveryKind {
     Write,
     WriteRead,
@@ -608,6 +608,14 @@ impl BusInner {
     }
 
     fn reset(&mut self, node: NodeId, now: Nanos, down_ns: Nanos) {
+        self.restart(node, now, down_ns);
+        if node < self.nodes.len() {
+            self.stats.resets += 1;
+        }
+    }
+
+    /// A reset that is not counted as one (a board that restarts at its new address).
+    fn restart(&mut self, node: NodeId, now: Nanos, down_ns: Nanos) {
         if let Some(n) = self.nodes.get_mut(node) {
             n.alive_from = now.saturating_add(down_ns);
             n.generation += 1;
@@ -620,7 +628,6 @@ impl BusInner {
                 _ => RespondState::Idle,
             };
             n.wake();
-            self.stats.resets += 1;
         }
         self.wake_engine();
     }
@@ -743,6 +750,31 @@ impl SimBus {
     pub fn reset_node(&self, node: NodeId, down_ns: Nanos) {
         let now = self.clock.now_ns();
         self.inner.borrow_mut().reset(node, now, down_ns);
+    }
+
+    /// Powers `node` up only at `at_ns` (a board plugged in while the robot runs): until then
+    /// it NACKs everything, as a reset node does, but nothing is counted as a reset. Call it
+    /// before the node's firmware starts.
+    pub fn power_on_at(&self, node: NodeId, at_ns: Nanos) {
+        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(node) {
+            n.alive_from = at_ns;
+        }
+    }
+
+    /// Restarts `node` now, as [`SimBus::reset_node`] with no time down, without counting a
+    /// reset (a board that took a new address restarts itself).
+    pub fn restart_node(&self, node: NodeId) {
+        let now = self.clock.now_ns();
+        self.inner.borrow_mut().restart(node, now, 0);
+    }
+
+    /// Changes the target address of `node` (a board that took a new address and started
+    /// again there). Several nodes may share an address: a write goes to every one of them
+    /// (see the module docs), a read to the first.
+    pub fn set_node_address(&self, node: NodeId, address: Option<u8>) {
+        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(node) {
+            n.cfg.address = address;
+        }
     }
 
     /// How many times `node` was reset.
@@ -1243,14 +1275,33 @@ impl SimBus {
 
         // Address acknowledge, decided at the ACK bit.
         self.clock.sleep_until_ns(cursor).await;
-        let (target, refused) = {
+        let (target, refused, co_targets) = {
             let b = self.inner.borrow();
             let target = b.node_by_addr(seen_addr);
             let refused = match target {
                 None => true,
                 Some(n) => n == win_node || b.is_deaf(n, cursor),
             };
-            (target, refused)
+            // Other nodes at the same address (unaddressed boards at 0x77, two boards built
+            // with one address) acknowledge a plain write too and each receive it; a read
+            // is answered by the first alone (on a real bus their answers would mix, bit by
+            // bit, and the check refuse them).
+            let co: Vec<NodeId> = if refused || read_len.is_some() {
+                Vec::new()
+            } else {
+                b.nodes
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, n)| {
+                        Some(*i) != target
+                            && *i != win_node
+                            && n.cfg.address == Some(seen_addr)
+                            && !b.is_deaf(*i, cursor)
+                    })
+                    .map(|(i, _)| i)
+                    .collect()
+            };
+            (target, refused, co)
         };
         rec.target = target;
         // Injected NACK: on the address (index 0) or a written data byte.
@@ -1269,24 +1320,33 @@ impl SimBus {
         self.clock.sleep_until_ns(cursor).await;
         let stretch_deadline = cursor.saturating_add(self.config().stretch_timeout_ns);
         let clock = self.clock.clone();
-        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(target) {
-            // `addressed` returns now; the transfer waits for `listen`.
-            n.addressed = true;
-            n.wake();
+        for &t in std::iter::once(&target).chain(&co_targets) {
+            if let Some(n) = self.inner.borrow_mut().nodes.get_mut(t) {
+                // `addressed` returns now; the transfer waits for `listen`.
+                n.addressed = true;
+                n.wake();
+            }
         }
         let armed = self
             .wait_until(stretch_deadline, |b| {
                 b.yield_requests_of(target, clock.now_ns());
-                b.nodes
-                    .get(target)
-                    .is_none_or(|n| n.listen_cap.is_some() || n.alive_from > cursor)
+                for &t in &co_targets {
+                    b.yield_requests_of(t, clock.now_ns());
+                }
+                std::iter::once(&target).chain(&co_targets).all(|&t| {
+                    b.nodes
+                        .get(t)
+                        .is_none_or(|n| n.listen_cap.is_some() || n.alive_from > cursor)
+                })
             })
             .await;
         let now = self.clock.now_ns();
         rec.stretch_ns = now.saturating_sub(cursor);
         cursor = now;
-        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(target) {
-            n.addressed = false;
+        for &t in std::iter::once(&target).chain(&co_targets) {
+            if let Some(n) = self.inner.borrow_mut().nodes.get_mut(t) {
+                n.addressed = false;
+            }
         }
         if !armed {
             self.fail(rec, cursor, Outcome::Timeout, win_id, &racing);
@@ -1300,6 +1360,11 @@ impl SimBus {
             if let Some(n) = n.filter(|_| !gone) {
                 // From here on the transfer belongs to the armed `listen`.
                 n.receiving = Some(txn);
+            }
+            for &t in &co_targets {
+                if let Some(n) = b.nodes.get_mut(t).filter(|n| n.alive_from <= now) {
+                    n.receiving = Some(txn);
+                }
             }
             (cap, gone)
         };
@@ -1384,6 +1449,9 @@ impl SimBus {
                 DeliveryKind::Write
             };
             let end = self.fail(rec, cursor, Outcome::Nack { byte: k + 1 }, win_id, &racing);
+            for &t in &co_targets {
+                self.deliver(t, txn, kind, received.clone(), end);
+            }
             if !gone {
                 self.deliver(target, txn, kind, received, end);
             }
@@ -1399,6 +1467,9 @@ impl SimBus {
                 &racing,
                 BusError::Nack,
             );
+            for &t in &co_targets {
+                self.deliver(t, txn, DeliveryKind::Write, received.clone(), end);
+            }
             self.deliver(target, txn, DeliveryKind::Write, received, end);
             return;
         };

@@ -33,8 +33,10 @@ use std::pin::Pin;
 use std::rc::Rc;
 use std::sync::Mutex;
 
-use firmware_mb::{CallObserver, CallRecord, MbConfig, MbDiagnostics, Motherboard};
-use x10_microcode::{Address, Diagnostics, Op, Payload};
+use firmware_mb::{
+    CallObserver, CallRecord, KnownBoard, MbConfig, MbDiagnostics, Motherboard, PinnedAddress,
+};
+use x10_microcode::{Address, Diagnostics, Op, Payload, Uid};
 
 pub use firmware_mb::X10;
 
@@ -44,6 +46,12 @@ use crate::exec::{current_task, Executor, Nanos, RunError, SimClock};
 use crate::ports::{ActuatorLog, SimPorts};
 use crate::timing::Speed;
 use crate::trace::{self, BusNames, Severity, Trace, TraceLine};
+
+/// Entries of the motherboard's directory with [`SimConfig::plug_and_play`] (every address).
+pub const DIRECTORY_ENTRIES: usize = 128;
+
+/// How long an unplugged board stays down ([`Sim::unplug_at`]): longer than any run.
+pub const UNPLUGGED_NS: Nanos = Nanos::MAX / 4;
 
 /// The motherboard runtime as the simulator runs it.
 pub type SimMotherboard = Motherboard<SimPorts>;
@@ -79,6 +87,13 @@ pub struct SimConfig {
     /// thesis's exact frames; the tests of mechanisms measured on those frames, and the
     /// latency table compared with the thesis's, choose it explicitly).
     pub mb_safe_defaults: bool,
+    /// Plug and play on the motherboard (`Motherboard::with_directory`, room for 128 boards):
+    /// it sweeps the bus at start, gives unaddressed boards an address, reports boards that
+    /// stop answering and collisions. Off by default (the sweep adds 110 short writes at
+    /// start); on whenever a board has no build-time address ([`Sim::with_unaddressed_board`]).
+    pub plug_and_play: bool,
+    /// Addresses pinned by the robot's configuration (`MbConfig::pinned`).
+    pub pinned: &'static [PinnedAddress],
 }
 
 /// The default motherboard address (the lowest ordinary I2C address, so events sent to it
@@ -105,6 +120,8 @@ impl Default for SimConfig {
             stop_when_tasks_done: false,
             record_wire: true,
             mb_safe_defaults: true,
+            plug_and_play: false,
+            pinned: &[],
         }
     }
 }
@@ -338,6 +355,9 @@ pub struct SimOutcome {
     /// Device warnings: a user's program broke a documented limit of a device model
     /// (e.g. ultrasonic measurements closer together than the part allows).
     pub device_warnings: Vec<String>,
+    /// Ground truth of plug and play: for each external board, every address it started at,
+    /// with the time (ns; `0x77` while unaddressed).
+    pub addresses: Vec<(String, Vec<(u64, Address)>)>,
 }
 
 impl SimOutcome {
@@ -427,6 +447,7 @@ pub struct Sim {
     resets: Vec<ScheduledReset>,
     mb_stop_ns: Option<Nanos>,
     task_errors: TaskErrors,
+    shared_addresses: bool,
 }
 
 /// The robot tasks that ended with an error: (task, error text).
@@ -452,6 +473,7 @@ impl Sim {
             resets: Vec::new(),
             mb_stop_ns: None,
             task_errors: TaskErrors::default(),
+            shared_addresses: false,
         }
     }
 
@@ -492,6 +514,48 @@ impl Sim {
     pub fn with_board(mut self, address: Address, ports: SimPorts) -> Sim {
         self.boards
             .push(DbBoard::new(address, self.config.mb_address, ports));
+        self
+    }
+
+    /// Adds a daughterboard called `name` without a build-time address (plug and play): it
+    /// boots unaddressed, announces itself with its ID (`uid`, or one made from its name,
+    /// [`crate::board::uid_of_name`]) and takes the address the motherboard gives it, kept in
+    /// its simulated record across resets. Turns [`SimConfig::plug_and_play`] on.
+    pub fn with_unaddressed_board(mut self, name: &str, uid: Option<Uid>, ports: SimPorts) -> Sim {
+        let uid = uid.unwrap_or_else(|| crate::board::uid_of_name(name));
+        self.boards.push(DbBoard::unaddressed(
+            name,
+            uid,
+            self.config.mb_address,
+            ports,
+        ));
+        self.config.plug_and_play = true;
+        self
+    }
+
+    /// Powers board `name` up only at `at_ms` (plugged in while the robot runs).
+    pub fn plug_at(mut self, name: &str, at_ms: u64) -> Sim {
+        if let Some(b) = self.board_mut(name) {
+            b.power_on_ns = at_ms * 1_000_000;
+        }
+        self
+    }
+
+    /// Unplugs board `name` at `at_ms` for good (it NACKs everything from then on).
+    pub fn unplug_at(mut self, name: &str, at_ms: u64) -> Sim {
+        self.resets.push(ScheduledReset {
+            board: name.to_string(),
+            at_ns: at_ms * 1_000_000,
+            down_ns: UNPLUGGED_NS,
+        });
+        self
+    }
+
+    /// Lets two boards have one address (two boards built with the same override): the
+    /// motherboard must report the collision (a write reaches both; a read is answered by
+    /// the first).
+    pub fn allow_shared_addresses(mut self) -> Sim {
+        self.shared_addresses = true;
         self
     }
 
@@ -585,7 +649,10 @@ impl Sim {
         for (name, addr) in self
             .boards
             .iter()
-            .map(|b| (b.name.clone(), Some(b.config.address.get())))
+            .map(|b| {
+                let shared = self.shared_addresses || b.override_address.is_none();
+                (b.name.clone(), (!shared).then(|| b.start_address().get()))
+            })
             .chain(self.raw_nodes.iter().map(|n| (n.name.clone(), n.address)))
         {
             if names.contains(&name) {
@@ -630,9 +697,15 @@ impl Sim {
             resets,
             mb_stop_ns,
             task_errors,
+            shared_addresses: _,
         } = self;
         let mut board_addresses = vec![0];
-        board_addresses.extend(boards.iter().map(|b| b.config.address.get()));
+        board_addresses.extend(
+            boards
+                .iter()
+                .filter_map(|b| b.override_address)
+                .map(Address::get),
+        );
         board_addresses.extend(raw_nodes.iter().filter_map(|n| n.address));
         let mut bus_cfg = BusConfig::new(config.speed);
         bus_cfg.seed = config.seed;
@@ -648,6 +721,9 @@ impl Sim {
             .iter()
             .map(|b| {
                 let id = bus.add_node(b.node_config());
+                if b.power_on_ns > 0 {
+                    bus.power_on_at(id, b.power_on_ns);
+                }
                 nodes.push((b.name.clone(), id));
                 id
             })
@@ -664,6 +740,7 @@ impl Sim {
             MbConfig::thesis_compatible(config.mb_address)
         };
         mb_cfg.request_timeout_us = config.request_timeout_us;
+        mb_cfg.pinned = config.pinned;
         mb_cfg.seed = (config.seed as u32)
             ^ ((config.seed >> 32) as u32)
             ^ u32::from(config.mb_address.get());
@@ -673,9 +750,12 @@ impl Sim {
             spans: Mutex::new(Vec::new()),
             called: Mutex::new(Vec::new()),
         }));
-        let mb: &'static SimMotherboard = Box::leak(Box::new(
-            Motherboard::new(mb_cfg, mb_ports).with_observer(tracer),
-        ));
+        let mut motherboard = Motherboard::new(mb_cfg, mb_ports).with_observer(tracer);
+        if config.plug_and_play {
+            let entries = vec![KnownBoard::EMPTY; DIRECTORY_ENTRIES].into_boxed_slice();
+            motherboard = motherboard.with_directory(Box::leak(entries));
+        }
+        let mb: &'static SimMotherboard = Box::leak(Box::new(motherboard));
 
         let run = {
             let mut ex = Executor::with_clock(&clock);
@@ -736,6 +816,18 @@ impl Sim {
                 .map_err(SimError::Run)?
         };
         let end_ns = run.end_ns;
+        // Every address a board had is on the bus (calls to them are no unknown board's).
+        for b in &boards {
+            for (_, a) in b.addresses.starts() {
+                if !board_addresses.contains(&a.get()) {
+                    board_addresses.push(a.get());
+                }
+            }
+        }
+        let addresses = boards
+            .iter()
+            .map(|b| (b.name.clone(), b.addresses.starts()))
+            .collect();
 
         let names: Vec<String> = {
             let mut v = vec![String::new(); nodes.len()];
@@ -818,6 +910,7 @@ impl Sim {
             board_addresses,
             task_errors,
             device_warnings: device_warnings.into_iter().map(|w| w.text).collect(),
+            addresses,
         })
     }
 }

@@ -185,7 +185,7 @@ fn the_thesis_timelines_say_what_the_scenario_docs_say() {
     let alarm = tl.led("alarm").unwrap();
     // The program reads every 20 ms (x10_robots::PERIOD): the first read above 1 °C (each
     // frame with its PEC byte, the safe default).
-    assert_eq!(alarm.first_ns(|on| *on).map(|t| t / MS), Some(3_182));
+    assert_eq!(alarm.first_ns(|on| *on).map(|t| t / MS), Some(3_183));
     assert!(alarm.last_state());
 }
 
@@ -617,7 +617,7 @@ devices, 5.000 s at 400k:
     1.500 s  heartbeat  on
     1.750 s  heartbeat  off
              heartbeat  … 10 more, the last at 4.750 s: off
-bus: 70 transactions, busy 12.4 ms = 0.24 % of the run; 5 NACK, 0 arbitration lost, 0 timeouts, 0 bus faults, 1 resets
+bus: 70 transactions, busy 12.7 ms = 0.25 % of the run; 5 NACK, 0 arbitration lost, 0 timeouts, 0 bus faults, 1 resets
 warnings and errors: 7
   4.000000 WARN  mb: -> db09 io high A1.A seq 50 +pec [12 09 00 32 19] bus 25us NACK (address)
   4.000000 WARN  db09: reset: firmware restarts at 4.005000

@@ -32,6 +32,13 @@ fn op_table_agrees_with_the_protocol_crate() {
         Op::ReadDiagnostics,
         Op::ClearDiagnostics,
         Op::SetPec(true),
+        Op::Assign {
+            uid: x10_microcode::Uid([1, 2, 3, 4, 5, 6, 7, 8]),
+            address: x10_microcode::Address::new(0x20).unwrap(),
+        },
+        Op::SetAddress(x10_microcode::Address::new(0x21).unwrap()),
+        Op::Blink(3),
+        Op::WhoIsThere,
         Op::DigitalRead(s1.pin(Pin::A)),
         Op::DigitalWrite(a1.pin(Pin::A), Level::Low),
         Op::DigitalWrite(a1.pin(Pin::A), Level::High),

@@ -1,0 +1,342 @@
+//! Plug and play on the motherboard (`docs/protocol.md`, "Addresses over the bus"): which
+//! boards are known by their unique ID, where they are, whether they answer, which address an
+//! unaddressed board is given, and which collisions were seen. Pure bookkeeping (no waiting,
+//! no I/O): the routing feeds it `boot` and `announce` events, the dispatcher takes its work
+//! (an `assign` to send, the next address of the start-up sweep) and reports boards that
+//! stopped answering.
+//!
+//! The entries live in storage the image gives ([`crate::Motherboard::with_directory`]): a
+//! motherboard without one knows no board by its ID, answers no announce and sweeps nothing
+//! (so a motherboard with little RAM, like the Cortex-M0 test suite's, pays nothing for it).
+
+use x10_hal::time::Instant;
+use x10_microcode::{Address, BoardKind, BootInfo, Uid};
+
+use crate::config::{PinBy, PinnedAddress};
+
+/// Two different IDs heard from one address within this many µs (1 s) are a collision: two
+/// boards answer there (see [`Directory::seen`]).
+pub const COLLISION_WINDOW_US: u64 = 1_000_000;
+
+/// What the motherboard knows of one board (an entry of [`crate::X10::boards`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct KnownBoard {
+    /// Its unique ID.
+    pub uid: Uid,
+    /// Where it is (or was last).
+    pub address: Address,
+    /// Its kind, from its `boot` or `announce` event.
+    pub kind: BoardKind,
+    /// Sensor ports.
+    pub sensor_ports: u8,
+    /// Actuator ports.
+    pub actuator_ports: u8,
+    /// Firmware version: major, minor, patch.
+    pub firmware: [u8; 3],
+    /// It answered last time: false once a request to it went unanswered (NACK), true again
+    /// at its next `boot` or `announce`.
+    pub present: bool,
+    /// Another board announced itself from the same address (see [`Directory::seen`]).
+    pub collided: bool,
+    /// The motherboard gave it its address and has yet to send the `assign`.
+    assign_pending: bool,
+    /// When it was last heard (µs since start).
+    seen_us: u64,
+}
+
+impl KnownBoard {
+    /// An unused entry (what the storage given to [`crate::Motherboard::with_directory`] is
+    /// filled with).
+    pub const EMPTY: KnownBoard = KnownBoard {
+        uid: Uid([0; Uid::LEN]),
+        address: Address::UNADDRESSED,
+        kind: BoardKind::UNKNOWN,
+        sensor_ports: 0,
+        actuator_ports: 0,
+        firmware: [0; 3],
+        present: false,
+        collided: false,
+        assign_pending: false,
+        seen_us: 0,
+    };
+
+    fn from_boot(address: Address, info: &BootInfo, uid: Uid, now: Instant) -> KnownBoard {
+        KnownBoard {
+            uid,
+            address,
+            kind: info.identity.board,
+            sensor_ports: info.identity.sensor_ports,
+            actuator_ports: info.identity.actuator_ports,
+            firmware: info.identity.firmware,
+            present: true,
+            collided: false,
+            assign_pending: false,
+            seen_us: now.0,
+        }
+    }
+}
+
+/// How a robot program names the board it waits for ([`crate::X10::wait_for_board`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum BoardQuery {
+    /// The board at this address.
+    Address(Address),
+    /// A board of this kind (the first known).
+    Kind(BoardKind),
+    /// The board with this ID.
+    Uid(Uid),
+}
+
+impl BoardQuery {
+    fn matches(&self, b: &KnownBoard) -> bool {
+        match *self {
+            BoardQuery::Address(a) => b.address == a,
+            BoardQuery::Kind(k) => b.kind == k,
+            BoardQuery::Uid(u) => b.uid == u,
+        }
+    }
+}
+
+/// What the motherboard does after an event (see [`Directory::seen`] and
+/// [`Directory::announced`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Heard {
+    /// A board it did not know.
+    New,
+    /// A board it knew.
+    Known,
+    /// A second ID from an address another board announced from within
+    /// [`COLLISION_WINDOW_US`]: the two are not merged, both are marked `collided`.
+    Collision,
+    /// An unaddressed board that is given `address` (an `assign` is now pending).
+    Assign(Address),
+    /// An unaddressed board for which no address is free, or no entry: dropped.
+    NoRoom,
+}
+
+/// The boards known by their ID, in the image's storage.
+pub(crate) struct Directory {
+    entries: &'static mut [KnownBoard],
+    len: usize,
+    /// The next address the start-up sweep probes (`who_is_there`); `None` when done.
+    sweep: Option<u8>,
+}
+
+impl Directory {
+    /// No storage: nothing is known, nothing is swept.
+    pub(crate) const fn new() -> Directory {
+        Directory {
+            entries: &mut [],
+            len: 0,
+            sweep: None,
+        }
+    }
+
+    /// Takes `entries` as storage (their contents are ignored) and starts the sweep (when
+    /// there is room for at least one board).
+    pub(crate) fn set_storage(&mut self, entries: &'static mut [KnownBoard]) {
+        self.sweep = (!entries.is_empty()).then_some(Address::MIN_EXTERNAL);
+        self.entries = entries;
+        self.len = 0;
+    }
+
+    fn known(&self) -> &[KnownBoard] {
+        self.entries.get(..self.len).unwrap_or(&[])
+    }
+
+    fn known_mut(&mut self) -> &mut [KnownBoard] {
+        self.entries.get_mut(..self.len).unwrap_or(&mut [])
+    }
+
+    /// The entry of `uid`, adding one if there is room.
+    fn entry(&mut self, uid: Uid) -> Option<&mut KnownBoard> {
+        let i = match self.known().iter().position(|b| b.uid == uid) {
+            Some(i) => i,
+            None => {
+                let i = self.len;
+                *self.entries.get_mut(i)? = KnownBoard::EMPTY;
+                self.len += 1;
+                i
+            }
+        };
+        self.entries.get_mut(i)
+    }
+
+    /// Every known board, in the order they were first heard.
+    pub(crate) fn boards(&self) -> impl Iterator<Item = &KnownBoard> {
+        self.known().iter()
+    }
+
+    /// The first known board that `q` names, present or not.
+    pub(crate) fn find(&self, q: BoardQuery) -> Option<KnownBoard> {
+        self.known().iter().find(|b| q.matches(b)).copied()
+    }
+
+    /// A `boot` event or an `announce` from `source` (an address, not
+    /// [`Address::UNADDRESSED`]) carrying `info` with an ID. The board is recorded there,
+    /// present. If another ID was heard from `source` within [`COLLISION_WINDOW_US`] and its
+    /// board is still taken to be there, both are marked `collided` and the answer is
+    /// [`Heard::Collision`].
+    pub(crate) fn seen(&mut self, source: Address, info: &BootInfo, now: Instant) -> Heard {
+        let Some(uid) = info.uid else {
+            return Heard::Known;
+        };
+        let clash = self.known_mut().iter_mut().find(|b| {
+            b.uid != uid
+                && b.address == source
+                && b.present
+                && now.0.saturating_sub(b.seen_us) < COLLISION_WINDOW_US
+        });
+        let collided = clash.is_some();
+        if let Some(other) = clash {
+            other.collided = true;
+        }
+        let new = !self.known().iter().any(|b| b.uid == uid);
+        let Some(e) = self.entry(uid) else {
+            return if collided {
+                Heard::Collision
+            } else {
+                Heard::NoRoom
+            };
+        };
+        let was_collided = e.collided && e.address == source;
+        *e = KnownBoard {
+            collided: collided || was_collided,
+            ..KnownBoard::from_boot(source, info, uid, now)
+        };
+        if collided {
+            Heard::Collision
+        } else if new {
+            Heard::New
+        } else {
+            Heard::Known
+        }
+    }
+
+    /// An `announce` from an unaddressed board: an address is chosen ([`choose_address`]),
+    /// kept for its ID, and an `assign` is pending until [`Directory::take_assign`].
+    /// `in_use` says whether an address is taken by a board known otherwise (its port counts
+    /// were learnt without an ID).
+    pub(crate) fn announced(
+        &mut self,
+        info: &BootInfo,
+        pinned: &[PinnedAddress],
+        mb: Address,
+        in_use: impl Fn(Address) -> bool,
+        now: Instant,
+    ) -> Heard {
+        let Some(uid) = info.uid else {
+            return Heard::NoRoom;
+        };
+        let Some(address) =
+            choose_address(uid, info.identity.board, self.known(), pinned, mb, in_use)
+        else {
+            return Heard::NoRoom;
+        };
+        let Some(e) = self.entry(uid) else {
+            return Heard::NoRoom;
+        };
+        *e = KnownBoard {
+            present: false,
+            assign_pending: true,
+            ..KnownBoard::from_boot(address, info, uid, now)
+        };
+        Heard::Assign(address)
+    }
+
+    /// The next `assign` to send: (ID, address). It stays pending until the board's `boot`
+    /// event from its new address arrives (an `assign` lost on the way is sent again at the
+    /// board's next announce).
+    pub(crate) fn take_assign(&mut self) -> Option<(Uid, Address)> {
+        let e = self.known_mut().iter_mut().find(|b| b.assign_pending)?;
+        e.assign_pending = false;
+        Some((e.uid, e.address))
+    }
+
+    /// The next address for the start-up sweep, once each.
+    pub(crate) fn next_sweep(&mut self, mb: Address) -> Option<Address> {
+        loop {
+            let a = self.sweep?;
+            self.sweep = (a < Address::UNADDRESSED.get() - 1).then_some(a + 1);
+            if a != mb.get() {
+                return Address::assignable(a).ok();
+            }
+        }
+    }
+
+    /// A request to `address` went unanswered: a board known there is no longer present.
+    /// True when one was (the caller counts and logs it).
+    pub(crate) fn lost(&mut self, address: Address) -> bool {
+        let mut any = false;
+        for b in self.known_mut().iter_mut() {
+            if b.address == address && b.present {
+                b.present = false;
+                any = true;
+            }
+        }
+        any
+    }
+
+    /// The board at `from` confirmed `set_address(to)`: it is at `to` once its `boot`
+    /// arrives from there.
+    pub(crate) fn moved(&mut self, from: Address, to: Address) {
+        for b in self.known_mut().iter_mut() {
+            if b.address == from {
+                b.address = to;
+                b.present = false;
+                b.collided = false;
+            }
+        }
+    }
+}
+
+/// The address an unaddressed board with ID `uid` and kind `kind` gets, first match wins:
+///
+/// 1. an address pinned to its ID;
+/// 2. an address pinned to its kind, when no other board of that kind is known;
+/// 3. the address the motherboard gave this ID before (while no other board is present
+///    there);
+/// 4. the first free address from `0x08 + uid.hash32() % 111` upwards (wrapping), where free
+///    means: not the motherboard's, not pinned to anyone, no other known board there, and not
+///    `in_use` (a board the motherboard knows without an ID).
+///
+/// `None` when every address is taken.
+pub fn choose_address(
+    uid: Uid,
+    kind: BoardKind,
+    known: &[KnownBoard],
+    pinned: &[PinnedAddress],
+    mb: Address,
+    in_use: impl Fn(Address) -> bool,
+) -> Option<Address> {
+    let others = || known.iter().filter(move |b| b.uid != uid);
+    if let Some(p) = pinned.iter().find(|p| p.by == PinBy::Uid(uid)) {
+        return Some(p.address);
+    }
+    let kind_alone = !others().any(|b| b.kind == kind);
+    if let Some(p) = pinned.iter().find(|p| p.by == PinBy::Kind(kind)) {
+        if kind_alone {
+            return Some(p.address);
+        }
+    }
+    let taken = |a: Address| {
+        a == mb
+            || pinned.iter().any(|p| p.address == a)
+            || others().any(|b| b.address == a && (b.present || b.assign_pending))
+            || in_use(a)
+    };
+    if let Some(before) = known.iter().find(|b| b.uid == uid) {
+        if Address::assignable(before.address.get()).is_ok() && !taken(before.address) {
+            return Some(before.address);
+        }
+    }
+    let span = u32::from(Address::UNADDRESSED.get() - Address::MIN_EXTERNAL);
+    let start = uid.hash32() % span;
+    (0..span)
+        .map(|k| (start + k) % span + u32::from(Address::MIN_EXTERNAL))
+        .filter_map(|raw| u8::try_from(raw).ok())
+        .filter_map(|raw| Address::assignable(raw).ok())
+        .find(|&a| !taken(a))
+}
