@@ -93,7 +93,8 @@ pub struct MbDiagnostics {
     /// Announces from unaddressed boards that got no address (no directory, no room, no free
     /// address, or no ID).
     pub unassigned: u32,
-    /// Boards first known by their ID (from a `boot` or an `announce`).
+    /// Boards first known by their ID (from a `boot` or an `announce`, an unaddressed
+    /// board's included).
     pub boards_found: u32,
     /// Known boards that stopped answering (a request to them ended in a NACK).
     pub boards_lost: u32,

@@ -110,8 +110,14 @@ pub enum Heard {
     /// A second ID from an address another board announced from within
     /// [`COLLISION_WINDOW_US`]: the two are not merged, both are marked `collided`.
     Collision,
-    /// An unaddressed board that is given `address` (an `assign` is now pending).
-    Assign(Address),
+    /// An unaddressed board that is given `address` (an `assign` is now pending); `new` when
+    /// its ID was not known before.
+    Assign {
+        /// Its address.
+        address: Address,
+        /// First heard now.
+        new: bool,
+    },
     /// An unaddressed board for which no address is free, or no entry: dropped.
     NoRoom,
 }
@@ -235,6 +241,7 @@ impl Directory {
         else {
             return Heard::NoRoom;
         };
+        let new = !self.known().iter().any(|b| b.uid == uid);
         let Some(e) = self.entry(uid) else {
             return Heard::NoRoom;
         };
@@ -243,7 +250,7 @@ impl Directory {
             assign_pending: true,
             ..KnownBoard::from_boot(address, info, uid, now)
         };
-        Heard::Assign(address)
+        Heard::Assign { address, new }
     }
 
     /// The next `assign` to send: (ID, address). It stays pending until the board's `boot`

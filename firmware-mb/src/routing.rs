@@ -278,13 +278,15 @@ impl MbCore {
                 |a| boards.ports_known(a),
                 t_now,
             );
-            if h == Heard::NoRoom {
-                bump(&mut diag.unassigned);
+            match h {
+                Heard::NoRoom => bump(&mut diag.unassigned),
+                Heard::Assign { new: true, .. } => bump(&mut diag.boards_found),
+                _ => {}
             }
             h
         });
-        if let Heard::Assign(a) = heard {
-            info!("unaddressed board gets {}", a.get());
+        if let Heard::Assign { address, .. } = heard {
+            info!("unaddressed board gets {}", address.get());
             // The dispatcher looks at its work again.
             self.notify_keepalive();
         } else {

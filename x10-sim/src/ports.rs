@@ -371,6 +371,19 @@ pub struct ActuatorLog {
     safe: Rc<RefCell<Vec<SafeStateApplied>>>,
     latches: Rc<RefCell<Vec<EdgeLatch>>>,
     warnings: Rc<RefCell<Vec<DeviceWarning>>>,
+    blinks: Rc<RefCell<Vec<Blink>>>,
+}
+
+/// A board was asked to blink its status LED (`blink`, to find it by eye): every simulated
+/// board has one.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Blink {
+    /// When (ns).
+    pub t_ns: Nanos,
+    /// Board name.
+    pub board: String,
+    /// For how many seconds (0 stops it).
+    pub secs: u8,
 }
 
 /// The firmware started latching a pin's edges ([`Ports::latch_edges`]: the counts start from
@@ -411,6 +424,11 @@ impl ActuatorLog {
     /// the changes it made then are commanded by design (boot, failsafe), not by a caller.
     pub fn safe_states(&self) -> Vec<SafeStateApplied> {
         self.safe.borrow().clone()
+    }
+
+    /// Every `blink` a board's firmware carried out, in time order.
+    pub fn blinks(&self) -> Vec<Blink> {
+        self.blinks.borrow().clone()
     }
 
     /// Every time a board's firmware started latching a pin's edges (events enabled on it),
@@ -959,6 +977,15 @@ impl Ports for SimPorts {
 
     /// Latches every scripted edge of the pin's input from now on (exactly: see
     /// [`Ports::take_edges`]).
+    fn blink(&self, secs: u8) -> Result<(), PortError> {
+        self.log.blinks.borrow_mut().push(Blink {
+            t_ns: self.clock.now_ns(),
+            board: self.board.clone(),
+            secs,
+        });
+        Ok(())
+    }
+
     fn latch_edges(&self, pin: PinRef) -> Result<(), PortError> {
         self.input(pin)?;
         let now = self.clock.now_ns();

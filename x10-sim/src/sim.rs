@@ -559,6 +559,17 @@ impl Sim {
         self
     }
 
+    /// Adds a daughterboard called `name` with the build-time address `address` (its ID made
+    /// from its name): as [`Sim::with_board`], for a second board built with an address
+    /// another already has ([`Sim::allow_shared_addresses`]).
+    pub fn with_board_named(mut self, name: &str, address: Address, ports: SimPorts) -> Sim {
+        let mut b = DbBoard::new(address, self.config.mb_address, ports);
+        b.name = name.to_string();
+        b.uid = crate::board::uid_of_name(name);
+        self.boards.push(b);
+        self
+    }
+
     /// The board called `name`, to change its configuration.
     pub fn board_mut(&mut self, name: &str) -> Option<&mut DbBoard> {
         self.boards.iter_mut().find(|b| b.name == name)
