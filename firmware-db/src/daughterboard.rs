@@ -333,9 +333,11 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         self.moved.wait().await
     }
 
-    /// After a transaction was served: a move decided by it takes effect once no reply is
-    /// held any more (the reply to `set_address` has been read).
-    pub(crate) fn served(&self) {
+    /// The transport calls this after each transaction addressed to the board has been
+    /// served to its end ([`crate::run_target`] does): a move decided by it
+    /// ([`Daughterboard::moved`]) takes effect once no reply is held any more (the reply to
+    /// `set_address` has been read).
+    pub fn served(&self) {
         if let Some(a) = self.with(|s| s.moving.filter(|_| s.reply.is_none())) {
             self.moved.signal(a);
         }

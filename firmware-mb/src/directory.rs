@@ -347,3 +347,274 @@ pub fn choose_address(
         .filter_map(|raw| Address::assignable(raw).ok())
         .find(|&a| !taken(a))
 }
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use std::boxed::Box;
+    use std::vec;
+    use std::vec::Vec;
+
+    use super::*;
+    use x10_microcode::{Capabilities, Identity, ResetReason};
+
+    fn a(raw: u8) -> Address {
+        Address::new(raw).unwrap()
+    }
+
+    fn uid(n: u8) -> Uid {
+        Uid([n, 1, 2, 3, 4, 5, 6, 7])
+    }
+
+    fn info(u: Uid, kind: BoardKind) -> BootInfo {
+        BootInfo {
+            identity: Identity {
+                protocol_version: 1,
+                firmware: [0, 1, 0],
+                board: kind,
+                sensor_ports: 4,
+                actuator_ports: 2,
+                capabilities: Capabilities(0),
+                adc_bits: 12,
+            },
+            reset_reason: ResetReason::PowerOn,
+            uid: Some(u),
+        }
+    }
+
+    fn dir(n: usize) -> Directory {
+        let mut d = Directory::new();
+        d.set_storage(Box::leak(vec![KnownBoard::EMPTY; n].into_boxed_slice()));
+        d
+    }
+
+    const MB: u8 = 0x08;
+
+    fn hashed(u: Uid) -> u8 {
+        0x08 + (u.hash32() % 111) as u8
+    }
+
+    #[test]
+    fn the_first_free_address_from_the_hash_skipping_what_is_taken() {
+        let u = uid(1);
+        let h = hashed(u);
+        assert_ne!(h, MB);
+        let none = |_: Address| false;
+        assert_eq!(
+            choose_address(u, BoardKind::PICO, &[], &[], a(MB), none),
+            Some(a(h))
+        );
+        // Taken by a board known without an ID, by a present board, or pinned: the next.
+        let taken_by_old = |x: Address| x == a(h);
+        assert_eq!(
+            choose_address(u, BoardKind::PICO, &[], &[], a(MB), taken_by_old),
+            Some(a(if h == 0x76 { 0x09 } else { h + 1 }))
+        );
+        let pinned = [PinnedAddress {
+            by: PinBy::Uid(uid(9)),
+            address: a(h),
+        }];
+        assert_ne!(
+            choose_address(u, BoardKind::PICO, &[], &pinned, a(MB), none),
+            Some(a(h))
+        );
+        // Every address taken: none.
+        let all = |_: Address| true;
+        assert_eq!(
+            choose_address(u, BoardKind::PICO, &[], &[], a(MB), all),
+            None
+        );
+        // Never the MB's, never 0x77: over all IDs of one byte.
+        for n in 0..=255u8 {
+            let got = choose_address(uid(n), BoardKind::PICO, &[], &[], a(MB), none).unwrap();
+            assert!((0x09..=0x76).contains(&got.get()), "{n}: {got}");
+        }
+    }
+
+    #[test]
+    fn pinned_by_id_then_by_the_only_board_of_a_kind_then_remembered() {
+        let none = |_: Address| false;
+        let pinned = [
+            PinnedAddress {
+                by: PinBy::Uid(uid(1)),
+                address: a(0x30),
+            },
+            PinnedAddress {
+                by: PinBy::Kind(BoardKind::G431),
+                address: a(0x31),
+            },
+        ];
+        assert_eq!(
+            choose_address(uid(1), BoardKind::PICO, &[], &pinned, a(MB), none),
+            Some(a(0x30))
+        );
+        // The only G431: its kind's address; with another G431 known: not.
+        assert_eq!(
+            choose_address(uid(2), BoardKind::G431, &[], &pinned, a(MB), none),
+            Some(a(0x31))
+        );
+        let mut other = KnownBoard::EMPTY;
+        other.uid = uid(3);
+        other.kind = BoardKind::G431;
+        other.address = a(0x40);
+        other.present = true;
+        let got = choose_address(uid(2), BoardKind::G431, &[other], &pinned, a(MB), none);
+        assert!(!matches!(got, Some(x) if x == a(0x31) || x == a(0x30)));
+        // Remembered: the address this ID had, unless another present board is there now.
+        let mut before = KnownBoard::EMPTY;
+        before.uid = uid(4);
+        before.address = a(0x50);
+        assert_eq!(
+            choose_address(uid(4), BoardKind::PICO, &[before], &[], a(MB), none),
+            Some(a(0x50))
+        );
+        let mut squatter = other;
+        squatter.address = a(0x50);
+        assert_ne!(
+            choose_address(
+                uid(4),
+                BoardKind::PICO,
+                &[before, squatter],
+                &[],
+                a(MB),
+                none
+            ),
+            Some(a(0x50))
+        );
+    }
+
+    #[test]
+    fn announce_assign_boot_and_the_same_address_again_after_a_reannounce() {
+        let mut d = dir(4);
+        let t = Instant(1_000);
+        let h = d.announced(&info(uid(1), BoardKind::PICO), &[], a(MB), |_| false, t);
+        let want = a(hashed(uid(1)));
+        assert_eq!(
+            h,
+            Heard::Assign {
+                address: want,
+                new: true
+            }
+        );
+        assert_eq!(d.take_assign(), Some((uid(1), want)));
+        assert_eq!(d.take_assign(), None);
+        // The assign was lost: the board announces again and gets the same address.
+        let h = d.announced(&info(uid(1), BoardKind::PICO), &[], a(MB), |_| false, t);
+        assert_eq!(
+            h,
+            Heard::Assign {
+                address: want,
+                new: false
+            }
+        );
+        assert_eq!(d.take_assign(), Some((uid(1), want)));
+        // Its boot from there: known, present.
+        assert_eq!(
+            d.seen(want, &info(uid(1), BoardKind::PICO), t),
+            Heard::Known
+        );
+        let b = d.find(BoardQuery::Uid(uid(1))).unwrap();
+        assert!(b.present && !b.collided);
+        assert_eq!(
+            (b.sensor_ports, b.actuator_ports, b.firmware),
+            (4, 2, [0, 1, 0])
+        );
+    }
+
+    #[test]
+    fn two_ids_from_one_address_within_the_window_are_a_collision() {
+        let mut d = dir(4);
+        let x = a(0x20);
+        assert_eq!(
+            d.seen(x, &info(uid(1), BoardKind::PICO), Instant(0)),
+            Heard::New
+        );
+        assert_eq!(
+            d.seen(x, &info(uid(2), BoardKind::PICO), Instant(5_000)),
+            Heard::Collision
+        );
+        let both: Vec<KnownBoard> = d.boards().copied().collect();
+        assert_eq!(both.len(), 2);
+        assert!(both.iter().all(|b| b.collided && b.address == x));
+        // A board replaced after the window is no collision.
+        let mut d = dir(4);
+        d.seen(x, &info(uid(1), BoardKind::PICO), Instant(0));
+        assert_eq!(
+            d.seen(
+                x,
+                &info(uid(2), BoardKind::PICO),
+                Instant(COLLISION_WINDOW_US)
+            ),
+            Heard::New
+        );
+        // Nor is one that was reported gone first.
+        let mut d = dir(4);
+        d.seen(x, &info(uid(1), BoardKind::PICO), Instant(0));
+        assert!(d.lost(x));
+        assert!(!d.lost(x));
+        assert_eq!(
+            d.seen(x, &info(uid(2), BoardKind::PICO), Instant(10)),
+            Heard::New
+        );
+    }
+
+    #[test]
+    fn without_storage_or_room_nothing_is_known_and_nothing_swept() {
+        let mut d = Directory::new();
+        assert_eq!(d.next_sweep(a(MB)), None);
+        assert_eq!(
+            d.announced(
+                &info(uid(1), BoardKind::PICO),
+                &[],
+                a(MB),
+                |_| false,
+                Instant(0)
+            ),
+            Heard::NoRoom
+        );
+        assert_eq!(
+            d.seen(a(0x20), &info(uid(1), BoardKind::PICO), Instant(0)),
+            Heard::NoRoom
+        );
+        let mut d = dir(1);
+        d.seen(a(0x20), &info(uid(1), BoardKind::PICO), Instant(0));
+        assert_eq!(
+            d.seen(a(0x21), &info(uid(2), BoardKind::PICO), Instant(0)),
+            Heard::NoRoom
+        );
+        // An announce without an ID gets nothing.
+        let mut no_id = info(uid(3), BoardKind::PICO);
+        no_id.uid = None;
+        assert_eq!(
+            dir(2).announced(&no_id, &[], a(MB), |_| false, Instant(0)),
+            Heard::NoRoom
+        );
+    }
+
+    #[test]
+    fn the_sweep_visits_every_address_once_but_the_mb_s_and_0x77() {
+        let mut d = dir(1);
+        let swept: Vec<u8> = core::iter::from_fn(|| d.next_sweep(a(0x30)))
+            .map(Address::get)
+            .collect();
+        let want: Vec<u8> = (0x08..=0x76).filter(|&x| x != 0x30).collect();
+        assert_eq!(swept, want);
+        assert_eq!(d.next_sweep(a(0x30)), None);
+    }
+
+    #[test]
+    fn a_moved_board_is_found_at_its_new_address() {
+        let mut d = dir(2);
+        d.seen(a(0x20), &info(uid(1), BoardKind::PICO), Instant(0));
+        d.moved(a(0x20), a(0x40));
+        let b = d.find(BoardQuery::Uid(uid(1))).unwrap();
+        assert_eq!((b.address, b.present), (a(0x40), false));
+        assert_eq!(
+            d.seen(a(0x40), &info(uid(1), BoardKind::PICO), Instant(9)),
+            Heard::Known
+        );
+        assert!(d.find(BoardQuery::Address(a(0x40))).unwrap().present);
+        assert!(d.find(BoardQuery::Kind(BoardKind::PICO)).is_some());
+        assert!(d.find(BoardQuery::Kind(BoardKind::G431)).is_none());
+    }
+}
