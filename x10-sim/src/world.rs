@@ -118,8 +118,17 @@ impl World {
 
     /// Adds a board (an internal one replaces the default).
     pub fn board(mut self, board: Board) -> World {
-        self.boards.push(board);
+        self.push_board(board);
         self
+    }
+
+    /// Adds a board; one without an address gets the next key of its own.
+    fn push_board(&mut self, mut board: Board) {
+        if board.unaddressed {
+            let k = self.boards.iter().filter(|b| b.unaddressed).count();
+            board.address = board::UNADDRESSED_KEY.saturating_add(u8::try_from(k).unwrap_or(0x7f));
+        }
+        self.boards.push(board);
     }
 
     /// Adds a device.
@@ -212,7 +221,18 @@ impl World {
         let mut names: Vec<String> = Vec::new();
         for (i, b) in self.boards.iter().enumerate() {
             let item = Item::Board(i);
-            if b.address != 0 && Address::external(b.address).is_err() {
+            if b.unaddressed && b.alias.as_deref().is_none_or(str::is_empty) {
+                return Err(self.at(
+                    item,
+                    "name",
+                    bad(
+                        "a board without an address".to_string(),
+                        "name",
+                        "is needed: devices and the trace name the board by it",
+                    ),
+                ));
+            }
+            if !b.unaddressed && b.address != 0 && Address::assignable(b.address).is_err() {
                 return Err(self.at(
                     item,
                     "address",
@@ -221,7 +241,7 @@ impl World {
                     },
                 ));
             }
-            if addresses.contains(&b.address) {
+            if !b.unaddressed && addresses.contains(&b.address) {
                 return Err(self.at(
                     item,
                     "address",
@@ -591,7 +611,7 @@ impl World {
             .ports(&board_name_of(board), s, a)
             .with_adc_bits(board.adc_resolution());
         for n in 1..=s {
-            if let Some(mut script) = self.sensor_script(BoardRef::Address(board.address), n) {
+            if let Some(mut script) = self.sensor_script(board.self_ref(), n) {
                 if let Some(e) = engine {
                     self.model_scripts(e, board, n, &mut script);
                 }
@@ -610,7 +630,11 @@ impl World {
     pub fn sim(&self, config: SimConfig) -> Result<Sim, WorldError> {
         self.check()?;
         let mb = config.mb_address.get();
-        if let Some(i) = self.boards.iter().position(|b| b.address == mb) {
+        if let Some(i) = self
+            .boards
+            .iter()
+            .position(|b| !b.unaddressed && b.address == mb)
+        {
             return Err(self.at(
                 Item::Board(i),
                 "address",
@@ -632,6 +656,11 @@ impl World {
             None => sim,
         };
         for b in boards.iter().filter(|b| !b.is_internal()) {
+            if b.unaddressed {
+                let ports = self.ports_for(&sim, b, engine);
+                sim = sim.with_unaddressed_board(&b.log_name(), b.uid, ports);
+                continue;
+            }
             let address = Address::external(b.address).map_err(|_| {
                 WorldError::new(WorldErrorKind::BadAddress {
                     address: i64::from(b.address),
@@ -646,6 +675,9 @@ impl World {
 
 /// The simulator's name of a board (`mb`, `db09`): the one its log and trace use.
 fn board_name_of(board: &Board) -> String {
+    if board.unaddressed {
+        return board.log_name();
+    }
     match Address::external(board.address) {
         Ok(a) => board_name(a),
         Err(_) => INTERNAL_NAME.to_string(),

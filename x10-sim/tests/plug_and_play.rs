@@ -483,3 +483,90 @@ fn the_start_up_sweep_identifies_boards_with_addresses() {
     );
     assert_eq!(sweep.len(), 110);
 }
+
+/// A world file may leave a board's address out: the board boots unaddressed, with the ID the
+/// world gives (or one made from its name), and is assigned; devices name it by its name, and
+/// a robot that finds it by its ID drives them.
+#[test]
+fn a_world_board_without_an_address_is_assigned_and_its_devices_work() {
+    let world = x10_sim::world::World::from_toml(
+        r#"
+[[board]]
+name = "arm"
+kind = "pico"
+uid = "e6613852833f5c2a"
+
+[[board]]
+name = "spare"
+sensor_ports = 1
+actuator_ports = 1
+
+[[device]]
+name = "lamp"
+kind = "led"
+board = "arm"
+port = "A1"
+pin = "A"
+"#,
+    )
+    .unwrap();
+    let arm = Uid([0xe6, 0x61, 0x38, 0x52, 0x83, 0x3f, 0x5c, 0x2a]);
+    let on_at = Rc::new(RefCell::new(None));
+    let t = on_at.clone();
+    let o = world
+        .sim(SimConfig {
+            duration_ms: 500,
+            ..SimConfig::default()
+        })
+        .unwrap()
+        .with_task(
+            "robot",
+            task(move |ctx| {
+                Box::pin(async move {
+                    let x10 = ctx.handle();
+                    let b = x10
+                        .wait_for_board(BoardQuery::Uid(arm), 400_000)
+                        .await
+                        .unwrap();
+                    let pin = x10_microcode::Port::actuator(1)
+                        .unwrap()
+                        .pin(x10_microcode::Pin::A);
+                    x10.call(b.address, Op::DigitalWrite(pin, x10_microcode::Level::High))
+                        .await
+                        .unwrap();
+                    *t.borrow_mut() = Some((b.address, ctx.clock.now_ns()));
+                })
+            }),
+        )
+        .run()
+        .unwrap();
+    let (at, when) = on_at.borrow().unwrap();
+    assert_eq!(at.get(), hashed(arm));
+    assert_eq!(
+        final_addresses(&o),
+        vec![
+            ("arm".to_string(), hashed(arm)),
+            ("spare".to_string(), hashed(uid_of_name("spare"))),
+        ]
+    );
+    let pin = x10_microcode::Port::actuator(1)
+        .unwrap()
+        .pin(x10_microcode::Pin::A);
+    assert_eq!(
+        o.log.level_at("arm", pin, when),
+        Some(x10_microcode::Level::High)
+    );
+    // A board without an address needs a name.
+    let e = x10_sim::world::World::from_toml("[[board]]\nsensor_ports = 1\nactuator_ports = 1\n")
+        .unwrap_err();
+    assert_eq!(
+        e.to_string(),
+        "line 1: a board without an address: `name` is needed: devices and the trace name the board by it"
+    );
+    // 0x77 is no board's address.
+    let e = x10_sim::world::World::from_toml(
+        "[[board]]\naddress = 0x77\nsensor_ports = 1\nactuator_ports = 1\n",
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("0x08 to 0x76"), "{e}");
+}

@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use x10_microcode::Address;
+use x10_microcode::{Address, Uid};
 
 #[cfg(doc)]
 use super::SELF;
@@ -75,15 +75,25 @@ impl BoardKind {
     }
 }
 
-/// A board of the world: the internal daughterboard (address 0) or a daughterboard on the
-/// bus (0x08–0x77).
+/// A board of the world: the internal daughterboard (address 0), a daughterboard on the
+/// bus (0x08–0x76), or one without an address (plug and play: it boots unaddressed and the
+/// motherboard gives it one; [`Board::without_address`]).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Board {
+    /// Its address; for a board without one, a key of the world's own (0x80 and up, never on
+    /// the bus), set when the board is added.
     pub(super) address: u8,
     pub(super) alias: Option<String>,
     pub(super) kind: BoardKind,
     pub(super) adc_bits: Option<u8>,
+    /// No build-time address: plug and play.
+    pub(super) unaddressed: bool,
+    /// Its unique ID, when the world gives one (otherwise made from its name).
+    pub(super) uid: Option<Uid>,
 }
+
+/// The first key [`Board::address`] holds for boards without an address.
+pub(super) const UNADDRESSED_KEY: u8 = 0x80;
 
 impl Board {
     /// The motherboard's internal daughterboard ([`SELF`], named `mb`) with simulated ports.
@@ -111,6 +121,36 @@ impl Board {
             alias: None,
             kind,
             adc_bits: None,
+            unaddressed: false,
+            uid: None,
+        }
+    }
+
+    /// A simulated daughterboard called `name` without an address (plug and play): it boots
+    /// unaddressed, announces itself and takes the address the motherboard gives it, kept in
+    /// its simulated record. Devices name it by `name`.
+    pub fn without_address(name: &str, sensor_ports: u8, actuator_ports: u8) -> Board {
+        let mut b = Board::new(UNADDRESSED_KEY, sensor_ports, actuator_ports).named(name);
+        b.unaddressed = true;
+        b
+    }
+
+    /// Its unique ID (default: one made from its name, `x10_sim::board::uid_of_name`).
+    pub fn uid(mut self, uid: Uid) -> Board {
+        self.uid = Some(uid);
+        self
+    }
+
+    /// True for a board without an address.
+    pub fn is_unaddressed(&self) -> bool {
+        self.unaddressed
+    }
+
+    /// The board's own name for devices: its address, or its name when it has no address.
+    pub(super) fn self_ref(&self) -> BoardRef {
+        match (&self.alias, self.unaddressed) {
+            (Some(n), true) => BoardRef::Name(n.clone()),
+            _ => BoardRef::Address(self.address),
         }
     }
 
@@ -136,7 +176,8 @@ impl Board {
         self
     }
 
-    /// The address (0 for the internal board).
+    /// The address (0 for the internal board; for a board without one, a key of the world's
+    /// own, 0x80 and up, never on the bus).
     pub fn address(&self) -> u8 {
         self.address
     }
@@ -152,9 +193,11 @@ impl Board {
     }
 
     /// The name the simulator's log and trace use: `mb` for the internal board, `db09` for
-    /// address 9.
+    /// address 9, its name for a board without an address.
     pub fn log_name(&self) -> String {
-        if self.is_internal() {
+        if let (true, Some(n)) = (self.unaddressed, &self.alias) {
+            n.clone()
+        } else if self.is_internal() {
             INTERNAL_NAME.to_string()
         } else {
             format!("db{:02x}", self.address)
@@ -179,7 +222,7 @@ impl Board {
 
     pub(super) fn answers_to(&self, r: &BoardRef) -> bool {
         match r {
-            BoardRef::Address(a) => *a == self.address,
+            BoardRef::Address(a) => !self.unaddressed && *a == self.address,
             BoardRef::Name(n) => {
                 *n == self.log_name()
                     || self.alias.as_deref() == Some(n.as_str())

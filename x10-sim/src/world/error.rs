@@ -48,7 +48,8 @@ pub enum WorldErrorKind {
         /// The board it names.
         board: String,
     },
-    /// An address that is neither 0 (internal) nor 0x08–0x77.
+    /// An address that is neither 0 (internal) nor 0x08–0x76 (0x77 is where unaddressed
+    /// boards listen).
     BadAddress {
         /// The address.
         address: i64,
@@ -171,7 +172,7 @@ impl fmt::Display for WorldErrorKind {
             }
             K::BadAddress { address } => write!(
                 f,
-                "board address {address}: not 0 (the internal board) nor 8 to 119 (0x08 to 0x77)"
+                "board address {address}: not 0 (the internal board) nor 8 to 118 (0x08 to 0x76; 0x77 is where boards without an address listen)"
             ),
             K::DuplicateAddress { address } => {
                 write!(f, "two boards at address {address} ({address:#04x})")

@@ -34,7 +34,8 @@ struct RawWorld {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawBoard {
-    address: Spanned<i64>,
+    address: Option<Spanned<i64>>,
+    uid: Option<Spanned<String>>,
     name: Option<Spanned<String>>,
     kind: Option<Spanned<String>>,
     sensor_ports: Option<Spanned<i64>>,
@@ -120,10 +121,9 @@ pub(super) fn parse(text: &str) -> Result<World, WorldError> {
         let line = |s: &std::ops::Range<usize>| lines.of(s.start);
         world.lines.insert((item, ""), line(&b.span()));
         let b = b.get_ref();
-        world
-            .lines
-            .insert((item, "address"), line(&b.address.span()));
         for (field, v) in [
+            ("address", b.address.as_ref().map(Spanned::span)),
+            ("uid", b.uid.as_ref().map(Spanned::span)),
             ("name", b.name.as_ref().map(Spanned::span)),
             ("kind", b.kind.as_ref().map(Spanned::span)),
             ("sensor_ports", b.sensor_ports.as_ref().map(Spanned::span)),
@@ -138,7 +138,7 @@ pub(super) fn parse(text: &str) -> Result<World, WorldError> {
             }
         }
         let board = board(b).map_err(|(field, kind)| world.at(item, field, kind))?;
-        world.boards.push(board);
+        world.push_board(board);
     }
     for (i, d) in raw.device.iter().enumerate() {
         let item = Item::Device(i);
@@ -165,15 +165,38 @@ pub(super) fn parse(text: &str) -> Result<World, WorldError> {
 type FieldError = (&'static str, WorldErrorKind);
 
 fn board(b: &RawBoard) -> Result<Board, FieldError> {
-    let address = *b.address.get_ref();
-    let addr = u8::try_from(address)
-        .ok()
-        .filter(|a| *a == 0 || (0x08..=0x77).contains(a))
-        .ok_or(("address", WorldErrorKind::BadAddress { address }))?;
-    let label = if addr == 0 {
-        "mb".to_string()
-    } else {
-        format!("db{addr:02x}")
+    // No address: plug and play (named by its `name`, checked with the other boards).
+    let addr = match &b.address {
+        None => None,
+        Some(address) => {
+            let address = *address.get_ref();
+            Some(
+                u8::try_from(address)
+                    .ok()
+                    .filter(|a| *a == 0 || (0x08..=0x76).contains(a))
+                    .ok_or(("address", WorldErrorKind::BadAddress { address }))?,
+            )
+        }
+    };
+    let label = match (addr, &b.name) {
+        (Some(0), _) => "mb".to_string(),
+        (Some(a), _) => format!("db{a:02x}"),
+        (None, Some(n)) => n.get_ref().clone(),
+        (None, None) => "a board without an address".to_string(),
+    };
+    let uid = match &b.uid {
+        None => None,
+        Some(u) => Some(parse_uid(u.get_ref()).ok_or((
+            "uid",
+            super::bad(
+                label.clone(),
+                "uid",
+                format!(
+                    "is \"{}\": 16 hexadecimal digits, the ID's 8 bytes in order",
+                    u.get_ref()
+                ),
+            ),
+        ))?),
     };
     let ports = |field: &'static str, v: &Option<Spanned<i64>>| -> Result<Option<u8>, FieldError> {
         match v {
@@ -251,7 +274,9 @@ fn board(b: &RawBoard) -> Result<Board, FieldError> {
             ))
         }
     };
-    let mut board = Board::of_kind(addr, kind);
+    let mut board = Board::of_kind(addr.unwrap_or(super::board::UNADDRESSED_KEY), kind);
+    board.unaddressed = addr.is_none();
+    board.uid = uid;
     if let Some(n) = &b.name {
         board = board.named(n.get_ref());
     }
@@ -270,6 +295,18 @@ fn board(b: &RawBoard) -> Result<Board, FieldError> {
         board = board.adc_bits(bits);
     }
     Ok(board)
+}
+
+/// A unique ID written as 16 hexadecimal digits (`"e6613852833f5c2a"`).
+fn parse_uid(s: &str) -> Option<x10_microcode::Uid> {
+    if s.len() != 16 || !s.is_ascii() {
+        return None;
+    }
+    let mut u = [0u8; 8];
+    for (i, b) in u.iter_mut().enumerate() {
+        *b = u8::from_str_radix(s.get(2 * i..2 * i + 2)?, 16).ok()?;
+    }
+    Some(x10_microcode::Uid(u))
 }
 
 impl RawDevice {

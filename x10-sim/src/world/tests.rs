@@ -204,7 +204,7 @@ fn errors_name_the_line_and_the_field() {
         ),
         (
             "[[board]]\naddress = 3\nsensor_ports = 1\nactuator_ports = 1\n",
-            "line 2: board address 3: not 0 (the internal board) nor 8 to 119 (0x08 to 0x77)",
+            "line 2: board address 3: not 0 (the internal board) nor 8 to 118 (0x08 to 0x76; 0x77 is where boards without an address listen)",
         ),
         (
             "[[board]]\naddress = 9\n",
