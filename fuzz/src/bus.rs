@@ -178,13 +178,25 @@ impl World {
                     }
                 }
             },
+            3 if template >> 6 == 3 => {
+                // An unaddressed board announces itself from 0x77 (plug and play): identity,
+                // reset reason, its ID; always with its check. (This motherboard keeps no
+                // directory: it counts the announce and drops it.)
+                let frame = [
+                    0x77, 0x08, 0, 0, 0, 19, 1, 0, 1, 0, 1, 2, 2, 0xff, 0x01, 12, 0, param, 1, 2,
+                    3, 4, 5, 6, 7,
+                ];
+                return Some(with_check(mb << 1, &frame));
+            }
             3 => {
                 b.pec = false;
                 b.ev_seq = 1;
                 b.pending.clear();
-                // Identity, then the reset reason (power-on); always with its check.
+                // Identity, then the reset reason (power-on), then the board's ID (plug and
+                // play); always with its check.
                 let frame = [
-                    addr, 0x07, 0, 0, 0, 11, 1, 0, 1, 0, 1, 2, 2, 0xff, 0x01, 12, 0,
+                    addr, 0x07, 0, 0, 0, 19, 1, 0, 1, 0, 1, 2, 2, 0xff, 0x01, 12, 0, addr, 1, 2, 3,
+                    4, 5, 6, 7,
                 ];
                 return Some(with_check(mb << 1, &frame));
             }
