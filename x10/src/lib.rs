@@ -38,6 +38,13 @@
 //! a [`Result`]; nothing panics. Boards are addressed by number, [`SELF`] (0) being the
 //! motherboard's own ports; ports count from 1, as in the thesis.
 //!
+//! Boards flashed with one image for all find their addresses themselves (plug and play,
+//! `docs/protocol.md`, "Addresses over the bus"): `x10.boards(&mut list)` says which boards the
+//! motherboard knows (address, unique ID, kind, ports, firmware), `x10.wait_for_board(query,
+//! timeout_us)` waits for one by address, kind or ID, `x10.set_address(old, new)` moves a board
+//! (it keeps the new address), `x10.blink(address, seconds)` makes it show itself; addresses a
+//! person chooses go in `MbConfig::pinned`.
+//!
 //! This crate re-exports `firmware_mb::X10` and the drivers, units and types of
 //! `x10_devices`; [`every`] runs loop()-style code on a fixed period.
 #![no_std]
@@ -45,9 +52,9 @@
 use core::convert::Infallible;
 
 pub use embassy_time::Duration;
-pub use firmware_mb::{MbConfig, MbDiagnostics, X10};
+pub use firmware_mb::{BoardQuery, KnownBoard, MbConfig, MbDiagnostics, PinBy, PinnedAddress, X10};
 pub use x10_devices::*;
-pub use x10_microcode::{BoardKind, Op};
+pub use x10_microcode::{Address, BoardKind, Op, Uid};
 
 mod robot;
 pub use robot::{task_ended, Robot, TaskEnd, Tasks};
