@@ -11,13 +11,7 @@ use x10_microcode::{EventConfig, EventKind, Pin, PinRef, Port, Status};
 use crate::daughterboard::{bump, port_status, Daughterboard, MAX_EVENT_PINS};
 use crate::event::OutEvent;
 use crate::record::AddressRecord;
-use crate::target::Jitter;
 use x10_hal::ports::{EdgeCount, PortError, Ports};
-
-/// An unaddressed board announces itself again after at least this many µs (200 ms)...
-pub const ANNOUNCE_MIN_US: u64 = 200_000;
-/// ... plus a random delay below this many µs (200 ms), seeded by its ID.
-pub const ANNOUNCE_WINDOW_US: u32 = 200_000;
 
 impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// Runs the board's background work; never returns. Call once, next to the transport.
@@ -26,11 +20,8 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// board's identity, why it started and its ID, `BootInfo`) is queued.
     ///
     /// An **unaddressed** board ([`Daughterboard::is_unaddressed`]) queues an `announce`
-    /// instead, and then only announces itself again, every [`ANNOUNCE_MIN_US`] plus a random
-    /// delay below [`ANNOUNCE_WINDOW_US`] (from a generator seeded by its ID), whenever the
-    /// previous announce has left the queue, until an `assign` moves it
-    /// ([`Daughterboard::moved`]): nothing else runs, so it drives nothing. Otherwise,
-    /// concurrently:
+    /// instead (and [`crate::run`] announces it again until an `assign` moves it); it takes no
+    /// request but that `assign`, so nothing below ever drives an output. Concurrently:
     ///
     /// * pulse-in measurements accepted with `pending` run ([`crate::DEFERRED_WORKERS`] at a
     ///   time, on different pins); each result goes out as a `deferred_reply` event with the
@@ -65,22 +56,6 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             Status::Ok,
             &self.boot_info(),
         );
-        if self.is_unaddressed() {
-            let mut jitter = Jitter::new(self);
-            loop {
-                let wait = ANNOUNCE_MIN_US + u64::from(jitter.below(ANNOUNCE_WINDOW_US));
-                clock.sleep_until(clock.now().plus_us(wait)).await;
-                if self.events_queued() == 0 {
-                    self.push_event(
-                        EventKind::Announce,
-                        PinRef::from_byte(0),
-                        None,
-                        Status::Ok,
-                        &self.boot_info(),
-                    );
-                }
-            }
-        }
         let (never, _, _) = join3(
             self.failsafe_loop(&clock),
             self.sample_loop(&clock),

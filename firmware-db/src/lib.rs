@@ -27,7 +27,6 @@
 )]
 
 mod background;
-pub use background::{ANNOUNCE_MIN_US, ANNOUNCE_WINDOW_US};
 mod config;
 mod daughterboard;
 mod event;
@@ -41,6 +40,8 @@ pub use daughterboard::{
 };
 pub use event::{OutEvent, EVENT_PAYLOAD_LEN};
 pub use record::{start_address, AddressRecord, NoRecord, StoreError};
-pub use target::{run, run_target, MAX_EVENT_YIELDS, MB_GONE_RETRY_US};
+pub use target::{
+    run, run_target, ANNOUNCE_MIN_US, ANNOUNCE_WINDOW_US, MAX_EVENT_YIELDS, MB_GONE_RETRY_US,
+};
 /// The board's ports (defined in `x10-hal`, so that board crates need not depend on this one).
 pub use x10_hal::ports::{self, EdgeCount, PortError, Ports, SafeState};

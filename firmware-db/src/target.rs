@@ -1,13 +1,13 @@
 //! A daughterboard on the bus: the target listener and the event sender, on one
 //! [`MultiMaster`] port.
 
-use embassy_futures::join::join;
+use embassy_futures::join::join3;
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::RawMutex;
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::retry::{Backoff, RetryPolicy};
 use x10_hal::time::{Clock, Instant};
-use x10_microcode::MAX_FRAME_LEN;
+use x10_microcode::{EventKind, PinRef, Status, MAX_FRAME_LEN};
 
 use crate::config::TargetConfig;
 use crate::daughterboard::{bump, Daughterboard};
@@ -164,7 +164,7 @@ where
 
 /// The board's source of random delays (xorshift32, seeded by its address, or while it is
 /// unaddressed by its unique ID: boards differ, a simulation replays exactly).
-pub(crate) struct Jitter(u32);
+struct Jitter(u32);
 
 impl Jitter {
     pub(crate) fn new<M: RawMutex, P: Ports, R: AddressRecord>(
@@ -188,7 +188,7 @@ impl Jitter {
     }
 
     /// Uniform in `[0, n)` (0 when `n` is 0).
-    pub(crate) fn below(&mut self, n: u32) -> u32 {
+    fn below(&mut self, n: u32) -> u32 {
         if n == 0 {
             0
         } else {
@@ -248,8 +248,44 @@ async fn try_once<M: RawMutex, P: Ports, R: AddressRecord, B: MultiMaster>(
     }
 }
 
-/// A daughterboard on the bus, complete: [`Daughterboard::run_background`] and
-/// [`run_target`] joined. Never returns.
+/// An unaddressed board announces itself again after at least this many µs (200 ms)...
+pub const ANNOUNCE_MIN_US: u64 = 200_000;
+/// ... plus a random delay below this many µs (200 ms), seeded by its ID.
+pub const ANNOUNCE_WINDOW_US: u32 = 200_000;
+
+/// An unaddressed board's announces after the first (which [`Daughterboard::run_background`]
+/// queues at boot): every [`ANNOUNCE_MIN_US`] plus a random delay below
+/// [`ANNOUNCE_WINDOW_US`] (from a generator seeded by its ID, so boards powered up together
+/// differ), whenever the previous one has left the queue, until an `assign` moves it
+/// ([`Daughterboard::moved`]). A board with an address never announces on its own.
+async fn announce_again<M, P, R, C>(db: &Daughterboard<M, P, R>, clock: &C)
+where
+    M: RawMutex,
+    P: Ports,
+    R: AddressRecord,
+    C: Clock,
+{
+    if !db.is_unaddressed() {
+        return core::future::pending().await;
+    }
+    let mut jitter = Jitter::new(db);
+    loop {
+        let wait = ANNOUNCE_MIN_US + u64::from(jitter.below(ANNOUNCE_WINDOW_US));
+        clock.sleep_until(clock.now().plus_us(wait)).await;
+        if db.events_queued() == 0 {
+            db.push_event(
+                EventKind::Announce,
+                PinRef::from_byte(0),
+                None,
+                Status::Ok,
+                &db.boot_info(),
+            );
+        }
+    }
+}
+
+/// A daughterboard on the bus, complete: [`Daughterboard::run_background`], [`run_target`]
+/// and, while the board is unaddressed, its announces, joined. Never returns.
 pub async fn run<M, P, R, B, C>(
     db: &Daughterboard<M, P, R>,
     bus: B,
@@ -263,9 +299,10 @@ where
     B: MultiMaster,
     C: Clock,
 {
-    let (never, _) = join(
+    let (never, _, ()) = join3(
         db.run_background(&clock),
         run_target(db, bus, &clock, config),
+        announce_again(db, &clock),
     )
     .await;
     never

@@ -10,13 +10,14 @@ use std::cell::RefCell;
 use std::future::Future;
 use std::rc::Rc;
 
-use common::{run_until, FakePorts, TestClock};
+use common::{run, BusOp, FakeBus, FakePorts, TestClock, Txn};
 use embassy_futures::block_on;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{
-    start_address, AddressRecord, Daughterboard, DbConfig, NoRecord, StoreError, ANNOUNCE_MIN_US,
-    ANNOUNCE_WINDOW_US,
+    start_address, AddressRecord, Daughterboard, DbConfig, NoRecord, StoreError, TargetConfig,
+    ANNOUNCE_MIN_US, ANNOUNCE_WINDOW_US,
 };
+use x10_hal::time::Clock;
 use x10_microcode::{pec, Address, BoardKind, EventKind, Op, Request, Status, Uid};
 
 const UID: Uid = Uid([0xe6, 0x61, 0x38, 0x52, 0x83, 0x3f, 0x5c, 0x2a]);
@@ -254,33 +255,54 @@ fn start_address_is_the_override_else_the_record_else_unaddressed() {
     assert_eq!(NoRecord.store(addr(0x20)), Err(StoreError::NoRecord));
 }
 
-/// When an unaddressed board with ID `uid` queues its announces (µs), over `until_us`, the
-/// test taking each out at once (as a delivered event leaves the queue).
-fn announce_times(uid: Uid, until_us: u64) -> Vec<u64> {
+/// When an unaddressed board with ID `uid`, run on the bus ([`firmware_db::run`]), writes its
+/// announces to the MB (µs), until `assign_at_us`, when the MB's `assign` for it arrives; and
+/// the address it then moves to.
+fn announces_then_assign(uid: Uid, assign_at_us: u64) -> (Vec<u64>, Address) {
     let (clock, db) = board(Address::UNADDRESSED, uid, TestRecord::default());
-    let times = RefCell::new(Vec::new());
-    let watch = async {
-        loop {
-            let ev = db.next_event().await;
-            assert_eq!(ev.kind, EventKind::Announce);
-            times.borrow_mut().push(clock.now_us());
-        }
+    let bus = FakeBus::new(clock.clone());
+    let mb = addr(8);
+    let b = bus.clone();
+    let c = clock.clone();
+    let mb_side = async move {
+        c.sleep_until(x10_hal::time::Instant(assign_at_us)).await;
+        b.push(Txn::Write(assign(uid, 0x20)));
+        core::future::pending::<()>().await
     };
-    run_until(
+    let moved_to = run(
         &clock,
-        until_us,
-        embassy_futures::join::join(db.run_background(&clock), watch),
+        embassy_futures::select::select3(
+            firmware_db::run(&db, bus.clone(), &clock, TargetConfig::new(mb)),
+            db.moved(),
+            mb_side,
+        ),
     );
+    let to = match moved_to {
+        embassy_futures::select::Either3::Second(a) => a,
+        _ => panic!("the board did not move"),
+    };
+    assert_eq!(clock.now_us(), assign_at_us);
+    let mut times = Vec::new();
+    for (t, op) in bus.ops() {
+        let BusOp::Write(8, bytes) = op else {
+            panic!("{op:?}")
+        };
+        // An announce from 0x77 with the ID, checked.
+        assert_eq!(&bytes[..3], &[0x77, 0x08, 0x00]);
+        assert_eq!(&bytes[17..25], &uid.0);
+        assert_eq!(bytes.len(), 27);
+        times.push(t);
+    }
     // It drove nothing but the safe state of its ports at boot.
-    let log = db.ports().take_log();
-    assert_eq!(log.len(), 8, "{log:?}");
-    times.into_inner()
+    assert_eq!(db.ports().take_log().len(), 8);
+    (times, to)
 }
 
 #[test]
 fn announces_repeat_after_id_seeded_delays_until_assigned() {
-    let a = announce_times(UID, 2_000_000);
-    let b = announce_times(OTHER, 2_000_000);
+    let (a, to) = announces_then_assign(UID, 2_000_000);
+    assert_eq!(to, addr(0x20));
+    let (b, _) = announces_then_assign(OTHER, 2_000_000);
     // The first at boot, then one every ANNOUNCE_MIN + a random part below ANNOUNCE_WINDOW.
     assert_eq!(a[0], 0);
     assert_eq!(b[0], 0);
@@ -295,6 +317,6 @@ fn announces_repeat_after_id_seeded_delays_until_assigned() {
         assert!(t.len() >= 5 && t.len() <= 11, "{t:?}");
     }
     // The same board waits the same way every time; two boards differently.
-    assert_eq!(a, announce_times(UID, 2_000_000));
+    assert_eq!(a, announces_then_assign(UID, 2_000_000).0);
     assert_ne!(a[1..], b[1..]);
 }

@@ -10,7 +10,7 @@
 //! (so a motherboard with little RAM, like the Cortex-M0 test suite's, pays nothing for it).
 
 use x10_hal::time::Instant;
-use x10_microcode::{Address, BoardKind, BootInfo, Uid};
+use x10_microcode::{Address, BoardKind, BootInfo, Op, Uid};
 
 use crate::config::{PinBy, PinnedAddress};
 
@@ -260,6 +260,26 @@ impl Directory {
         let e = self.known_mut().iter_mut().find(|b| b.assign_pending)?;
         e.assign_pending = false;
         Some((e.uid, e.address))
+    }
+
+    /// Work taken by [`Directory::take_assign`] or [`Directory::next_sweep`] that could not go
+    /// out (its write lost arbitration): it is taken again next.
+    pub(crate) fn put_back(&mut self, op: &Op<'_>) {
+        match *op {
+            Op::Assign { uid, .. } => {
+                if let Some(e) = self.known_mut().iter_mut().find(|b| b.uid == uid) {
+                    e.assign_pending = true;
+                }
+            }
+            Op::WhoIsThere => {
+                self.sweep = self
+                    .sweep
+                    .map_or(Some(Address::UNADDRESSED.get() - 1), |a| {
+                        Some(a.saturating_sub(1))
+                    });
+            }
+            _ => {}
+        }
     }
 
     /// The next address for the start-up sweep, once each.
@@ -600,6 +620,36 @@ mod tests {
         let want: Vec<u8> = (0x08..=0x76).filter(|&x| x != 0x30).collect();
         assert_eq!(swept, want);
         assert_eq!(d.next_sweep(a(0x30)), None);
+        // A probe that lost arbitration is taken again next, around the MB's address too.
+        let mut d = dir(1);
+        for _ in 0..0x28 {
+            d.next_sweep(a(0x30));
+        }
+        assert_eq!(d.next_sweep(a(0x30)), Some(a(0x31)));
+        d.put_back(&Op::WhoIsThere);
+        assert_eq!(d.next_sweep(a(0x30)), Some(a(0x31)));
+        let rest: Vec<u8> = core::iter::from_fn(|| d.next_sweep(a(0x30)))
+            .map(Address::get)
+            .collect();
+        assert_eq!(rest.last(), Some(&0x76));
+        d.put_back(&Op::WhoIsThere);
+        assert_eq!(d.next_sweep(a(0x30)), Some(a(0x76)));
+        assert_eq!(d.next_sweep(a(0x30)), None);
+        // An assign put back is pending again.
+        let mut d = dir(2);
+        d.announced(
+            &info(uid(1), BoardKind::PICO),
+            &[],
+            a(MB),
+            |_| false,
+            Instant(0),
+        );
+        let (u, to) = d.take_assign().unwrap();
+        d.put_back(&Op::Assign {
+            uid: u,
+            address: to,
+        });
+        assert_eq!(d.take_assign(), Some((u, to)));
     }
 
     #[test]

@@ -54,7 +54,7 @@ impl MbCore {
         let mut rx = [0u8; MAX_FRAME_LEN];
         let mut nth: u32 = 0;
         loop {
-            if self.plug_and_play(&mut bus, &mut rx).await {
+            if self.plug_and_play(&mut bus).await {
                 continue;
             }
             let t_now = now();
@@ -155,17 +155,20 @@ impl MbCore {
 
     /// Plug-and-play work, before anything else (see [`crate::directory`]): an `assign` to
     /// send to the unaddressed boards, else the next address of the start-up sweep. True when
-    /// there was some.
+    /// there was some. One attempt each, a single write, never retried here (no second copy
+    /// of the retry path in the dispatcher):
     ///
-    /// * `assign`: written to [`Address::UNADDRESSED`] with its check, retried as a request
-    ///   is (NACKs and lost arbitrations, listening meanwhile) until the request timeout; a
-    ///   single write, never read (several unaddressed boards may acknowledge it).
+    /// * `assign`: written to [`Address::UNADDRESSED`] with its check, never read (several
+    ///   unaddressed boards may acknowledge it). Lost (a NACK, a bus error), it is sent again
+    ///   at the board's next `announce`.
     /// * The sweep: `who_is_there` (no check: a board takes it with or without one, and it
     ///   changes nothing) written once to each address `0x08..=0x76` but the motherboard's;
-    ///   every board there answers with an `announce` (routed as any event). Nobody there:
-    ///   a NACK, not retried. A lost arbitration is tried again after listening (an event
-    ///   won the bus).
-    async fn plug_and_play<B: MultiMaster>(&self, bus: &mut B, rx: &mut [u8]) -> bool {
+    ///   every board there answers with an `announce` (routed as any event). Nobody there: a
+    ///   NACK.
+    ///
+    /// After a lost arbitration (an event won the bus) the work is put back and the loop
+    /// serves the listener first.
+    async fn plug_and_play<B: MultiMaster>(&self, bus: &mut B) -> bool {
         let mb = self.config.address;
         let work = self.with(|t| {
             t.directory
@@ -173,15 +176,10 @@ impl MbCore {
                 .map(Ok)
                 .or_else(|| t.directory.next_sweep(mb).map(Err))
         });
-        let (db, op, deadline) = match work {
+        let (db, op) = match work {
             None => return false,
-            Some(Ok((uid, address))) => (
-                Address::UNADDRESSED,
-                Op::Assign { uid, address },
-                now().plus_us(self.config.request_timeout_us),
-            ),
-            // One attempt (lost arbitrations aside).
-            Some(Err(a)) => (a, Op::WhoIsThere, now()),
+            Some(Ok((uid, address))) => (Address::UNADDRESSED, Op::Assign { uid, address }),
+            Some(Err(a)) => (a, Op::WhoIsThere),
         };
         let seq = self.with(|t| t.requests.fresh_seq(db));
         let mut frame = [0u8; MAX_FRAME_LEN];
@@ -194,26 +192,21 @@ impl MbCore {
         let Some(bytes) = emitted.ok().and_then(|n| frame.get(..n)) else {
             return true;
         };
-        let mut backoff = Backoff::new(self.config.retry, self.config.seed ^ u32::from(seq));
-        loop {
-            match bus.write(db.get(), bytes).await {
-                Ok(()) => {
-                    if db.is_unaddressed() {
-                        self.with(|t| bump(&mut t.diag.assigns));
-                    }
-                    return true;
-                }
-                Err(e) => {
-                    let again = e == BusError::ArbitrationLost || now() < deadline;
-                    if !again || !self.after_failure(bus, e, &mut backoff, db.get(), rx).await {
-                        if db.is_unaddressed() {
-                            warn!("assign failed");
-                        }
-                        return true;
-                    }
-                }
+        let r = bus.write(db.get(), bytes).await;
+        self.with(|t| match (r, op) {
+            (Ok(()), Op::Assign { .. }) => bump(&mut t.diag.assigns),
+            (Err(BusError::ArbitrationLost), op) => {
+                bump(&mut t.diag.arbitration_lost);
+                t.directory.put_back(&op);
             }
+            _ => {}
+        });
+        if r == Err(BusError::ArbitrationLost) {
+            // Back to the loop: its listener receives what won the bus, then the work again.
+            self.keepalive_changed.signal(());
+            return false;
         }
+        true
     }
 
     /// A request to `board` went unanswered (NACK after every retry): a board the directory
