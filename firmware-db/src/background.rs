@@ -20,7 +20,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// board's identity, why it started and its ID, `BootInfo`) is queued.
     ///
     /// An **unaddressed** board ([`Daughterboard::is_unaddressed`]) queues an `announce`
-    /// instead (and [`crate::run`] announces it again until an `assign` moves it); it takes no
+    /// instead (and [`crate::run_target`] announces it again until an `assign` moves it); it takes no
     /// request but that `assign`, so nothing below ever drives an output. Concurrently:
     ///
     /// * pulse-in measurements accepted with `pending` run ([`crate::DEFERRED_WORKERS`] at a

@@ -1,7 +1,7 @@
 //! A daughterboard on the bus: the target listener and the event sender, on one
 //! [`MultiMaster`] port.
 
-use embassy_futures::join::join3;
+use embassy_futures::join::join;
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::RawMutex;
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
@@ -114,7 +114,7 @@ where
                     if try_once(db, &mut bus, &config, ev, &mut tx).await {
                         held = None;
                         mb_present = true;
-                        next_write = clock.now().plus_us(jitter.gap(config.event_gap_us, 0));
+                        next_write = clock.now().plus_us(delivered(db, &mut jitter, &config, 0));
                     } else {
                         retry_at = clock.now().plus_us(MB_GONE_RETRY_US);
                     }
@@ -153,12 +153,44 @@ where
         .await
         {
             let took = clock.now().0.saturating_sub(started.0);
-            next_write = clock.now().plus_us(jitter.gap(config.event_gap_us, took));
+            next_write = clock
+                .now()
+                .plus_us(delivered(db, &mut jitter, &config, took));
         } else {
             held = Some(ev);
             mb_present = false;
             retry_at = clock.now().plus_us(MB_GONE_RETRY_US);
         }
+    }
+}
+
+/// An unaddressed board announces itself again after at least this many µs (200 ms)...
+pub const ANNOUNCE_MIN_US: u64 = 200_000;
+/// ... plus a random delay below this many µs (200 ms), seeded by its ID.
+pub const ANNOUNCE_WINDOW_US: u32 = 200_000;
+
+/// After an event was delivered (in `took` µs): the pause before the next write. An
+/// unaddressed board (whose only events are its announces) queues its next `announce` now, and
+/// the pause, [`ANNOUNCE_MIN_US`] plus a random delay below [`ANNOUNCE_WINDOW_US`] (from the
+/// generator seeded by its ID, so boards powered up together differ), holds it back until an
+/// `assign` moves the board ([`Daughterboard::moved`]).
+fn delivered<M: RawMutex, P: Ports, R: AddressRecord>(
+    db: &Daughterboard<M, P, R>,
+    jitter: &mut Jitter,
+    config: &TargetConfig,
+    took: u64,
+) -> u64 {
+    if db.is_unaddressed() {
+        db.push_event(
+            EventKind::Announce,
+            PinRef::from_byte(0),
+            None,
+            Status::Ok,
+            &db.boot_info(),
+        );
+        ANNOUNCE_MIN_US + u64::from(jitter.below(ANNOUNCE_WINDOW_US))
+    } else {
+        jitter.gap(config.event_gap_us, took)
     }
 }
 
@@ -248,44 +280,8 @@ async fn try_once<M: RawMutex, P: Ports, R: AddressRecord, B: MultiMaster>(
     }
 }
 
-/// An unaddressed board announces itself again after at least this many µs (200 ms)...
-pub const ANNOUNCE_MIN_US: u64 = 200_000;
-/// ... plus a random delay below this many µs (200 ms), seeded by its ID.
-pub const ANNOUNCE_WINDOW_US: u32 = 200_000;
-
-/// An unaddressed board's announces after the first (which [`Daughterboard::run_background`]
-/// queues at boot): every [`ANNOUNCE_MIN_US`] plus a random delay below
-/// [`ANNOUNCE_WINDOW_US`] (from a generator seeded by its ID, so boards powered up together
-/// differ), whenever the previous one has left the queue, until an `assign` moves it
-/// ([`Daughterboard::moved`]). A board with an address never announces on its own.
-async fn announce_again<M, P, R, C>(db: &Daughterboard<M, P, R>, clock: &C)
-where
-    M: RawMutex,
-    P: Ports,
-    R: AddressRecord,
-    C: Clock,
-{
-    if !db.is_unaddressed() {
-        return core::future::pending().await;
-    }
-    let mut jitter = Jitter::new(db);
-    loop {
-        let wait = ANNOUNCE_MIN_US + u64::from(jitter.below(ANNOUNCE_WINDOW_US));
-        clock.sleep_until(clock.now().plus_us(wait)).await;
-        if db.events_queued() == 0 {
-            db.push_event(
-                EventKind::Announce,
-                PinRef::from_byte(0),
-                None,
-                Status::Ok,
-                &db.boot_info(),
-            );
-        }
-    }
-}
-
-/// A daughterboard on the bus, complete: [`Daughterboard::run_background`], [`run_target`]
-/// and, while the board is unaddressed, its announces, joined. Never returns.
+/// A daughterboard on the bus, complete: [`Daughterboard::run_background`] and
+/// [`run_target`] joined. Never returns.
 pub async fn run<M, P, R, B, C>(
     db: &Daughterboard<M, P, R>,
     bus: B,
@@ -299,10 +295,9 @@ where
     B: MultiMaster,
     C: Clock,
 {
-    let (never, _, ()) = join3(
+    let (never, _) = join(
         db.run_background(&clock),
         run_target(db, bus, &clock, config),
-        announce_again(db, &clock),
     )
     .await;
     never
