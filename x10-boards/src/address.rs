@@ -133,11 +133,12 @@ pub fn jumper_value(levels_high: impl IntoIterator<Item = bool>) -> u8 {
 /// The board's address: `base` (from [`build_base`]) plus the jumper value.
 ///
 /// # Errors
-/// [`AddressError::OutOfRange`] when the sum is not an external address (impossible for a
+/// [`AddressError::OutOfRange`] when the sum is not an address a board may have, `0x08..=0x76`
+/// (impossible for a
 /// base accepted by [`check_base`] with as many jumpers as were read).
 pub fn address(base: u8, jumper_value: u8) -> Result<Address, AddressError> {
     base.checked_add(jumper_value)
-        .and_then(|a| Address::external(a).ok())
+        .and_then(|a| Address::assignable(a).ok())
         .ok_or(AddressError::OutOfRange)
 }
 
