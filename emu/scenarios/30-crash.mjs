@@ -27,8 +27,9 @@ function setup(ctx) {
 }
 
 const bootEvents = (vmb) => vmb.events.filter((e) => e.bytes[0] === 9 && e.bytes[1] === 0x07);
-/** The reset reason of a boot event: the byte after the 10-byte identity. */
-const reasonOf = (ev) => (ev && ev.bytes[5] === 11 ? ev.bytes[16] : undefined);
+/** The reset reason of a boot event: the byte after the 10-byte identity (then, since issue 24,
+ * the board's 8-byte unique ID: a 19-byte payload; 11 bytes from a board of an earlier version). */
+const reasonOf = (ev) => (ev && (ev.bytes[5] === 19 || ev.bytes[5] === 11) ? ev.bytes[16] : undefined);
 const hex = (b) => (b ?? []).map((x) => x.toString(16).padStart(2, '0')).join(' ');
 
 /** Every actuator output on: PWM A at 50 %, PWM B at 100 %, digital A and B high. */
