@@ -11,7 +11,6 @@ use std::future::Future;
 use std::rc::Rc;
 
 use common::{run, BusOp, FakeBus, FakePorts, TestClock, Txn};
-use embassy_futures::block_on;
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{
     start_address, AddressRecord, Daughterboard, DbConfig, NoRecord, StoreError, TargetConfig,
@@ -103,20 +102,20 @@ fn an_unaddressed_board_takes_only_a_checked_assign_with_its_own_id() {
     let (_clock, db) = board(Address::UNADDRESSED, UID, record.clone());
     assert!(db.is_unaddressed());
     // Another board's assign: ignored, no error.
-    block_on(db.handle_write(&assign(OTHER, 0x20), false));
+    db.handle_write(&assign(OTHER, 0x20), false);
     // Its own, with a wrong check, or without one: refused.
     let mut bad = assign(UID, 0x20);
     *bad.last_mut().unwrap() ^= 0x01;
-    block_on(db.handle_write(&bad, false));
+    db.handle_write(&bad, false);
     let unchecked = &assign(UID, 0x20)[..13];
-    block_on(db.handle_write(unchecked, false));
+    db.handle_write(unchecked, false);
     // An address it may not take: refused.
     let mut reserved = assign(UID, 0x20)[..13].to_vec();
     reserved[12] = 0x77;
     let n = reserved.len();
     reserved.push(0);
     pec::append(0x77 << 1, &mut reserved, n).unwrap();
-    block_on(db.handle_write(&reserved, false));
+    db.handle_write(&reserved, false);
     // Anything else to 0x77, checked: refused, and nothing is driven.
     for op in [
         Op::Ping,
@@ -134,7 +133,7 @@ fn an_unaddressed_board_takes_only_a_checked_assign_with_its_own_id() {
         };
         let mut buf = [0u8; 40];
         let n = r.emit_with_pec(&mut buf).unwrap();
-        block_on(db.handle_write(&buf[..n], true));
+        db.handle_write(&buf[..n], true);
     }
     db.served();
     assert!(record.stores.borrow().is_empty());
@@ -145,7 +144,7 @@ fn an_unaddressed_board_takes_only_a_checked_assign_with_its_own_id() {
     let d = db.diagnostics();
     assert_eq!((d.pec_errors, d.other_errors, d.bad_length), (2, 3, 0));
     // Its own, checked: kept, then it moves.
-    block_on(db.handle_write(&assign(UID, 0x20), false));
+    db.handle_write(&assign(UID, 0x20), false);
     assert_eq!(*record.stores.borrow(), vec![addr(0x20)]);
     db.served();
     assert_eq!(moved(&db), Some(addr(0x20)));
@@ -156,7 +155,7 @@ fn an_unaddressed_board_takes_only_a_checked_assign_with_its_own_id() {
 fn set_address_keeps_then_answers_then_moves() {
     let record = TestRecord::default();
     let (_clock, db) = board(addr(9), UID, record.clone());
-    block_on(db.handle_write(&[0x09, 0x09, 0x00, 0x05, 0x20], true));
+    db.handle_write(&[0x09, 0x09, 0x00, 0x05, 0x20], true);
     // Kept before the answer; no move while the reply is held.
     assert_eq!(*record.stores.borrow(), vec![addr(0x20)]);
     db.served();
@@ -166,7 +165,7 @@ fn set_address_keeps_then_answers_then_moves() {
     assert_eq!(moved(&db), Some(addr(0x20)));
     // Out of range: refused, nothing kept.
     let (_c, db) = board(addr(9), UID, record.clone());
-    block_on(db.handle_write(&[0x09, 0x09, 0x00, 0x06, 0x77], true));
+    db.handle_write(&[0x09, 0x09, 0x00, 0x06, 0x77], true);
     assert_eq!(read(&db), [0x06, 0x09, 0x00]);
     assert_eq!(record.stores.borrow().len(), 1);
     // A record that cannot be written: busy, and the board stays.
@@ -175,7 +174,7 @@ fn set_address_keeps_then_answers_then_moves() {
         ..TestRecord::default()
     };
     let (_c, db) = board(addr(9), UID, failing);
-    block_on(db.handle_write(&[0x09, 0x09, 0x00, 0x07, 0x20], true));
+    db.handle_write(&[0x09, 0x09, 0x00, 0x07, 0x20], true);
     assert_eq!(read(&db), [0x07, 0x0b, 0x00]);
     db.served();
     assert_eq!(moved(&db), None);
@@ -188,15 +187,15 @@ fn a_board_without_a_record_refuses_set_address_and_blink_without_an_led() {
         FakePorts::new(clock, 2, 2),
         DbConfig::new(addr(9), BoardKind::SIMULATED),
     );
-    block_on(db.handle_write(&[0x09, 0x09, 0x00, 0x05, 0x20], true));
+    db.handle_write(&[0x09, 0x09, 0x00, 0x05, 0x20], true);
     let mut buf = [0u8; 40];
     let n = db.take_reply(&mut buf);
     assert_eq!(buf[..n], [0x05, 0x0a, 0x00]);
-    block_on(db.handle_write(&[0x0a, 0x09, 0x00, 0x06, 0x03], true));
+    db.handle_write(&[0x0a, 0x09, 0x00, 0x06, 0x03], true);
     let n = db.take_reply(&mut buf);
     assert_eq!(buf[..n], [0x06, 0x0a, 0x00]);
     // As an output (no read): a `rejected` event says so.
-    block_on(db.handle_write(&[0x0a, 0x09, 0x00, 0x07, 0x03], false));
+    db.handle_write(&[0x0a, 0x09, 0x00, 0x07, 0x03], false);
     let ev = db.try_next_event().unwrap();
     assert_eq!(
         (ev.kind, ev.seq, ev.status),
@@ -207,7 +206,7 @@ fn a_board_without_a_record_refuses_set_address_and_blink_without_an_led() {
 #[test]
 fn who_is_there_queues_an_announce_from_the_board_s_address_with_or_without_pec() {
     let (_clock, db) = board(addr(9), UID, TestRecord::default());
-    block_on(db.handle_write(&[0x0b, 0x09, 0x00, 0x03], false));
+    db.handle_write(&[0x0b, 0x09, 0x00, 0x03], false);
     let ev = db.try_next_event().unwrap();
     let mut buf = [0u8; 40];
     let n = db.encode_event(&ev, addr(8), &mut buf);
@@ -221,13 +220,13 @@ fn who_is_there_queues_an_announce_from_the_board_s_address_with_or_without_pec(
     pec::append(8 << 1, &mut want, len).unwrap();
     assert_eq!(buf[..n], want[..]);
     // With PEC on, it is taken without its check too (the sweep cannot know), and with it.
-    block_on(db.handle_write(&[0x07, 0x09, 0x00, 0x04, 0x01], true));
+    db.handle_write(&[0x07, 0x09, 0x00, 0x04, 0x01], true);
     assert!(db.pec_enabled());
     read(&db);
-    block_on(db.handle_write(&[0x0b, 0x09, 0x00, 0x05], false));
+    db.handle_write(&[0x0b, 0x09, 0x00, 0x05], false);
     let mut checked = vec![0x0b, 0x09, 0x00, 0x06, 0];
     pec::append(9 << 1, &mut checked, 4).unwrap();
-    block_on(db.handle_write(&checked, false));
+    db.handle_write(&checked, false);
     let kinds: Vec<EventKind> = std::iter::from_fn(|| db.try_next_event())
         .map(|e| e.kind)
         .collect();
