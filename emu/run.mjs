@@ -28,6 +28,9 @@ const dbElf = opt('--db');
 const mbDoorbellElf = opt('--mb-doorbell');
 // The flash test image (emu/fw-flash), for the `flash` scenario.
 const fwFlashElf = opt('--fw-flash');
+// Plug and play: db-pico without an address override, and the motherboard that drives two.
+const dbPnpElf = opt('--db-pnp');
+const mbPnpElf = opt('--mb-pnp');
 // db-pico built for faster buses: --db-at HZ=ELF, any number of times.
 const dbAt = {};
 for (let v = opt('--db-at'); v; v = opt('--db-at')) {
@@ -48,7 +51,7 @@ if (list) {
   process.exit(0);
 }
 if (!mbElf || !dbElf) {
-  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--fw-flash ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
+  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--fw-flash ELF] [--db-pnp ELF] [--mb-pnp ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
   process.exit(2);
 }
 const wanted = args.filter((a) => !a.startsWith('--'));
@@ -156,7 +159,7 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   const figures = [];
   const rigs = [];
   const ctx = {
-    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf,
+    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf, dbPnpElf, mbPnpElf,
     rig(options = {}) { const r = new Rig(options); rigs.push(r); return r; },
     check(name, ok, detail = '') { checks.push({ name, ok: !!ok, detail }); },
     figure(name, value) { figures.push({ name, value }); },

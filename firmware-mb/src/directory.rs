@@ -348,14 +348,17 @@ pub fn choose_address(
             return Some(p.address);
         }
     }
-    let taken = |a: Address| {
+    let taken_by_id = |a: Address| {
         a == mb
             || pinned.iter().any(|p| p.address == a)
             || others().any(|b| b.address == a && (b.present || b.assign_pending))
-            || in_use(a)
     };
+    let taken = |a: Address| taken_by_id(a) || in_use(a);
+    // Its address from before, even though the motherboard still knows a board there (its
+    // port counts): that board was this one (it restarted unaddressed, e.g. after a power cut
+    // that cleared a record kept in RAM).
     if let Some(before) = known.iter().find(|b| b.uid == uid) {
-        if Address::assignable(before.address.get()).is_ok() && !taken(before.address) {
+        if Address::assignable(before.address.get()).is_ok() && !taken_by_id(before.address) {
             return Some(before.address);
         }
     }
@@ -498,6 +501,31 @@ mod tests {
                 &[],
                 a(MB),
                 none
+            ),
+            Some(a(0x50))
+        );
+        // Its own address back although the motherboard still knows a board's ports there
+        // (it was this board, restarted unaddressed); a fresh ID is kept off such an address.
+        let ports_known_at_50 = |x: Address| x == a(0x50);
+        assert_eq!(
+            choose_address(
+                uid(4),
+                BoardKind::PICO,
+                &[before],
+                &[],
+                a(MB),
+                ports_known_at_50
+            ),
+            Some(a(0x50))
+        );
+        assert_ne!(
+            choose_address(
+                uid(5),
+                BoardKind::PICO,
+                &[before],
+                &[],
+                a(MB),
+                ports_known_at_50
             ),
             Some(a(0x50))
         );

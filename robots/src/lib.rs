@@ -43,6 +43,7 @@ pub mod doorbell;
 pub mod fig4_2;
 pub mod fig4_4;
 pub mod fig4_6;
+pub mod pnp;
 
 x10::robot! {
     /// Thesis Figure 4.2: one task on the motherboard's own ports.
@@ -77,6 +78,11 @@ x10::robot! {
 x10::robot! {
     /// A chassis following a dark line on the floor with one line sensor.
     pub struct LineFollower { line_follower: arena::line_follower }
+}
+
+x10::robot! {
+    /// Plug and play: two daughterboards from one image, addressed over the bus, both driven.
+    pub struct TwoBoards { two_boards: pnp::two_boards }
 }
 
 x10::robot! {

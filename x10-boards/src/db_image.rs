@@ -8,15 +8,22 @@
 //! * `Bus` and `Ports`, the board's bus adapter and ports;
 //! * `JUMPERS`, how many address-select jumpers the board has;
 //! * `KIND`, the `x10_microcode::BoardKind` the daughterboard reports;
-//! * `NAME`, the board's name in the log.
+//! * `NAME`, the board's name in the log;
+//! * `Record`, `record(flash)` and `uid(&mut record)`: the address record in the chip's flash
+//!   (opened while the board is built, before its bus: the bus needs the address) and the
+//!   chip's unique ID.
 //!
-//! Address: `X10_DB_ADDR` at build time (default 9) plus the jumpers read at boot; events go to
-//! the motherboard at `X10_MB_ADDR` (default 0x08).
+//! Address (plug and play, `docs/protocol.md`, "Addresses over the bus"): one image serves
+//! every board of a chip. A board starts at the address its record keeps; a new board starts
+//! unaddressed (0x77), announces itself and takes the address the motherboard gives it, keeps
+//! it and restarts there. `X10_DB_ADDR` at build time (plus the jumpers read at boot) is an
+//! override: such a board never takes an address over the bus. Events go to the motherboard
+//! at `X10_MB_ADDR` (default 0x08).
 
 use defmt::{info, unwrap};
 use defmt_rtt as _;
 use embassy_executor::Spawner;
-use embassy_futures::select::{select, Either};
+use embassy_futures::select::{select3, Either3};
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{Daughterboard, DbConfig, TargetConfig};
 use static_cell::StaticCell;
@@ -24,7 +31,7 @@ use x10_boards::watchdog;
 use x10_boards::{address, BusConfig, EmbassyClock};
 use x10_microcode::Address;
 
-use crate::board::{init, Board, Bus, Ports, JUMPERS, KIND, NAME};
+use crate::board::{init, record, uid, Board, Bus, Ports, Record, JUMPERS, KIND, NAME};
 
 /// The motherboard's address, checked at build time.
 /// (A `panic!` in a `const` is a compile error naming the variable: it never runs on the board.)
@@ -40,16 +47,20 @@ const MB_ADDRESS: Address = match Address::external(MB) {
     Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x76"),
 };
 
-/// The base address, checked at build time for every jumper setting.
+/// The build-time override: `X10_DB_ADDR`, checked at build time for every jumper setting;
+/// `None` without it (plug and play).
 /// (A `panic!` in a `const` is a compile error naming the variable: it never runs on the board.)
-const BASE: u8 = match address::build_base(option_env!("X10_DB_ADDR"), JUMPERS as u32, MB) {
-    Ok(b) => b,
-    Err(_) if JUMPERS == 0 => {
-        panic!("X10_DB_ADDR must be in 0x08..=0x76 and differ from X10_MB_ADDR")
-    }
-    Err(_) => panic!(
-        "X10_DB_ADDR plus every jumper setting (0..2^jumpers) must stay in 0x08..=0x76 and miss X10_MB_ADDR"
-    ),
+const BASE: Option<u8> = match option_env!("X10_DB_ADDR") {
+    None => None,
+    Some(_) => match address::build_base(option_env!("X10_DB_ADDR"), JUMPERS as u32, MB) {
+        Ok(b) => Some(b),
+        Err(_) if JUMPERS == 0 => {
+            panic!("X10_DB_ADDR must be in 0x08..=0x76 and differ from X10_MB_ADDR")
+        }
+        Err(_) => panic!(
+            "X10_DB_ADDR plus every jumper setting (0..2^jumpers) must stay in 0x08..=0x76 and miss X10_MB_ADDR"
+        ),
+    },
 };
 
 /// A panic first puts every actuator pin in its safe state and records the panic for the next
@@ -73,33 +84,46 @@ fn defmt_panic() -> ! {
     watchdog::panicked()
 }
 
-type Db = Daughterboard<NoopRawMutex, Ports>;
+type Db = Daughterboard<NoopRawMutex, Ports, Record>;
 
 static DB: StaticCell<Db> = StaticCell::new();
 
 #[embassy_executor::task]
 async fn daughterboard(db: &'static Db, bus: Bus, target: TargetConfig) -> ! {
     // The watchdog is fed while the executor polls this task (see `watchdog::keep_fed`).
-    match select(
+    match select3(
         firmware_db::run(db, bus, EmbassyClock, target),
         watchdog::keep_fed(),
+        db.moved(),
     )
     .await
     {
-        Either::First(never) | Either::Second(never) => never,
+        Either3::First(never) | Either3::Second(never) => never,
+        // Given an address over the bus and kept: restart there (its outputs were safe for
+        // an unaddressed board; a `set_address` restarts a board like a reset would).
+        Either3::Third(to) => {
+            info!("moving to {=u8:#04x}: restarting", to.get());
+            cortex_m::peripheral::SCB::sys_reset()
+        }
     }
 }
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
-    let mut own = Address::INTERNAL;
+    let mut own = Address::UNADDRESSED;
     // Before anything else: the record of a crash and the chip's reset flags.
     let reset_reason = watchdog::reset_reason();
     let p = init();
     watchdog::start();
-    let board = Board::new(p, |jumpers| {
-        // BASE + 0..2^JUMPERS was checked at build time, so this cannot fail.
-        own = unwrap!(address::address(BASE, jumpers).ok());
+    let mut kept: Option<Record> = None;
+    let board = Board::new(p, |jumpers, flash| {
+        let mut k = record(flash);
+        own = match BASE {
+            // BASE + 0..2^JUMPERS was checked at build time, so this cannot fail.
+            Some(base) => unwrap!(address::address(base, jumpers).ok()),
+            None => firmware_db::start_address(None, &mut k),
+        };
+        kept = Some(k);
         BusConfig::for_build(own.get())
     });
     let mb = MB_ADDRESS;
@@ -110,9 +134,14 @@ async fn main(spawner: Spawner) {
         board.jumpers,
         mb.get()
     );
+    // `Board::new` called the setup above: the record is there.
+    let mut kept = unwrap!(kept);
+    // An override always wins: `set_address` is answered `unsupported`.
+    kept.overridden = BASE.is_some();
     let mut config = DbConfig::new(own, KIND);
     config.reset_reason = reset_reason;
-    let db = DB.init(Daughterboard::new(board.ports, config));
+    config.uid = uid(&mut kept);
+    let db = DB.init(Daughterboard::with_record(board.ports, config, kept));
     // One task, spawned once: the pool (size 1) cannot be exhausted.
     spawner.spawn(unwrap!(daughterboard(db, board.bus, TargetConfig::new(mb))));
 }

@@ -74,6 +74,9 @@ compile_error!(
 #[macro_use]
 pub mod start;
 
+#[cfg(feature = "daughterboard")]
+pub mod kept;
+
 #[cfg(feature = "rp2040")]
 pub mod pico;
 

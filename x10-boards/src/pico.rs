@@ -77,8 +77,6 @@ pub struct Board {
     pub ports: PicoPorts,
     /// The value of the address-select jumpers read at start-up (fitted = 1, bit 0 first).
     pub jumpers: u8,
-    /// The flash, for the address record and the unique ID ([`address_record`]).
-    pub flash: Peri<'static, peripherals::FLASH>,
 }
 
 macro_rules! pico_build {
@@ -102,9 +100,13 @@ macro_rules! pico_build {
             /// Takes the table's peripherals: reads the jumpers, builds the ports in their
             /// safe state and the bus adapter.
             ///
-            /// `bus` gets the jumper value and returns the bus setup (the node's own address
-            /// may depend on the jumpers).
-            pub fn new(p: embassy_rp::Peripherals, bus: impl FnOnce(u8) -> BusConfig) -> Board {
+            /// `bus` gets the jumper value and the flash (for the address record and the
+            /// unique ID, [`address_record`]) and returns the bus setup (the node's own
+            /// address may depend on both).
+            pub fn new(
+                p: embassy_rp::Peripherals,
+                bus: impl FnOnce(u8, Peri<'static, peripherals::FLASH>) -> BusConfig,
+            ) -> Board {
                 // Inputs only while they are read; dropped, the pins are disconnected again.
                 let jumpers = {
                     let inputs: [Input<'static>; JUMPERS] = [ $( Input::new(p.$j, Pull::Up) ),* ];
@@ -113,7 +115,7 @@ macro_rules! pico_build {
                     address::jumper_value(inputs.iter().map(|i| i.is_high()))
                 };
 
-                let bus = bus(jumpers);
+                let bus = bus(jumpers, p.FLASH);
                 let sys_hz = embassy_rp::clocks::clk_sys_freq();
                 let adc = adc::Adc::new_blocking(p.ADC, adc::Config::default());
                 let sensors = [ $( SensorPort {
@@ -153,7 +155,6 @@ macro_rules! pico_build {
                         })),
                     },
                     jumpers,
-                    flash: p.FLASH,
                 }
             }
         }
@@ -1113,3 +1114,43 @@ use embassy_rp::Peripherals;
 
 #[cfg(feature = "motherboard")]
 motherboard_starter!(ports: PicoPorts, bus: PicoBus, kind: x10_microcode::BoardKind::PICO, name: "Pico");
+
+/// The Pico's address record for now: the watchdog's `SCRATCH1` register, which a software
+/// reset, a watchdog reset and a crash keep and a power cut clears (RP2040 datasheet §4.7:
+/// the watchdog block is reset only by a chip-level reset). A board given an address restarts
+/// there and keeps it until the power goes; after a power cut it announces itself again and
+/// the motherboard gives it the same address back from its directory (by its unique ID).
+/// The flash record ([`address_record`], `x10-store`) costs 2.9 KiB with embassy-rp's flash
+/// driver, more than db-pico has left (docs/boards.md, "Plug and play on the Pico").
+#[cfg(feature = "daughterboard")]
+pub struct ScratchKept {
+    /// The flash driver, for the unique ID ([`unique_id`]).
+    pub flash: PicoFlash,
+    /// The board's address is a build-time override: nothing is stored.
+    pub overridden: bool,
+}
+
+/// `SCRATCH1`: `0x5810_00AA` for address `0xAA` (the high half marks a value written here).
+#[cfg(feature = "daughterboard")]
+const SCRATCH_KEPT: u32 = 0x5810_0000;
+
+#[cfg(feature = "daughterboard")]
+impl firmware_db::AddressRecord for ScratchKept {
+    fn load(&mut self) -> Option<x10_microcode::Address> {
+        let word = pac::WATCHDOG.scratch1().read();
+        if word & 0xFFFF_FF00 != SCRATCH_KEPT {
+            return None;
+        }
+        x10_microcode::Address::new((word & 0xFF) as u8).ok()
+    }
+
+    fn store(&mut self, address: x10_microcode::Address) -> Result<(), firmware_db::StoreError> {
+        if self.overridden {
+            return Err(firmware_db::StoreError::NoRecord);
+        }
+        pac::WATCHDOG
+            .scratch1()
+            .write_value(SCRATCH_KEPT | u32::from(address.get()));
+        Ok(())
+    }
+}

@@ -16,6 +16,10 @@ use x10_microcode::Address;
 
 pub use firmware_mb::{MbConfig, X10};
 
+/// How many boards the motherboard images know by their unique ID at once (plug and play's
+/// directory: 16 B of RAM each).
+pub const KNOWN_BOARDS: usize = 32;
+
 /// Why `start_motherboard` failed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -44,6 +48,12 @@ macro_rules! motherboard_starter {
 
         static MOTHERBOARD: static_cell::StaticCell<StartedMb> = static_cell::StaticCell::new();
 
+        /// The boards the motherboard knows by their unique ID (plug and play: it addresses
+        /// new boards, sweeps the bus at start, reports lost boards and collisions): 16 B each.
+        static DIRECTORY: static_cell::StaticCell<
+            [firmware_mb::KnownBoard; crate::start::KNOWN_BOARDS],
+        > = static_cell::StaticCell::new();
+
         #[embassy_executor::task]
         async fn motherboard_task(mb: &'static StartedMb, bus: $bus) -> ! {
             use embassy_futures::select::{select, Either};
@@ -71,10 +81,15 @@ macro_rules! motherboard_starter {
             let address = config.address.get();
             config.internal.reset_reason = crate::watchdog::reset_reason();
             crate::watchdog::start();
-            let board = Board::new(p, |_jumpers| crate::BusConfig::for_build(address));
+            let board = Board::new(p, |_jumpers, _flash| crate::BusConfig::for_build(address));
             config.internal.board = $kind;
+            let directory = DIRECTORY
+                .try_init([firmware_mb::KnownBoard::EMPTY; crate::start::KNOWN_BOARDS])
+                .ok_or(crate::start::StartError::AlreadyStarted)?;
             let mb: &'static StartedMb = MOTHERBOARD
-                .try_init(firmware_mb::Motherboard::new(config, board.ports))
+                .try_init(
+                    firmware_mb::Motherboard::new(config, board.ports).with_directory(directory),
+                )
                 .ok_or(crate::start::StartError::AlreadyStarted)?;
             let task =
                 motherboard_task(mb, board.bus).map_err(|_| crate::start::StartError::Spawn)?;

@@ -70,8 +70,6 @@ pub struct Board<U, const S: usize, const A: usize> {
     /// The value of the address-select jumpers read at start-up (fitted = 1, bit 0 first; 0
     /// when the table has none).
     pub jumpers: u8,
-    /// The flash controller, for the address record (`g431::address_record`).
-    pub flash: embassy_stm32::Peri<'static, embassy_stm32::peripherals::FLASH>,
 }
 
 /// The chip's 8-byte unique ID: its 96-bit UID (the `UID` registers, 0x1FFF7590 on the G431,
@@ -105,7 +103,10 @@ macro_rules! stm32_build {
             /// may depend on the jumpers).
             pub fn new(
                 p: embassy_stm32::Peripherals,
-                bus: impl FnOnce(u8) -> $crate::BusConfig,
+                bus: impl FnOnce(
+                    u8,
+                    embassy_stm32::Peri<'static, embassy_stm32::peripherals::FLASH>,
+                ) -> $crate::BusConfig,
             ) -> Board {
                 use embassy_stm32::gpio::{Input, OutputType, Pin as _};
                 use embassy_stm32::i2c::{self, I2c, SlaveAddrConfig};
@@ -120,7 +121,7 @@ macro_rules! stm32_build {
                     }
                     $crate::address::jumper_value(inputs.iter().map(|i| i.is_high()))
                 };
-                let bus = bus(jumpers);
+                let bus = bus(jumpers, p.FLASH);
                 let mut cfg = i2c::Config::default();
                 cfg.frequency = embassy_stm32::time::Hertz(bus.frequency_hz);
                 cfg.timeout = embassy_time::Duration::from_micros(u64::from(bus.timeout_us));
@@ -148,7 +149,6 @@ macro_rules! stm32_build {
                     bus: $crate::stm32::Stm32Bus::new(i2c, embassy_stm32::pac::$i2c, lines, bus.frequency_hz, bus.timeout_us),
                     ports: $crate::stm32::Stm32Ports::new(new_adc(p.ADC1), ADC_BITS, sensors, actuators),
                     jumpers,
-                    flash: p.FLASH,
                 }
             }
         }

@@ -1,8 +1,8 @@
 //! `cargo xtask emu [--list] [SCENARIO...]`: the real Pico images on emulated RP2040s.
 //!
 //! Builds mb-pico and db-pico in release (the same cargo calls as `cargo xtask size`, one per
-//! image; db-pico with its default base address 9: DB 10 is the same image with jumper 0
-//! fitted; db-pico also for 400 kHz and 1 MHz buses, `X10_BUS_HZ`, copied to
+//! image; db-pico with the address override `X10_DB_ADDR=9`: DB 10 is the same image with
+//! jumper 0 fitted; db-pico without it, plug and play, as `target/emu/db-pico-pnp`; db-pico also for 400 kHz and 1 MHz buses, `X10_BUS_HZ`, copied to
 //! `target/emu/db-pico-HZ`), the flash path's test image `emu/fw-flash` (its own workspace) and
 //! the host `x10` tool, installs the rig's Node packages from `emu/package-lock.json`
 //! with `npm ci` when `emu/node_modules` is missing or older than the lock file, then runs
@@ -128,6 +128,7 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
     std::fs::create_dir_all(&out).map_err(Error::Run)?;
     let mut elfs = Vec::new();
     let mut fast = Vec::new();
+    let mut pnp_elf = None;
     for name in ["mb-pico", "db-pico"] {
         let image = IMAGES
             .iter()
@@ -139,6 +140,12 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
             .join("release")
             .join(name);
         if name == "db-pico" {
+            // The plug-and-play build (one image for every board: no address override),
+            // copied aside for the `plug-and-play` scenario.
+            build_with(&cargo, image, None, false)?;
+            let pnp = out.join("db-pico-pnp");
+            std::fs::copy(&elf, &pnp).map_err(Error::Run)?;
+            pnp_elf = Some(pnp);
             // db-pico for the faster buses too (`X10_BUS_HZ`, a rebuild of x10-boards and a
             // link: seconds), each copied aside; the default build comes last.
             for hz in FAST_BUSES {
@@ -165,6 +172,16 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
         .join(mb.target)
         .join("release")
         .join(doorbell.bin);
+    // The plug-and-play example's motherboard image: two boards addressed over the bus.
+    let pnp_mb = crate::Image {
+        bin: "mb-pico-pnp",
+        ..*mb
+    };
+    build_at(&cargo, &pnp_mb, None)?;
+    let pnp_mb_elf = target_dir(&cargo)?
+        .join(mb.target)
+        .join("release")
+        .join(pnp_mb.bin);
     let fw_flash = build_fw_flash(&cargo, &root)?;
     let status = Command::new(&cargo)
         .args(["build", "-q", "-p", "x10-cli", "--bin", "x10"])
@@ -193,6 +210,12 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
         a.push("--db-at".into());
         a.push(f);
     }
+    if let Some(p) = pnp_elf {
+        a.push("--db-pnp".into());
+        a.push(p.display().to_string());
+    }
+    a.push("--mb-pnp".into());
+    a.push(pnp_mb_elf.display().to_string());
     a.extend(args.iter().cloned());
     node(&emu, &a)
 }
@@ -233,11 +256,23 @@ const FAST_BUSES: [u32; 2] = [400_000, 1_000_000];
 /// Builds `image` for a bus of `hz` (`X10_BUS_HZ`), or for the default bus (the variable
 /// removed, whatever the caller's environment holds).
 fn build_at(cargo: &str, image: &crate::Image, hz: Option<u32>) -> Result<(), Error> {
+    build_with(cargo, image, hz, image.bin == "db-pico")
+}
+
+/// As [`build_at`]; `at_9`: with the build-time address override `X10_DB_ADDR=9` (the
+/// scenarios' DB 9, and DB 10 with jumper 0 fitted), else the plug-and-play build (no override:
+/// the board keeps what it is given over the bus).
+fn build_with(cargo: &str, image: &crate::Image, hz: Option<u32>, at_9: bool) -> Result<(), Error> {
     let mut c = crate::build_command(cargo, image);
     match hz {
         Some(hz) => c.env("X10_BUS_HZ", hz.to_string()),
         None => c.env_remove("X10_BUS_HZ"),
     };
+    if at_9 {
+        c.env("X10_DB_ADDR", "9");
+    } else {
+        c.env_remove("X10_DB_ADDR");
+    }
     if c.status().map_err(Error::Run)?.success() {
         Ok(())
     } else {

@@ -173,14 +173,16 @@ const DB_BUDGET: Budget = Budget {
 /// and reset reason, keepalive retries, deferred requests held after a lost `pending`, the
 /// per-board port table, the internal board read back, the Pico adapter's line watch, the
 /// watchdog and the safe-state panic and fault handlers, remembered event enables: mb-pico
-/// 73 724 B, mb-g431 67 052 B when set, budgets about 2 KiB above): see docs/boards.md
-/// "Sizes". The MB
+/// 73 724 B, mb-g431 67 052 B when set, budgets about 2 KiB above), and for issue 24 (plug
+/// and play: the directory of boards by unique ID, the sweep, assignment, lost boards and
+/// collisions: mb-pico 77 004 B, mb-g431 69 472 B when set, budgets about 3 KiB above): see
+/// docs/boards.md "Sizes". The MB
 /// chips have 2 MiB (Pico) and 128 KiB (G431) of flash: these are regression guards, not
 /// limits of the chips. CI fails when an image grows past its budget; lower them as the
 /// images shrink.
-const MB_PICO_FLASH: u64 = 75_776;
+const MB_PICO_FLASH: u64 = 80_128;
 /// See [`MB_PICO_FLASH`].
-const MB_G431_FLASH: u64 = 69_632;
+const MB_G431_FLASH: u64 = 72_704;
 /// The motherboard images' static RAM budget (the Pico has 264 KiB, the G431 32 KiB): see
 /// [`MB_PICO_FLASH`]; 12 KiB until issue 22's per-board port table, keepalive retries, slot
 /// waiters and remembered event enables (13 272 B on mb-pico when set).

@@ -2,21 +2,39 @@
 //! streams its defmt log. The image itself (task, start-up) is `../image.rs`, shared with the
 //! other boards.
 //!
-//! Address: `X10_DB_ADDR` at build time (default 9); every pin of the board is a port pin, so
-//! it has no address-select jumpers. Events go to the motherboard at `X10_MB_ADDR` (default
-//! 0x08).
+//! Address: given over the bus and kept in the chip's flash (plug and play, one image for
+//! every board of this chip); `X10_DB_ADDR` at build time is an override. Events go to the
+//! motherboard at `X10_MB_ADDR` (default 0x08).
 #![no_std]
 #![no_main]
 
 /// What the shared image needs of this board.
 mod board {
+    use defmt::unwrap;
+    use embassy_stm32::peripherals::FLASH;
+    use embassy_stm32::Peri;
     pub use x10_boards::g431::{init, Board, G431Bus as Bus, G431Ports as Ports, JUMPERS};
-    use x10_microcode::BoardKind;
+    use x10_boards::kept;
+    use x10_microcode::{BoardKind, Uid};
+
+    /// Where the board keeps the address it is given over the bus.
+    pub type Record = kept::Kept<x10_boards::g431::G431Flash>;
 
     /// What the daughterboard reports as its board.
     pub const KIND: BoardKind = BoardKind::G431;
     /// The board's name in the log.
     pub const NAME: &str = "G431";
+
+    /// The record, for `assign` and `set_address` (the flash driver).
+    pub fn record(flash: Peri<'static, FLASH>) -> Record {
+        // Its geometry is fixed at build time and mapped reads cannot fail.
+        kept::Kept::new(unwrap!(x10_boards::g431::address_record(flash).ok()))
+    }
+
+    /// The board's unique ID: the 96-bit UID folded to 8 bytes.
+    pub fn uid(_record: &mut Record) -> Uid {
+        Uid(x10_boards::stm32::unique_id())
+    }
 }
 
 #[path = "../db_image.rs"]
