@@ -1,8 +1,9 @@
-//! Watching the calls robot tasks make (the simulator traces them; boards set no observer).
+//! Watching the calls robot tasks make and the events the motherboard routes (the simulator
+//! traces calls; the USB link, `x10_link::recorder`, records both; other boards set no observer).
 
 use x10_devices::LinkError;
 use x10_hal::time::Instant;
-use x10_microcode::{Address, Op, Payload};
+use x10_microcode::{Address, Event, Op, Payload};
 
 /// One finished call, as [`CallObserver::observe`] sees it.
 #[derive(Debug)]
@@ -24,4 +25,8 @@ pub struct CallRecord<'a> {
 pub trait CallObserver: Sync {
     /// A call ended.
     fn observe(&self, call: &CallRecord<'_>);
+
+    /// An event was routed (a bus board's or the internal board's), at `at`. Called inside the
+    /// motherboard's task; keep it short. By default nothing (the USB link records them).
+    fn event(&self, _event: &Event<'_>, _at: Instant) {}
 }

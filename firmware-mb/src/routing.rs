@@ -130,6 +130,9 @@ impl MbCore {
     /// Routes one event: a deferred reply to its waiting request, a pin event to its waiters
     /// (or the unclaimed queue), the rest to the counters and the log.
     pub(crate) fn route_event(&self, ev: &Event<'_>, checked: bool) {
+        if let Some(observer) = self.observer {
+            observer.event(ev, now());
+        }
         self.with(|t| {
             bump(&mut t.diag.events);
             t.events_in.received(ev, &mut t.diag);

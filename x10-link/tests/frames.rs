@@ -1,0 +1,319 @@
+//! The frames of docs/usb-link.md: every example there decodes to its message and encodes
+//! back to the same bytes, every message kind has an example, and no bytes make a decoder
+//! panic.
+
+use proptest::prelude::*;
+use x10_link::{
+    decode, encode, CallError, CallRec, DiagCounters, Dropped, EventRec, Feed, FrameError,
+    FrameReader, Hello, Outcome, OutputRec, OutputValue, ToDevice, ToHost, WireOp, MAX_FRAME,
+};
+use x10_microcode::test_support::{a, s};
+use x10_microcode::{EventKind, Level, Op, Pin};
+
+const DOC: &str = include_str!("../../docs/usb-link.md");
+
+fn hex(bytes: &[u8]) -> String {
+    bytes
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+fn unhex(s: &str) -> Vec<u8> {
+    s.split_whitespace()
+        .map(|h| u8::from_str_radix(h, 16).unwrap())
+        .collect()
+}
+
+fn frame<T: serde::Serialize>(m: &T) -> Vec<u8> {
+    let mut buf = [0u8; MAX_FRAME];
+    let n = encode(m, &mut buf).unwrap();
+    buf[..n].to_vec()
+}
+
+/// `op` as the link carries it: its byte 0, byte 2 and data (`buf` holds the data).
+fn wire<'a>(op: &Op<'_>, buf: &'a mut [u8; 8]) -> WireOp<'a> {
+    let n = op.emit_data(buf).unwrap();
+    WireOp {
+        fn_op: op.fn_op_byte(),
+        port: op.port_byte(),
+        data: &buf[..n],
+    }
+}
+
+/// One message of each kind, each way.
+fn examples() -> Vec<(&'static str, String, Vec<u8>)> {
+    // pwm duty A1.A 127 on the motherboard's own ports; io high A1.B; analog read S1.
+    let (mut b1, mut b2, mut b3) = ([0u8; 8], [0u8; 8], [0u8; 8]);
+    let duty = wire(&Op::PwmDuty(a(1).pin(Pin::A), 127), &mut b1);
+    let high = wire(&Op::DigitalWrite(a(1).pin(Pin::B), Level::High), &mut b2);
+    let analog = wire(&Op::AnalogRead(s(1)), &mut b3);
+    let mut counters = DiagCounters::new();
+    for c in [12, 12, 0, 0] {
+        counters.push(c).unwrap();
+    }
+    let to_host = [
+        ToHost::Hello(Hello {
+            version: 1,
+            address: 8,
+            board: "Pico",
+            robot: "fig4_4",
+        }),
+        ToHost::Log(&[0x01, 0x02, 0x00, 0x03]),
+        ToHost::Call(CallRec {
+            db: 0,
+            op: duty,
+            outcome: Outcome::Ok(&[]),
+            start_us: 1_000_000,
+            end_us: 1_000_450,
+        }),
+        ToHost::Call(CallRec {
+            db: 9,
+            op: analog,
+            outcome: Outcome::Err(CallError::Status(5)),
+            start_us: 2_000,
+            end_us: 2_900,
+        }),
+        ToHost::Event(EventRec {
+            db: 9,
+            kind: EventKind::PinChange.to_byte(),
+            port: s(1).pin(Pin::A).to_byte(),
+            seq: 4,
+            status: 0,
+            payload: &[1],
+            at_us: 1_500_000,
+        }),
+        ToHost::Output(OutputRec {
+            db: 0,
+            port: duty.port,
+            value: OutputValue::Duty(127),
+            at_us: 1_000_450,
+        }),
+        ToHost::Output(OutputRec {
+            db: 0,
+            port: high.port,
+            value: OutputValue::Level(true),
+            at_us: 1_000_900,
+        }),
+        ToHost::Dropped(Dropped {
+            calls: 3,
+            events: 0,
+            outputs: 2,
+            log_bytes: 0,
+            bad_frames: 1,
+        }),
+        ToHost::Reply {
+            id: 7,
+            outcome: Outcome::Ok(&[0x02, 0x00]),
+        },
+        ToHost::Diagnostics { id: 8, counters },
+        ToHost::Boards {
+            id: 9,
+            addresses: heapless::Vec::from_slice(&[0, 9]).unwrap(),
+        },
+        ToHost::Refused { id: 10 },
+    ];
+    let to_device = [
+        ToDevice::Hello(Hello {
+            version: 1,
+            address: 0,
+            board: "x10",
+            robot: "",
+        }),
+        ToDevice::Bye,
+        ToDevice::Call {
+            id: 7,
+            db: 0,
+            op: high,
+        },
+        ToDevice::Diagnostics { id: 8 },
+        ToDevice::ListBoards { id: 9 },
+    ];
+    let mut v = Vec::new();
+    for m in &to_host {
+        v.push(("ToHost", format!("{m:?}"), frame(m)));
+    }
+    for m in &to_device {
+        v.push(("ToDevice", format!("{m:?}"), frame(m)));
+    }
+    v
+}
+
+/// The doc's example rows: `| ToHost | `Debug` | `bytes` |`.
+fn doc_rows() -> Vec<(String, String, Vec<u8>)> {
+    DOC.lines()
+        .filter_map(|l| {
+            let cells: Vec<&str> = l.split('|').map(str::trim).collect();
+            if cells.len() < 5 || !(cells[1] == "ToHost" || cells[1] == "ToDevice") {
+                return None;
+            }
+            let debug = cells[2].trim_matches('`').to_string();
+            let bytes = unhex(cells[3].trim_matches('`'));
+            Some((cells[1].to_string(), debug, bytes))
+        })
+        .collect()
+}
+
+#[test]
+fn every_example_is_in_the_doc() {
+    let rows = doc_rows();
+    let missing: Vec<String> = examples()
+        .into_iter()
+        .filter(|(dir, debug, bytes)| {
+            !rows
+                .iter()
+                .any(|(d, m, b)| d == dir && m == debug && b == bytes)
+        })
+        .map(|(dir, debug, bytes)| format!("| {dir} | `{debug}` | `{}` |", hex(&bytes)))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "docs/usb-link.md lacks the rows\n{}",
+        missing.join("\n")
+    );
+}
+
+#[test]
+fn every_doc_row_decodes_exactly_and_encodes_back() {
+    let rows = doc_rows();
+    assert_eq!(rows.len(), examples().len());
+    for (dir, debug, bytes) in rows {
+        let mut copy = bytes.clone();
+        let got = if dir == "ToHost" {
+            let m: ToHost = decode(&mut copy).unwrap();
+            assert_eq!(frame(&m), bytes);
+            format!("{m:?}")
+        } else {
+            let m: ToDevice = decode(&mut copy).unwrap();
+            assert_eq!(frame(&m), bytes);
+            format!("{m:?}")
+        };
+        assert_eq!(got, debug);
+        assert_eq!(*bytes.last().unwrap(), 0);
+        assert!(!bytes[..bytes.len() - 1].contains(&0));
+    }
+}
+
+#[test]
+fn a_reader_in_the_middle_of_a_stream_resyncs_at_the_next_zero() {
+    let a = frame(&ToDevice::Diagnostics { id: 1 });
+    let b = frame(&ToDevice::ListBoards { id: 2 });
+    let mut stream = a[2..].to_vec(); // the tail of a frame
+    stream.extend_from_slice(&b);
+    let mut r: FrameReader<64> = FrameReader::new();
+    let mut got = Vec::new();
+    for &x in &stream {
+        if r.feed(x) == Feed::Frame {
+            got.push(r.decode::<ToDevice>().map(|m| format!("{m:?}")));
+        }
+    }
+    assert_eq!(
+        got,
+        vec![
+            Err(FrameError::Cobs),
+            Ok("ListBoards { id: 2 }".to_string())
+        ]
+    );
+}
+
+#[test]
+fn a_flipped_bit_is_a_crc_error() {
+    let mut f = frame(&ToDevice::Diagnostics { id: 0x1234 });
+    f[3] ^= 0x04;
+    assert_eq!(decode::<ToDevice>(&mut f), Err(FrameError::Crc));
+}
+
+#[test]
+fn a_frame_longer_than_the_reader_is_skipped_and_reported() {
+    let mut r: FrameReader<4> = FrameReader::new();
+    let mut seen = Vec::new();
+    for &x in &[1u8, 2, 3, 4, 5, 6, 0] {
+        seen.push(r.feed(x));
+    }
+    assert_eq!(seen.last(), Some(&Feed::TooLong));
+    let f = frame(&ToDevice::Bye);
+    assert_eq!(f.len(), 5);
+    let mut last = Feed::Pending;
+    for &x in &f {
+        last = r.feed(x);
+    }
+    assert_eq!(last, Feed::Frame);
+    assert_eq!(r.decode::<ToDevice>(), Ok(ToDevice::Bye));
+}
+
+#[test]
+fn an_unknown_variant_of_a_newer_peer_is_a_message_error() {
+    // Variant 5 of ToDevice does not exist in version 1: postcard bytes [05], CRC, COBS.
+    let mut f = frame(&ToDevice::ListBoards { id: 0 });
+    let mut raw = [5u8, 0, 0];
+    let crc = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740).checksum(&raw[..1]);
+    raw[1..].copy_from_slice(&crc.to_le_bytes());
+    f.clear();
+    let mut enc = [0u8; 8];
+    let n = cobs::encode(&raw, &mut enc);
+    f.extend_from_slice(&enc[..n]);
+    f.push(0);
+    assert_eq!(decode::<ToDevice>(&mut f), Err(FrameError::Message));
+}
+
+#[test]
+fn a_message_too_long_for_a_frame_is_refused_when_written() {
+    let long = [0u8; 300];
+    let mut buf = [0u8; 1024];
+    assert_eq!(
+        encode(&ToHost::Log(&long), &mut buf),
+        Err(FrameError::TooLong)
+    );
+    let mut short = [0u8; 4];
+    assert_eq!(
+        encode(&ToDevice::ListBoards { id: 1 }, &mut short),
+        Err(FrameError::TooLong)
+    );
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(4000))]
+
+    #[test]
+    fn no_bytes_make_a_decoder_panic(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
+        let mut host: FrameReader<{ MAX_FRAME }> = FrameReader::new();
+        let mut dev: FrameReader<64> = FrameReader::new();
+        for &b in &bytes {
+            if host.feed(b) == Feed::Frame {
+                let _ = host.decode::<ToHost>();
+            }
+            if dev.feed(b) == Feed::Frame {
+                let _ = dev.decode::<ToDevice>();
+            }
+        }
+        let mut copy = bytes.clone();
+        let _ = decode::<ToHost>(&mut copy);
+        let mut copy = bytes;
+        let _ = decode::<ToDevice>(&mut copy);
+    }
+
+    #[test]
+    fn valid_postcard_with_any_bytes_never_panics(tail in proptest::collection::vec(any::<u8>(), 0..60), v in 0u8..12) {
+        // A correct frame around arbitrary message bytes: only postcard judges them.
+        let mut raw = vec![v];
+        raw.extend_from_slice(&tail);
+        let crc = crc::Crc::<u16>::new(&crc::CRC_16_IBM_3740).checksum(&raw);
+        raw.extend_from_slice(&crc.to_le_bytes());
+        let mut enc = vec![0u8; raw.len() + 4];
+        let n = cobs::encode(&raw, &mut enc);
+        enc.truncate(n);
+        let mut a = enc.clone();
+        let _ = decode::<ToHost>(&mut a);
+        let mut b = enc;
+        let _ = decode::<ToDevice>(&mut b);
+    }
+
+    #[test]
+    fn any_call_record_round_trips(db in any::<u8>(), fn_op in any::<u8>(), port in any::<u8>(),
+        data in proptest::collection::vec(any::<u8>(), 0..30), s in any::<u64>(), e in any::<u64>()) {
+        let m = ToHost::Call(CallRec { db, op: WireOp { fn_op, port, data: &data }, outcome: Outcome::Ok(&data), start_us: s, end_us: e });
+        let mut f = frame(&m);
+        prop_assert_eq!(decode::<ToHost>(&mut f), Ok(m.clone()));
+    }
+}
