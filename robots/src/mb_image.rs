@@ -21,6 +21,8 @@ macro_rules! mb_image {
 
         #[embassy_executor::main]
         async fn main(spawner: Spawner) {
+            // The USB link's hello names the robot (docs/usb-link.md).
+            x10_boards::start::name_robot(<$robot>::NAME);
             let p = init();
             let x10 = unwrap!(start_motherboard(spawner, p, MbConfig::new(MB_ADDRESS)));
             info!(

@@ -62,6 +62,16 @@ pub fn hal_config() -> embassy_stm32::Config {
     c.rcc.sys = rcc::Sysclk::PLL1_R;
     c.rcc.boost = true;
     c.rcc.mux.adc12sel = rcc::mux::Adcsel::SYS;
+    // The USB link's 48 MHz: HSI48 trimmed by the CRS from the host's start-of-frame packets
+    // (RM0440 7.2.5 and 8.4.6; USB full speed needs ±0.25 %, which HSI48 alone does not
+    // meet), as CLK48 (RCC_CCIPR.CLK48SEL = 0, its reset value, selects HSI48).
+    #[cfg(feature = "usb-link")]
+    {
+        c.rcc.hsi48 = Some(rcc::Hsi48Config {
+            sync_from_usb: true,
+        });
+        c.rcc.mux.clk48sel = rcc::mux::Clk48sel::HSI48;
+    }
     c
 }
 
@@ -103,4 +113,40 @@ pub fn address_record(
         crate::record::G431_RECORD_OFFSET,
         crate::record::RECORD_PAGES,
     )
+}
+
+/// The USB block and its pins: PA12 is D+, PA11 D- (the core board's USB connector).
+#[cfg(feature = "usb-link")]
+pub type UsbParts = (
+    Peri<'static, peripherals::USB>,
+    Peri<'static, peripherals::PA12>,
+    Peri<'static, peripherals::PA11>,
+);
+
+#[cfg(feature = "usb-link")]
+bind_interrupts!(
+    /// The USB device's interrupt (the motherboard image's USB link): the low-priority line,
+    /// the one embassy-stm32's driver serves.
+    struct UsbIrqs {
+        USB_LP => embassy_stm32::usb::InterruptHandler<peripherals::USB>;
+    }
+);
+
+/// The USB link's task (`crate::usb_link`), spawned by `start_motherboard`.
+#[cfg(feature = "usb-link")]
+#[embassy_executor::task]
+async fn usb_task(usb: UsbParts, x10: firmware_mb::X10) -> ! {
+    let (usb, dp, dm) = usb;
+    let driver = embassy_stm32::usb::Driver::new(usb, UsbIrqs, dp, dm);
+    crate::usb_link::run(driver, x10, "STM32G431").await
+}
+
+#[cfg(feature = "usb-link")]
+fn spawn_usb(
+    spawner: embassy_executor::Spawner,
+    usb: UsbParts,
+    x10: firmware_mb::X10,
+) -> Result<(), crate::start::StartError> {
+    spawner.spawn(usb_task(usb, x10).map_err(|_| crate::start::StartError::Spawn)?);
+    Ok(())
 }

@@ -73,6 +73,8 @@ compile_error!(
 #[cfg(feature = "motherboard")]
 #[macro_use]
 pub mod start;
+#[cfg(feature = "usb-link")]
+pub mod usb_link;
 
 #[cfg(feature = "daughterboard")]
 pub mod kept;

@@ -77,6 +77,9 @@ pub struct Board {
     pub ports: PicoPorts,
     /// The value of the address-select jumpers read at start-up (fitted = 1, bit 0 first).
     pub jumpers: u8,
+    /// The USB device block (the motherboard images' USB link).
+    #[cfg(feature = "usb-link")]
+    pub usb: Peri<'static, peripherals::USB>,
 }
 
 macro_rules! pico_build {
@@ -129,6 +132,8 @@ macro_rules! pico_build {
                     })),
                 } ),* ];
                 Board {
+                    #[cfg(feature = "usb-link")]
+                    usb: p.USB,
                     bus: PicoBus {
                         i2c: p.$i2c,
                         sda: p.$sda,
@@ -1153,4 +1158,29 @@ impl firmware_db::AddressRecord for ScratchKept {
             .write_value(SCRATCH_KEPT | u32::from(address.get()));
         Ok(())
     }
+}
+
+#[cfg(feature = "usb-link")]
+bind_interrupts!(
+    /// The USB device's interrupt (the motherboard images' USB link).
+    struct UsbIrqs {
+        USBCTRL_IRQ => embassy_rp::usb::InterruptHandler<peripherals::USB>;
+    }
+);
+
+/// The USB link's task (`crate::usb_link`), spawned by `start_motherboard`.
+#[cfg(feature = "usb-link")]
+#[embassy_executor::task]
+async fn usb_task(usb: Peri<'static, peripherals::USB>, x10: firmware_mb::X10) -> ! {
+    crate::usb_link::run(embassy_rp::usb::Driver::new(usb, UsbIrqs), x10, "Pico").await
+}
+
+#[cfg(feature = "usb-link")]
+fn spawn_usb(
+    spawner: embassy_executor::Spawner,
+    usb: Peri<'static, peripherals::USB>,
+    x10: firmware_mb::X10,
+) -> Result<(), crate::start::StartError> {
+    spawner.spawn(usb_task(usb, x10).map_err(|_| crate::start::StartError::Spawn)?);
+    Ok(())
 }

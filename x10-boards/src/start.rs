@@ -40,6 +40,22 @@ pub const MB_ADDRESS: Address = match crate::address::build_mb(option_env!("X10_
     Err(_) => panic!("X10_MB_ADDR must be a number in 0x08..=0x76"),
 };
 
+static ROBOT: embassy_sync::blocking_mutex::Mutex<
+    embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex,
+    core::cell::Cell<&'static str>,
+> = embassy_sync::blocking_mutex::Mutex::new(core::cell::Cell::new(""));
+
+/// Names the robot program (the images' `main` calls it with the robot's `NAME`): the USB
+/// link's hello carries it (docs/usb-link.md).
+pub fn name_robot(name: &'static str) {
+    ROBOT.lock(|r| r.set(name));
+}
+
+/// The name given to [`name_robot`] (empty before).
+pub fn robot_name() -> &'static str {
+    ROBOT.lock(core::cell::Cell::get)
+}
+
 /// Defines `start_motherboard` for one board: the `static` motherboard, its task, and the
 /// function (tasks cannot be generic, so each board names its types).
 macro_rules! motherboard_starter {
@@ -68,7 +84,8 @@ macro_rules! motherboard_starter {
         /// ([`crate::watchdog`], fed by the runtime's task), builds the bus (listening at
         /// `config.address`) and the ports of the internal daughterboard from `p`, spawns the
         /// runtime's task (dispatcher, DB-interrupt listener, internal daughterboard,
-        /// keepalive) and returns the handle robot tasks take.
+        /// keepalive) and, with the feature `usb-link`, the USB link's task
+        /// ([`crate::usb_link`]), and returns the handle robot tasks take.
         ///
         /// # Errors
         /// [`crate::start::StartError::AlreadyStarted`] on a second call;
@@ -86,14 +103,19 @@ macro_rules! motherboard_starter {
             let directory = DIRECTORY
                 .try_init([firmware_mb::KnownBoard::EMPTY; crate::start::KNOWN_BOARDS])
                 .ok_or(crate::start::StartError::AlreadyStarted)?;
+            let started =
+                firmware_mb::Motherboard::new(config, board.ports).with_directory(directory);
+            // The USB link records calls and events (`crate::usb_link`).
+            #[cfg(feature = "usb-link")]
+            let started = started.with_observer(&crate::usb_link::RECORDER);
             let mb: &'static StartedMb = MOTHERBOARD
-                .try_init(
-                    firmware_mb::Motherboard::new(config, board.ports).with_directory(directory),
-                )
+                .try_init(started)
                 .ok_or(crate::start::StartError::AlreadyStarted)?;
             let task =
                 motherboard_task(mb, board.bus).map_err(|_| crate::start::StartError::Spawn)?;
             spawner.spawn(task);
+            #[cfg(feature = "usb-link")]
+            spawn_usb(spawner, board.usb, mb.handle())?;
             defmt::info!("X10 motherboard on a {=str} at {=u8:#04x}", $name, address);
             Ok(mb.handle())
         }

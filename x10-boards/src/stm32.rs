@@ -70,6 +70,9 @@ pub struct Board<U, const S: usize, const A: usize> {
     /// The value of the address-select jumpers read at start-up (fitted = 1, bit 0 first; 0
     /// when the table has none).
     pub jumpers: u8,
+    /// The USB device block and its pins (the G431 motherboard image's USB link).
+    #[cfg(all(feature = "usb-link", feature = "stm32g431"))]
+    pub usb: crate::g431::UsbParts,
 }
 
 /// The chip's 8-byte unique ID: its 96-bit UID (the `UID` registers, 0x1FFF7590 on the G431,
@@ -146,6 +149,8 @@ macro_rules! stm32_build {
                     ).started(), [$crate::pwm::Output::OFF; 2])),
                 } ),* ];
                 $crate::stm32::Board {
+                    #[cfg(all(feature = "usb-link", feature = "stm32g431"))]
+                    usb: (p.USB, p.PA12, p.PA11),
                     bus: $crate::stm32::Stm32Bus::new(i2c, embassy_stm32::pac::$i2c, lines, bus.frequency_hz, bus.timeout_us),
                     ports: $crate::stm32::Stm32Ports::new(new_adc(p.ADC1), ADC_BITS, sensors, actuators),
                     jumpers,

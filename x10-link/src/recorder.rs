@@ -40,7 +40,9 @@ struct State<const N: usize> {
     dropped: Dropped,
     reported: Dropped,
     seen: Seen,
-    /// The boards called or heard from: bit `a` of word `a / 32`.
+    /// The boards called or heard from: bit `a` of word `a / 32` (0, the motherboard's own
+    /// ports, is listed always; all zero at start, so the recorder needs no initial values
+    /// in flash).
     boards: [u32; 4],
 }
 
@@ -143,7 +145,7 @@ impl<const N: usize> Recorder<N> {
                     events: 0,
                     outputs: 0,
                 },
-                boards: [1, 0, 0, 0],
+                boards: [0; 4],
             })),
             data: Signal::new(),
             room: Signal::new(),
@@ -195,7 +197,7 @@ impl<const N: usize> Recorder<N> {
             let set = words
                 .get(usize::from(a / 32))
                 .is_some_and(|w| w & (1 << (a % 32)) != 0);
-            if set && out.push(a).is_err() {
+            if (set || a == 0) && out.push(a).is_err() {
                 break;
             }
         }
