@@ -13,6 +13,8 @@ use defmt_rtt as _;
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {
+    // The USB link's hello names the robot (`x10 monitor`, docs/usb-link.md).
+    x10_boards::start::name_robot(<robot::Robot as x10::Robot>::NAME);
     let p = init();
     let x10 = unwrap!(start_motherboard(spawner, p, MbConfig::new(MB_ADDRESS)));
     // One embassy task per task of the robot (`src/lib.rs`), each logging the error that ends it.
