@@ -12,9 +12,11 @@
 //! * [`soak`]: `x10 soak`, many calls on a faulty bus checked against the simulator's ground
 //!   truth.
 //! * [`new`]: `x10 new`, a robot crate from the template.
+//! * [`uf2`]: `x10 uf2`, a Pico image as a UF2 file for the boot ROM's drive (no probe).
 pub mod app;
 pub mod cli_sim;
 pub mod codec;
 pub mod new;
 pub mod report;
 pub mod soak;
+pub mod uf2;

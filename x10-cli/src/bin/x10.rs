@@ -46,6 +46,77 @@ enum Command {
     /// simulator's ground truth, per PEC mode and corruption level (docs/reliability.md).
     /// Fails (exit 1) when a mode that must be clean is not.
     Soak(x10_cli::soak::SoakArgs),
+    /// Write a Pico image (ELF) as a UF2 file and, with --copy, copy it to the Pico's boot
+    /// drive (hold BOOTSEL while plugging it in): flashing without a probe.
+    Uf2(Uf2Args),
+}
+
+const UF2_HELP: &str = "\
+EXAMPLE
+  cargo build --release -p x10-robots --target thumbv6m-none-eabi --features rp2040 --bin mb-pico
+  x10 uf2 target/thumbv6m-none-eabi/release/mb-pico --copy
+  (or copy target/thumbv6m-none-eabi/release/mb-pico.uf2 to the RPI-RP2 drive yourself)
+
+See docs/getting-started.md, \"Flashing without a probe\".";
+
+#[derive(Args)]
+#[command(after_help = UF2_HELP)]
+struct Uf2Args {
+    /// The image: an ELF file built for the RP2040.
+    elf: std::path::PathBuf,
+    /// The UF2 file to write (default: the ELF's path with .uf2).
+    #[arg(short, long, value_name = "FILE")]
+    out: Option<std::path::PathBuf>,
+    /// Copy the file to the Pico's boot drive (RPI-RP2, found under /media, /run/media or
+    /// /Volumes), or to this folder when given.
+    #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = "")]
+    copy: Option<std::path::PathBuf>,
+}
+
+fn uf2_main(args: Uf2Args) -> ExitCode {
+    use x10_cli::uf2;
+    let (file, blocks) = match uf2::convert(&args.elf, args.out.as_deref()) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("x10 uf2: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    println!(
+        "Wrote {} ({blocks} blocks of 256 bytes, family RP2040).",
+        file.display()
+    );
+    let Some(dir) = args.copy else {
+        return ExitCode::SUCCESS;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        match uf2::find_boot_drive() {
+            Some(d) => d,
+            None => {
+                eprintln!("x10 uf2: no RPI-RP2 drive found: hold BOOTSEL while plugging the Pico in, or name the folder with --copy DIR");
+                return ExitCode::FAILURE;
+            }
+        }
+    } else {
+        dir
+    };
+    let name = file
+        .file_name()
+        .map_or_else(|| "x10.uf2".into(), |n| n.to_owned());
+    let to = dir.join(name);
+    match std::fs::copy(&file, &to) {
+        Ok(_) => {
+            println!(
+                "Copied to {}: the Pico flashes it and restarts.",
+                to.display()
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("x10 uf2: {}: {e}", to.display());
+            ExitCode::FAILURE
+        }
+    }
 }
 
 const NEW_HELP: &str = "\
@@ -374,5 +445,6 @@ fn main() -> ExitCode {
         Command::Signals(args) => x10_cli::cli_sim::signals_main(args),
         Command::New(args) => new_main(args),
         Command::Soak(args) => x10_cli::soak::soak_main(&args),
+        Command::Uf2(args) => uf2_main(args),
     }
 }
