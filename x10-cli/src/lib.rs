@@ -12,10 +12,13 @@
 //! * [`soak`]: `x10 soak`, many calls on a faulty bus checked against the simulator's ground
 //!   truth.
 //! * [`new`]: `x10 new`, a robot crate from the template.
+//! * [`monitor`]: `x10 monitor`, the live robot over its USB link, and [`monitor::Robot`], the
+//!   laptop program's API.
 //! * [`uf2`]: `x10 uf2`, a Pico image as a UF2 file for the boot ROM's drive (no probe).
 pub mod app;
 pub mod cli_sim;
 pub mod codec;
+pub mod monitor;
 pub mod new;
 pub mod report;
 pub mod soak;

@@ -260,10 +260,21 @@ struct CallTracer {
     spans: Mutex<Vec<CallSpan>>,
     /// The boards the tasks called, each once, in the order of their first call.
     called: Mutex<Vec<u8>>,
+    /// Told of everything too ([`Sim::also_observe`]).
+    also: Option<&'static dyn CallObserver>,
 }
 
 impl CallObserver for CallTracer {
+    fn event(&self, event: &x10_microcode::Event<'_>, at: x10_hal::time::Instant) {
+        if let Some(also) = self.also {
+            also.event(event, at);
+        }
+    }
+
     fn observe(&self, call: &CallRecord<'_>) {
+        if let Some(also) = self.also {
+            also.observe(call);
+        }
         let who = current_task().map_or_else(|| "?".to_string(), |n| n.to_string());
         if who == "mb" {
             return;
@@ -448,6 +459,7 @@ pub struct Sim {
     mb_stop_ns: Option<Nanos>,
     task_errors: TaskErrors,
     shared_addresses: bool,
+    also_observe: Option<&'static dyn CallObserver>,
 }
 
 /// The robot tasks that ended with an error: (task, error text).
@@ -474,7 +486,16 @@ impl Sim {
             mb_stop_ns: None,
             task_errors: TaskErrors::default(),
             shared_addresses: false,
+            also_observe: None,
         }
+    }
+
+    /// Tells `observer` too of every call (the robot tasks' and the motherboard's own) and
+    /// every routed event, as a board's observer is told: the USB link's recorder
+    /// (`x10_link::recorder::Recorder`) sees a simulated robot this way.
+    pub fn also_observe(mut self, observer: &'static dyn CallObserver) -> Sim {
+        self.also_observe = Some(observer);
+        self
     }
 
     /// The configuration.
@@ -709,6 +730,7 @@ impl Sim {
             mb_stop_ns,
             task_errors,
             shared_addresses: _,
+            also_observe,
         } = self;
         let mut board_addresses = vec![0];
         board_addresses.extend(
@@ -760,6 +782,7 @@ impl Sim {
             lines: Mutex::new(Vec::new()),
             spans: Mutex::new(Vec::new()),
             called: Mutex::new(Vec::new()),
+            also: also_observe,
         }));
         let mut motherboard = Motherboard::new(mb_cfg, mb_ports).with_observer(tracer);
         if config.plug_and_play {

@@ -32,7 +32,7 @@ use crate::sim::SimOutcome;
 use crate::trace::Severity;
 use crate::world::{seconds, Device, DeviceKind, Signal, World};
 
-pub use plot::{timeline_html, timeline_svg, write_timeline, LABEL_ROWS};
+pub use plot::{timeline_html, timeline_html_of, timeline_svg, write_timeline, LABEL_ROWS};
 
 /// How long a motor state must last to count as a state of its own, in ns: an H-bridge
 /// command is three writes (two direction pins, then the duty), which go out as three
@@ -848,27 +848,11 @@ fn track_of(d: &Device, board: &str, events: &Events<'_>, end_ns: Nanos) -> Trac
     }
 }
 
-/// The short end-of-run text: per device what changed (outputs) or what was scripted
-/// (inputs), the bus load, and the warnings and errors of the trace.
-///
-/// ```text
-/// devices, 5.000 s at 400k:
-///    1.012 s  drive      forward 50 %
-///    1.520 s  drive      stopped
-///          -  heartbeat  never driven
-///     script  bumper     button on mb S2.B: pressed at 1.000 s for 50 ms, at 3.000 s for 50 ms
-/// bus: 510 transactions, busy 61.2 ms = 1.22 % of the run; 0 NACK, 0 arbitration lost, 0 timeouts, 0 bus faults, 0 resets
-/// warnings and errors: none
-/// ```
-pub fn summary(world: &World, outcome: &SimOutcome) -> String {
-    let tl = Timeline::new(world, outcome);
+/// The device lines of [`summary`] for the timeline `tl`: per device what changed (the first
+/// [`SUMMARY_CHANGES_PER_DEVICE`] changes, then how many more), its script (inputs) or that it
+/// did not change. `x10 monitor` prints them for a real robot too.
+pub fn device_summary(tl: &Timeline) -> String {
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "devices, {} at {}:",
-        seconds(outcome.end_ns),
-        outcome.speed
-    );
     let width = tl
         .devices
         .iter()
@@ -916,6 +900,31 @@ pub fn summary(world: &World, outcome: &SimOutcome) -> String {
             }
         }
     }
+    s
+}
+
+/// The short end-of-run text: per device what changed (outputs) or what was scripted
+/// (inputs), the bus load, and the warnings and errors of the trace.
+///
+/// ```text
+/// devices, 5.000 s at 400k:
+///    1.012 s  drive      forward 50 %
+///    1.520 s  drive      stopped
+///          -  heartbeat  never driven
+///     script  bumper     button on mb S2.B: pressed at 1.000 s for 50 ms, at 3.000 s for 50 ms
+/// bus: 510 transactions, busy 61.2 ms = 1.22 % of the run; 0 NACK, 0 arbitration lost, 0 timeouts, 0 bus faults, 0 resets
+/// warnings and errors: none
+/// ```
+pub fn summary(world: &World, outcome: &SimOutcome) -> String {
+    let tl = Timeline::new(world, outcome);
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "devices, {} at {}:",
+        seconds(outcome.end_ns),
+        outcome.speed
+    );
+    s.push_str(&device_summary(&tl));
     if let Some(line) = tl.motion().and_then(crate::physics::Motion::summary_line) {
         let _ = writeln!(s, "{line}");
     }

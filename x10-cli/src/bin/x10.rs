@@ -49,6 +49,9 @@ enum Command {
     /// Write a Pico image (ELF) as a UF2 file and, with --copy, copy it to the Pico's boot
     /// drive (hold BOOTSEL while plugging it in): flashing without a probe.
     Uf2(Uf2Args),
+    /// Watch a real robot over its motherboard's USB link: every call and output change live,
+    /// then the summary and the timeline page the simulator makes (docs/usb-link.md).
+    Monitor(x10_cli::monitor::MonitorArgs),
 }
 
 const UF2_HELP: &str = "\
@@ -446,5 +449,6 @@ fn main() -> ExitCode {
         Command::New(args) => new_main(args),
         Command::Soak(args) => x10_cli::soak::soak_main(&args),
         Command::Uf2(args) => uf2_main(args),
+        Command::Monitor(args) => x10_cli::monitor::monitor_main(&args),
     }
 }

@@ -872,12 +872,30 @@ const SCRIPT: &str = include_str!("zoom.js");
 /// picture with horizontal zoom and pan, every change in a table, and the [`summary`].
 pub fn timeline_html(world: &World, outcome: &SimOutcome, title: &str) -> String {
     let tl = Timeline::new(world, outcome);
-    let svg = tl.render(
+    page(
+        &tl,
         &plot_title(outcome),
         &Extras::new(&outcome.records, &outcome.calls),
-        false,
-    );
-    let text = summary(world, outcome);
+        &summary(world, outcome),
+        title,
+    )
+}
+
+/// The same page for a run that was not simulated (a real robot seen over the USB link,
+/// `x10 monitor`): its device timeline `tl`, its calls (no bus transactions: the link does not
+/// carry them), the plot's title, the summary text and the page's title.
+pub fn timeline_html_of(
+    tl: &Timeline,
+    calls: &[crate::sim::CallSpan],
+    plot_title: &str,
+    summary: &str,
+    title: &str,
+) -> String {
+    page(tl, plot_title, &Extras::new(&[], calls), summary, title)
+}
+
+fn page(tl: &Timeline, plot_title: &str, extras: &Extras<'_>, text: &str, title: &str) -> String {
+    let svg = tl.render(plot_title, extras, false);
     let mut rows: Vec<(Nanos, usize, String, String)> = Vec::new();
     for (i, d) in tl.devices.iter().enumerate() {
         for (t, st) in d.track.changes() {
@@ -935,7 +953,7 @@ td:first-child {{ font-variant-numeric: tabular-nums; }}
             .filter(|m| m.physics().chassis.is_some())
             .map(crate::physics::top_view_section)
             .unwrap_or_default(),
-        summary = escape(&text)
+        summary = escape(text)
     )
 }
 
