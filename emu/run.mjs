@@ -159,7 +159,7 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   const figures = [];
   const rigs = [];
   const ctx = {
-    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf, dbPnpElf, mbPnpElf,
+    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf, dbPnpElf, mbPnpElf, out,
     rig(options = {}) { const r = new Rig(options); rigs.push(r); return r; },
     check(name, ok, detail = '') { checks.push({ name, ok: !!ok, detail }); },
     figure(name, value) { figures.push({ name, value }); },
