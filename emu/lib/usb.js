@@ -150,3 +150,56 @@ export const LAPTOP = {
   /** ToDevice::Call { id, db, op: { fn_op, port, data } } (id < 128). */
   call: (id, db, fnOp, port, data = []) => linkFrame([2, id, db, fnOp, port, data.length, ...data]),
 };
+
+/** Decodes COBS (`bytes` without the final zero); null when malformed. */
+export function uncobs(bytes) {
+  const out = [];
+  let i = 0;
+  while (i < bytes.length) {
+    const code = bytes[i];
+    if (code === 0 || i + code > bytes.length) return null;
+    out.push(...bytes.slice(i + 1, i + code));
+    i += code;
+    if (code !== 255 && i < bytes.length) out.push(0);
+  }
+  return out;
+}
+
+/**
+ * The time stamps (µs of the MB's clock) of the link's records in `received` (the host's IN
+ * packets), with the virtual time their frame's last packet arrived: [{ kind, us, t }] for
+ * every `Call` (its end) and `Output` (docs/usb-link.md). Other messages are skipped.
+ */
+export function recordTimes(received) {
+  const out = [];
+  let frame = [];
+  for (const p of received) {
+    for (const b of p.bytes) {
+      if (b !== 0) { frame.push(b); continue; }
+      const msg = uncobs(frame);
+      frame = [];
+      if (!msg || msg.length < 3) continue;
+      const body = msg.slice(0, -2);
+      const c = crc16(body);
+      if (msg[msg.length - 2] !== (c & 0xff) || msg[msg.length - 1] !== c >> 8) continue;
+      let i = 0;
+      const varint = () => { let v = 0, s = 1; for (;;) { const x = body[i++]; v += (x & 0x7f) * s; s *= 128; if (x < 0x80) return v; } };
+      const tag = varint();
+      // (`i += varint()` would add to the old `i`: each length is read first.)
+      const skip = (n) => { i += n; };
+      if (tag === 2) { // Call: db, fn_op, port, data, outcome, start_us, end_us
+        skip(3);
+        skip(varint());
+        if (varint() === 0) skip(varint()); else if (varint() === 5) skip(1);
+        varint();
+        out.push({ kind: 'call', us: varint(), t: p.t });
+      } else if (tag === 4) { // Output: db, port, value, at_us
+        skip(2);
+        const v = varint();
+        if (v <= 1) skip(1); else varint();
+        out.push({ kind: 'output', us: varint(), t: p.t });
+      }
+    }
+  }
+  return out;
+}

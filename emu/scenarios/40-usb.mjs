@@ -2,7 +2,7 @@
 // USB host (lib/usb.js), its byte stream handed to `x10 monitor --from FILE`.
 import { writeFileSync } from 'node:fs';
 import { join } from 'node:path';
-import { UsbHost, LAPTOP } from '../lib/usb.js';
+import { UsbHost, LAPTOP, recordTimes } from '../lib/usb.js';
 import { sensorPort, parseSignals, parseSimSummary } from '../lib/world.js';
 
 const JUMPERS_OPEN = { 20: 1, 21: 1, 22: 1 };
@@ -79,6 +79,12 @@ export default [
       ctx.figure('USB link, x10 monitor against the simulator: largest difference (ms)', worst.toFixed(1));
       ctx.figure('USB link: laptop request to the MB\'s pin (µs)', high ? ((high.t - callAt) / 1e3).toFixed(0) : 'none');
       ctx.figure('USB link: bytes the MB sent over 4.5 s of Figure 4.4', String(bytes.length));
+      // From the MB's time stamp of a record (a call's end, an output change) to the arrival of
+      // the USB packet that ends its frame at the host.
+      const lat = recordTimes(host.received).map((r) => (r.t - r.us * 1000) / 1e6).sort((a, b) => a - b);
+      const pct = (q) => lat[Math.min(lat.length - 1, Math.floor(q * lat.length))];
+      ctx.check('every record reaches the host', lat.length > 0 && lat.every((x) => x >= 0), `${lat.length} records`);
+      if (lat.length) ctx.figure('USB link: record on the MB to the host (ms, p50 / p99 / max)', `${pct(0.5).toFixed(2)} / ${pct(0.99).toFixed(2)} / ${lat[lat.length - 1].toFixed(2)}`);
       ctx.figure('simulated s per wall s (2 chips and USB, fig4_4)', (END_MS / 1000 / wall).toFixed(2));
     },
   },
