@@ -379,8 +379,15 @@ impl LinkRun {
 /// The serial ports of X10 motherboards: `/sys/class/tty/*` whose USB device has the X10
 /// IDs (Linux), sorted.
 pub fn find_ports() -> Vec<PathBuf> {
+    find_ports_in(Path::new("/sys/class/tty"), Path::new("/dev"))
+}
+
+/// [`find_ports`] over the tty class folder `class` (each `ttyACM*` entry's `device` links to
+/// the USB interface, whose parent folder holds `idVendor` and `idProduct`), naming the ports
+/// in `dev`.
+pub fn find_ports_in(class: &Path, dev: &Path) -> Vec<PathBuf> {
     let mut found = Vec::new();
-    let Ok(entries) = std::fs::read_dir("/sys/class/tty") else {
+    let Ok(entries) = std::fs::read_dir(class) else {
         return found;
     };
     for e in entries.flatten() {
@@ -388,15 +395,15 @@ pub fn find_ports() -> Vec<PathBuf> {
         if !name.starts_with("ttyACM") {
             continue;
         }
-        // device -> the interface; its parent holds idVendor/idProduct.
-        let dev = e.path().join("device").join("..");
+        // `device` -> the interface; the OS resolves `..` from the link's target.
+        let usb = e.path().join("device").join("..");
         let read = |f: &str| {
-            std::fs::read_to_string(dev.join(f))
+            std::fs::read_to_string(usb.join(f))
                 .ok()
                 .and_then(|s| u16::from_str_radix(s.trim(), 16).ok())
         };
         if read("idVendor") == Some(USB_VID_PID.0) && read("idProduct") == Some(USB_VID_PID.1) {
-            found.push(PathBuf::from("/dev").join(&name));
+            found.push(dev.join(&name));
         }
     }
     found.sort();
@@ -875,6 +882,39 @@ mod tests {
         // Nothing more comes: no answer, after the timeout.
         robot.timeout = Duration::from_millis(1);
         assert!(matches!(robot.boards(), Err(RobotError::NoAnswer)));
+    }
+
+    #[test]
+    #[cfg(unix)]
+    fn the_port_is_found_by_its_usb_ids() {
+        // sysfs as Linux lays it out: class/tty/ttyACMn/device -> the USB interface folder,
+        // whose parent (the device) holds idVendor and idProduct.
+        let root = std::env::temp_dir().join(format!("x10-sysfs-{}", std::process::id()));
+        let class = root.join("class/tty");
+        std::fs::create_dir_all(&class).unwrap();
+        for (n, vid, pid) in [
+            (0, "1209", "0001"),
+            (1, "2e8a", "000a"),
+            (2, "1209", "0001"),
+        ] {
+            let usb = root.join(format!("devices/usb1/1-{n}"));
+            let iface = usb.join(format!("1-{n}:1.0"));
+            std::fs::create_dir_all(&iface).unwrap();
+            std::fs::write(usb.join("idVendor"), format!("{vid}\n")).unwrap();
+            std::fs::write(usb.join("idProduct"), format!("{pid}\n")).unwrap();
+            let tty = class.join(format!("ttyACM{n}"));
+            std::fs::create_dir_all(&tty).unwrap();
+            std::os::unix::fs::symlink(&iface, tty.join("device")).unwrap();
+        }
+        // Not a CDC-ACM port: skipped whatever it is.
+        std::fs::create_dir_all(class.join("ttyS0")).unwrap();
+        let found = find_ports_in(&class, Path::new("/dev"));
+        std::fs::remove_dir_all(&root).unwrap();
+        assert_eq!(
+            found,
+            [PathBuf::from("/dev/ttyACM0"), PathBuf::from("/dev/ttyACM2")]
+        );
+        assert!(find_ports_in(Path::new("/nonexistent/x10"), Path::new("/dev")).is_empty());
     }
 
     #[test]
