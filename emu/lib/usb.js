@@ -95,6 +95,20 @@ export class UsbHost {
     };
   }
 
+  /**
+   * Unplugs the device and plugs it in again: the host forgets it (its descriptors, its
+   * configuration, what was queued) and resets the bus after rp2040js's 10 ms; the device is
+   * enumerated again from its address.
+   */
+  replug() {
+    Object.assign(this.cdc, { descriptorsSize: null, descriptors: [], initialized: false, inEndpoint: -1, outEndpoint: -1 });
+    this.connected = null;
+    this.armed = 0;
+    this.tx = [];
+    this.replugs = (this.replugs ?? 0) + 1;
+    this.usb.resetDevice();
+  }
+
   /** Queues bytes for the device's OUT endpoint. */
   send(bytes) {
     this.tx.push(...bytes);
