@@ -152,10 +152,10 @@ pub struct Hello<'a> {
 
 /// The motherboard's counters (`firmware_mb::MbDiagnostics`) in the order of
 /// [`DIAG_NAMES`].
-pub type DiagCounters = heapless::Vec<u32, 40>;
+pub type DiagCounters = heapless::Vec<u32, 48>;
 
 /// The names of [`DiagCounters`], in order (the fields of `firmware_mb::MbDiagnostics`).
-pub const DIAG_NAMES: [&str; 36] = [
+pub const DIAG_NAMES: [&str; 42] = [
     "requests",
     "completed",
     "timeouts",
@@ -192,6 +192,12 @@ pub const DIAG_NAMES: [&str; 36] = [
     "pec_resyncs",
     "unexpected_reads",
     "listener_errors",
+    "announces",
+    "assigns",
+    "unassigned",
+    "boards_found",
+    "boards_lost",
+    "collisions",
 ];
 
 /// Motherboard to laptop.

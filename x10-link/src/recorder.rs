@@ -428,6 +428,12 @@ pub fn diag_counters(d: &MbDiagnostics) -> DiagCounters {
         d.pec_resyncs,
         d.unexpected_reads,
         d.listener_errors,
+        d.announces,
+        d.assigns,
+        d.unassigned,
+        d.boards_found,
+        d.boards_lost,
+        d.collisions,
     ];
     let mut v = DiagCounters::new();
     for c in all {

@@ -210,3 +210,20 @@ fn laptop_requests_are_served_through_x10_call_on_the_motherboard() {
     let levels: Vec<Change> = outcome.log.of("mb", a1b).iter().map(|c| c.change).collect();
     assert_eq!(levels.last(), Some(&Change::Digital(Level::High)));
 }
+
+#[test]
+fn the_diagnostics_names_are_the_motherboards_counters_in_order() {
+    // `MbDiagnostics`'s Debug lists its fields in declaration order.
+    let d = firmware_mb::MbDiagnostics::default();
+    let text = format!("{d:?}");
+    let names: Vec<&str> = text
+        .trim_start_matches("MbDiagnostics { ")
+        .trim_end_matches(" }")
+        .split(", ")
+        .map(|f| f.split(':').next().unwrap())
+        .collect();
+    assert_eq!(names, x10_link::DIAG_NAMES);
+    // And diag_counters gives one value per name.
+    let counters = x10_link::recorder::diag_counters(&d);
+    assert_eq!(counters.len(), x10_link::DIAG_NAMES.len());
+}
