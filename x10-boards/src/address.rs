@@ -3,8 +3,10 @@
 //!
 //! * The MB listens at [`MB_DEFAULT`] (0x08), or at `X10_MB_ADDR` when set at build time;
 //!   a DB image must be built with the same value, since its events go there.
-//! * The base comes from the environment variable `X10_DB_ADDR` when the image is built
-//!   (`X10_DB_ADDR=0x12 cargo db-pico`), decimal or `0x` hex; without it, [`DEFAULT_BASE`].
+//! * A DB image built without `X10_DB_ADDR` is plug and play: its address is given over the
+//!   bus and kept (`db_image.rs`, `docs/protocol.md`, "Addresses over the bus"). With it
+//!   (`X10_DB_ADDR=0x12 cargo db-pico`, decimal or `0x` hex) the base is an override;
+//!   [`build_base`] falls back to [`DEFAULT_BASE`] only for callers that want a base anyway.
 //!   [`parse`] runs in a `const`, so a bad value stops the build instead of the board.
 //! * Each jumper input has its internal pull-up on; a jumper fitted to GND reads low and sets
 //!   its bit. Jumper *k* adds 2^k: with three jumpers one image serves eight boards
@@ -13,7 +15,7 @@
 //!   than the MB's, again at build time. `0x77` is where unaddressed boards listen (plug and
 //!   play: `docs/protocol.md`, "Addresses over the bus"), never a board's or the MB's address.
 //!
-//! The default base is 9, the light-sensor board of the thesis's Figure 4.4 program.
+//! [`DEFAULT_BASE`] is 9, the light-sensor board of the thesis's Figure 4.4 program.
 
 use x10_microcode::Address;
 
