@@ -39,10 +39,7 @@ impl<F: NorFlash> AddressRecord for Kept<F> {
         if self.overridden {
             return Err(StoreError::NoRecord);
         }
-        // Nothing to write when the record already holds it (no wear).
-        if self.load() == Some(address) {
-            return Ok(());
-        }
+        // `Record::write` programs nothing when the record already holds it (no wear).
         self.record
             .write(address.get())
             .map_err(|_| StoreError::Failed)
