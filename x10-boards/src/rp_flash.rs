@@ -122,6 +122,43 @@ pub fn pages(
     }))
 }
 
+/// The Pico's flash with the bootloader `boot-pico` (issue 25), as offsets from the start of
+/// flash: boot2 (256 B), the bootloader, embassy-boot's STATE (one sector), ACTIVE (the
+/// daughterboard image, its 32 KiB budget) and DFU (ACTIVE plus one sector, where an update
+/// is written). The address record stays in the last two sectors (`record::PICO_RECORD_OFFSET`).
+/// The link maps of both images (`link_args.rs`) follow these numbers (tested).
+pub mod layout {
+    use super::SECTOR;
+
+    /// The bootloader's vector table, after boot2.
+    pub const BOOTLOADER: u32 = 0x100;
+    /// embassy-boot's state: one sector after the bootloader's 32 KiB (less boot2).
+    pub const STATE: u32 = 0x8000;
+    /// Its length.
+    pub const STATE_LEN: u32 = SECTOR;
+    /// The running daughterboard image (`db-pico` built with `active-slot`).
+    pub const ACTIVE: u32 = STATE + STATE_LEN;
+    /// Its length: the daughterboard images' 32 KiB budget.
+    pub const ACTIVE_LEN: u32 = 32 * 1024;
+    /// Where an update is written: ACTIVE plus the one sector embassy-boot's swap needs.
+    pub const DFU: u32 = ACTIVE + ACTIVE_LEN;
+    /// Its length.
+    pub const DFU_LEN: u32 = ACTIVE_LEN + SECTOR;
+
+    // embassy-boot 0.7's partition rules (`assert_partitions`, boot_loader.rs 425-436; its
+    // page is one sector, the state written a byte at a time), and the slots clear of the
+    // address record: a build-time error otherwise.
+    const _: () = assert!(
+        ACTIVE_LEN.is_multiple_of(SECTOR)
+            && DFU_LEN.is_multiple_of(SECTOR)
+            && DFU_LEN - ACTIVE_LEN >= SECTOR
+            && 2 + 4 * (ACTIVE_LEN / SECTOR) <= STATE_LEN
+            && STATE.is_multiple_of(SECTOR)
+            && ACTIVE.is_multiple_of(SECTOR)
+            && DFU + DFU_LEN <= crate::record::PICO_RECORD_OFFSET
+    );
+}
+
 /// The flash command that reads its 64-bit unique ID (Winbond W25Q: 0x4B, four dummy bytes,
 /// then the ID), as the bytes the SSI sends: the command, the dummies, and one byte clocked
 /// out for each ID byte. The SSI receives as many bytes as it sends (transfer mode 0).
@@ -265,6 +302,32 @@ mod tests {
             Err(NorFlashErrorKind::OutOfBounds)
         ));
         assert_eq!(pages(CAP - 8, 8, CAP).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn the_boot_layout_suits_embassy_boot_and_the_link_maps() {
+        use layout::*;
+        // In order, sector-aligned (embassy-boot's rules are checked at build time, in
+        // `layout`).
+        assert_eq!(
+            (STATE, ACTIVE, DFU, DFU + DFU_LEN),
+            (0x8000, 0x9000, 0x1_1000, 0x1_A000)
+        );
+        // The link maps (`link_args.rs`) say the same.
+        assert!(link::BOOT.contains("FLASH : ORIGIN = 0x10000100, LENGTH = 0x8000 - 0x100\n"));
+        assert!(link::ACTIVE.contains("FLASH : ORIGIN = 0x10009000, LENGTH = 32K\n"));
+        assert!(!link::ACTIVE.contains("BOOT2"));
+        assert_eq!(XIP_BASE + ACTIVE, 0x1000_9000);
+    }
+
+    /// The memory maps the build scripts write (`link_args.rs`), read as text.
+    mod link {
+        #![allow(dead_code)]
+        extern crate std;
+        use std::println;
+        include!("../link_args.rs");
+        pub const BOOT: &str = PICO_BOOT_MEMORY;
+        pub const ACTIVE: &str = PICO_ACTIVE_MEMORY;
     }
 
     #[test]
