@@ -54,6 +54,7 @@ pub mod port_lookup;
 pub mod pulse;
 pub mod pwm;
 pub mod record;
+pub mod region;
 pub mod rp_flash;
 pub mod stm32_latch;
 

@@ -167,10 +167,11 @@ const IMAGES: &[Image] = &[
 ];
 
 /// boot-pico's budget: its link region (0x10000100 to the STATE sector at 0x10008000), and a
-/// static RAM guard (1 444 B when set: embassy-rp's state, defmt-rtt's buffer).
+/// static RAM guard (2 540 B when set: the update session and its task, embassy-rp's state,
+/// defmt-rtt's buffer).
 const BOOT_PICO_BUDGET: Budget = Budget {
     flash: 0x8000 - 0x100,
-    ram: 2 * 1024,
+    ram: 3 * 1024,
 };
 
 /// The Pico's address record: its flash's last two 4 KiB sectors (`x10_boards::record`).
