@@ -103,7 +103,8 @@ pub struct UpdateConfig {
     /// Tries per board; a board that failed this often (e.g. rolled back each time) is left
     /// alone until the motherboard restarts.
     pub tries: u8,
-    /// Tries of one chunk after a transport error (a lost reply: the repeat is idempotent).
+    /// Tries of one request of the transfer after a transport error (the board is deaf while
+    /// it erases a sector, 45 ms on the Pico's flash; a lost reply: the repeat is idempotent).
     pub chunk_retries: u8,
 }
 
@@ -173,7 +174,7 @@ pub struct UpdateStats {
     pub failed: u16,
     /// Of those, boards that came back with their old version.
     pub rolled_back: u16,
-    /// Chunks sent again after a transport error.
+    /// Requests of the transfer sent again after a transport error.
     pub chunk_retries: u32,
     /// Transfers started again from `begin` (the board lost its session: a reset).
     pub restarts: u16,
@@ -217,8 +218,33 @@ async fn wait_for<L: UpdateLink, T>(
     }
 }
 
+/// `op` to `db`, tried again after a transport error (the board is deaf while it erases or
+/// writes its flash; a repeated chunk is idempotent) up to [`UpdateConfig::chunk_retries`]
+/// times, [`UpdateConfig::poll_us`] apart.
+async fn call_retrying<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    db: Address,
+    op: Op<'_>,
+    stats: &mut UpdateStats,
+) -> Result<x10_microcode::Payload, LinkError> {
+    let mut tries = 0u8;
+    loop {
+        match link.call(db, op).await {
+            Err(LinkError::Status(s)) => return Err(LinkError::Status(s)),
+            Err(e) if tries >= cfg.chunk_retries => return Err(e),
+            Err(_) => {
+                tries += 1;
+                stats.chunk_retries += 1;
+                link.pause(cfg.poll_us).await;
+            }
+            ok => return ok,
+        }
+    }
+}
+
 /// One transfer: `begin`, the chunks, `commit`. `Ok(false)`: the board lost its session
-/// (it reset): start again from `begin`.
+/// (`no_session`, or no answer after the retries: it was reset): start again from `begin`.
 async fn transfer<L: UpdateLink>(
     link: &L,
     cfg: &UpdateConfig,
@@ -226,16 +252,13 @@ async fn transfer<L: UpdateLink>(
     image: &DbImage,
     stats: &mut UpdateStats,
 ) -> Result<bool, UpdateError> {
-    // `no_session`, or no answer: the board was reset and lost the transfer.
     let refused = |e: LinkError| match e {
         LinkError::Status(Status::NoSession) => Ok(false),
         LinkError::Status(s) => Err(UpdateError::Refused(s)),
         _ => Ok(false),
     };
-    if let Err(e) = link
-        .call(db, Op::Update(UpdateOp::Begin(image.info())))
-        .await
-    {
+    let begin = Op::Update(UpdateOp::Begin(image.info()));
+    if let Err(e) = call_retrying(link, cfg, db, begin, stats).await {
         return refused(e);
     }
     let mut offset = 0usize;
@@ -244,25 +267,13 @@ async fn transfer<L: UpdateLink>(
             offset: offset as u32,
             data,
         });
-        let mut tries = 0u8;
-        loop {
-            match link.call(db, op).await {
-                Ok(_) => break,
-                Err(e @ LinkError::Status(_)) => return refused(e),
-                // Still nothing after the retries: the board is away (a reset); it comes
-                // back in its bootloader without the session.
-                Err(_) if tries >= cfg.chunk_retries => return Ok(false),
-                Err(_) => {
-                    tries += 1;
-                    stats.chunk_retries += 1;
-                    link.pause(cfg.poll_us).await;
-                }
-            }
+        if let Err(e) = call_retrying(link, cfg, db, op, stats).await {
+            return refused(e);
         }
         offset += data.len();
         link.pause(cfg.chunk_gap_us).await;
     }
-    match link.call(db, Op::Update(UpdateOp::Commit)).await {
+    match call_retrying(link, cfg, db, Op::Update(UpdateOp::Commit), stats).await {
         Ok(_) => Ok(true),
         Err(e) => refused(e),
     }
