@@ -19,7 +19,7 @@
 use x10_devices::LinkError;
 use x10_microcode::{
     Address, BoardKind, Identity, ImageInfo, Op, Status, Uid, UpdateOp, UpdateReport, Version,
-    CHUNK_MAX,
+    CHUNK_MAX, MAX_REQUEST_DATA,
 };
 
 /// An image of a daughterboard's firmware, as an MB image carries it.
@@ -257,23 +257,27 @@ async fn transfer<L: UpdateLink>(
         LinkError::Status(s) => Err(UpdateError::Refused(s)),
         _ => Ok(false),
     };
-    let begin = Op::Update(UpdateOp::Begin(image.info()));
+    let mut buf = [0u8; MAX_REQUEST_DATA];
+    let begin = UpdateOp::Begin(image.info()).to_op(&mut buf);
     if let Err(e) = call_retrying(link, cfg, db, begin, stats).await {
         return refused(e);
     }
     let mut offset = 0usize;
     for data in image.bytes.chunks(CHUNK_MAX) {
-        let op = Op::Update(UpdateOp::Chunk {
+        let mut buf = [0u8; MAX_REQUEST_DATA];
+        let op = UpdateOp::Chunk {
             offset: offset as u32,
             data,
-        });
+        }
+        .to_op(&mut buf);
         if let Err(e) = call_retrying(link, cfg, db, op, stats).await {
             return refused(e);
         }
         offset += data.len();
         link.pause(cfg.chunk_gap_us).await;
     }
-    match call_retrying(link, cfg, db, Op::Update(UpdateOp::Commit), stats).await {
+    let commit = UpdateOp::Commit.to_op(&mut buf);
+    match call_retrying(link, cfg, db, commit, stats).await {
         Ok(_) => Ok(true),
         Err(e) => refused(e),
     }
@@ -322,7 +326,9 @@ async fn update_marked<L: UpdateLink>(
 ) -> Result<(), UpdateError> {
     // A board already in its bootloader (a power cut during an earlier update) answers
     // `status`; an application answers it `unsupported`, and takes `enter_update`.
-    let in_bootloader = link.call(db, Op::Update(UpdateOp::Status)).await.is_ok();
+    let mut buf = [0u8; MAX_REQUEST_DATA];
+    let status = UpdateOp::Status.to_op(&mut buf);
+    let in_bootloader = link.call(db, status).await.is_ok();
     if !in_bootloader {
         link.call(db, Op::EnterUpdate)
             .await
@@ -331,7 +337,7 @@ async fn update_marked<L: UpdateLink>(
     let mut restarts = 0u8;
     loop {
         let up = wait_for(link, cfg, cfg.bootloader_wait_us, async || {
-            let p = link.call(db, Op::Update(UpdateOp::Status)).await.ok()?;
+            let p = link.call(db, status).await.ok()?;
             UpdateReport::parse(&p).ok()
         })
         .await;

@@ -302,7 +302,10 @@ impl UpdateLink for Bus {
         let req = Request { db, seq: 7, op };
         let mut buf = [0u8; 40];
         let n = req.emit_with_pec(&mut buf).unwrap();
-        if let Op::Update(UpdateOp::Chunk { offset, .. }) = op {
+        if let Some(UpdateOp::Chunk { offset, .. }) = match op {
+            Op::Update(f) => Some(f.op()),
+            _ => None,
+        } {
             let cut = b.cut_at_offset.borrow().first() == Some(&offset);
             if cut {
                 b.cut_at_offset.borrow_mut().remove(0);
@@ -329,7 +332,7 @@ impl UpdateLink for Bus {
                     let before = b.busy.get();
                     s.work();
                     b.deaf_until.set(self.now.get() + b.busy.get() - before);
-                    let body = pec::strip(db.addr_byte(false), &rx[..m]).unwrap();
+                    let body = pec::strip(db.addr_byte(true), &rx[..m]).unwrap();
                     let r = Reply::parse(body).unwrap();
                     (r.status, r.payload.to_vec(), s.exit() != Exit::Stay)
                 }

@@ -278,25 +278,21 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
             status,
             payload: payload.as_ref().map_or(&[][..], |p| &p[..]),
         };
+        // A reply's check covers the read address byte, as every reply's does.
         self.reply_len = reply
-            .emit(&mut self.reply)
-            .and_then(|n| pec::append(addr_byte, &mut self.reply, n))
+            .emit_with_pec(self.config.address, &mut self.reply)
             .unwrap_or(0);
     }
 
     /// Writes the held reply (or a `no_request` reply) into `buf`; returns its length.
     pub fn take_reply(&mut self, buf: &mut [u8]) -> usize {
         if self.reply_len == 0 {
-            let addr_byte = self.config.address.addr_byte(false);
             let reply = Reply {
                 seq: 0,
                 status: Status::NoRequest,
                 payload: &[],
             };
-            return reply
-                .emit(buf)
-                .and_then(|n| pec::append(addr_byte, buf, n))
-                .unwrap_or(0);
+            return reply.emit_with_pec(self.config.address, buf).unwrap_or(0);
         }
         let n = self.reply_len;
         self.reply_len = 0;
@@ -322,8 +318,10 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
             Err(e) => return (e.status(), None),
         };
         match op {
-            Op::Update(UpdateOp::Status) => (Status::Ok, Some(self.report().to_bytes())),
-            Op::Update(u) => (self.update(u), None),
+            Op::Update(f) => match f.op() {
+                UpdateOp::Status => (Status::Ok, Some(self.report().to_bytes())),
+                u => (self.update(u), None),
+            },
             // A bootloader is found by a ping; the application's operations wait for it.
             Op::Ping => (Status::Ok, None),
             _ => (Status::Unsupported, None),

@@ -195,10 +195,11 @@ fn frames_without_their_check_or_for_another_board_are_refused() {
             board: KIND,
             version: NEW,
         };
+        let mut data = [0u8; 28];
         let req = x10_microcode::Request {
             db: Address::new(DB).unwrap(),
             seq: 9,
-            op: x10_microcode::Op::Update(UpdateOp::Begin(info)),
+            op: UpdateOp::Begin(info).to_op(&mut data),
         };
         let mut buf = [0u8; 40];
         let n = req.emit(&mut buf).unwrap();
@@ -234,7 +235,7 @@ fn frames_without_their_check_or_for_another_board_are_refused() {
         // A read with nothing held.
         let mut rx = [0u8; 8];
         let n = s.take_reply(&mut rx);
-        let body = pec::strip(Address::new(DB).unwrap().addr_byte(false), &rx[..n]).unwrap();
+        let body = pec::strip(Address::new(DB).unwrap().addr_byte(true), &rx[..n]).unwrap();
         assert_eq!(Reply::parse(body).unwrap().status, Status::NoRequest);
     }));
 }
@@ -257,10 +258,11 @@ fn leave_boots_the_current_image() {
 #[test]
 fn the_exit_waits_for_the_reply_to_be_read() {
     with_session(|s| {
+        let mut data = [0u8; 28];
         let req = x10_microcode::Request {
             db: Address::new(DB).unwrap(),
             seq: 1,
-            op: x10_microcode::Op::Update(UpdateOp::Leave),
+            op: UpdateOp::Leave.to_op(&mut data),
         };
         let mut buf = [0u8; 16];
         let n = req.emit_with_pec(&mut buf).unwrap();
@@ -281,10 +283,11 @@ fn flash_work_waits_until_the_reply_has_been_read() {
     let mut s: Session<'_, Part, Part, BUF> = Session::new(config(), board.part(2, &power), st);
     let img = image(300, NEW, 7);
     let send = |s: &mut Session<'_, Part, Part, BUF>, op: UpdateOp<'_>| {
+        let mut data = [0u8; 28];
         let req = x10_microcode::Request {
             db: Address::new(DB).unwrap(),
             seq: 1,
-            op: x10_microcode::Op::Update(op),
+            op: op.to_op(&mut data),
         };
         let mut buf = [0u8; 40];
         let n = req.emit_with_pec(&mut buf).unwrap();

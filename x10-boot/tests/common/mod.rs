@@ -12,8 +12,7 @@ use embedded_storage::nor_flash::{
 };
 use x10_boot::{BootConfig, Exit, Session, StartMode};
 use x10_microcode::{
-    pec, Address, BoardKind, ImageInfo, Op, Reply, Request, Status, UpdateOp, UpdateReport,
-    CHUNK_MAX,
+    pec, Address, BoardKind, ImageInfo, Reply, Request, Status, UpdateOp, UpdateReport, CHUNK_MAX,
 };
 
 /// Erase sector (the RP2040's flash: 4 KiB).
@@ -300,10 +299,11 @@ pub fn call<D: NorFlash, S: NorFlash, const W: usize>(
     seq: u8,
     op: UpdateOp<'_>,
 ) -> (Status, Vec<u8>) {
+    let mut data = [0u8; 28];
     let req = Request {
         db: Address::new(DB).unwrap(),
         seq,
-        op: Op::Update(op),
+        op: op.to_op(&mut data),
     };
     let mut buf = [0u8; 40];
     let n = req.emit_with_pec(&mut buf).unwrap();
@@ -317,7 +317,7 @@ pub fn read_reply<D: NorFlash, S: NorFlash, const W: usize>(
 ) -> (Status, Vec<u8>) {
     let mut rx = [0u8; 40];
     let n = s.take_reply(&mut rx);
-    let body = pec::strip(Address::new(DB).unwrap().addr_byte(false), &rx[..n]).unwrap();
+    let body = pec::strip(Address::new(DB).unwrap().addr_byte(true), &rx[..n]).unwrap();
     let r = Reply::parse(body).unwrap();
     assert_eq!(r.seq, seq);
     let out = (r.status, r.payload.to_vec());
