@@ -44,6 +44,7 @@
 pub mod pins;
 pub mod address;
 pub mod crash;
+pub mod g431_boot;
 pub mod i2c_v2;
 // Raw-pointer loops behind the images' memcpy/memset (see the module): the one place of
 // this crate that needs `unsafe`.
