@@ -183,3 +183,59 @@ pub fn address_record(
 ) -> Result<x10_store::Record<C011Otp>, x10_store::StoreError> {
     x10_store::Record::append_only(C011Otp::new(flash), 0, crate::record::C011_OTP_LEN)
 }
+
+/// System 12 on the C011 (issue 25): leaves the image for ST's ROM bootloader, which then
+/// answers the motherboard at 0x64 on the same pins (I2C1, PB6/PB7) and takes the new image
+/// (`x10-stmboot`). The steps are [`crate::c011_rom`]'s; every register named here was read
+/// in stm32-metapac 21 (`rcc_c0.rs`, `syscfg_c0.rs`) and the steps against RM0490 and ST's
+/// STM32C0 HAL, not run on a board: verified by reading only.
+///
+/// The independent watchdog keeps running (nothing stops it); AN2606's STM32C011xx section
+/// says the bootloader refreshes it (and Arduino's Modulino firmware, whose watchdog runs with
+/// a 0.5 s timeout, is updated this way). The actuator pins go to their reset state (inputs)
+/// with the GPIO reset, as at any reset.
+///
+/// # Errors
+/// [`c011_rom::RomEntryError`](crate::c011_rom::RomEntryError) when the system memory does
+/// not hold a vector table (nothing has been changed then).
+#[allow(unsafe_code)]
+pub fn enter_rom_bootloader() -> Result<core::convert::Infallible, crate::c011_rom::RomEntryError> {
+    use crate::c011_rom::{rom_vector, SYSTEM_MEMORY};
+    use embassy_stm32::pac;
+    // SAFETY: the system memory is readable ROM.
+    let words = unsafe {
+        [
+            core::ptr::read_volatile(SYSTEM_MEMORY as *const u32),
+            core::ptr::read_volatile((SYSTEM_MEMORY + 4) as *const u32),
+        ]
+    };
+    rom_vector(words)?;
+    cortex_m::interrupt::disable();
+    // SAFETY: interrupts are off; what follows only stops and resets, and never returns.
+    unsafe {
+        let nvic = &*cortex_m::peripheral::NVIC::PTR;
+        nvic.icer[0].write(!0);
+        nvic.icpr[0].write(!0);
+        (*cortex_m::peripheral::SYST::PTR).csr.write(0);
+    }
+    // The clock back to its reset value (HSISYS = HSI48 / 4, 12 MHz: the flash's wait state
+    // stays, more than enough), then every peripheral reset and released.
+    let rcc = pac::RCC;
+    rcc.cr()
+        .modify(|w| w.set_hsidiv(pac::rcc::vals::Hsidiv::DIV4));
+    rcc.gpiorstr().write_value(pac::rcc::regs::Gpiorstr(!0));
+    rcc.ahbrstr().write_value(pac::rcc::regs::Ahbrstr(!0));
+    rcc.apbrstr1().write_value(pac::rcc::regs::Apbrstr1(!0));
+    rcc.apbrstr2().write_value(pac::rcc::regs::Apbrstr2(!0));
+    rcc.gpiorstr().write_value(pac::rcc::regs::Gpiorstr(0));
+    rcc.ahbrstr().write_value(pac::rcc::regs::Ahbrstr(0));
+    rcc.apbrstr1().write_value(pac::rcc::regs::Apbrstr1(0));
+    rcc.apbrstr2().write_value(pac::rcc::regs::Apbrstr2(0));
+    // The system memory at address 0, as when the chip boots into it.
+    rcc.apbenr2().modify(|w| w.set_syscfgen(true));
+    pac::SYSCFG
+        .cfgr1()
+        .modify(|w| w.set_mem_mode(pac::syscfg::vals::MemMode::SYSTEM_FLASH));
+    // SAFETY: the vector table was checked above; the jump never returns.
+    unsafe { cortex_m::asm::bootload(SYSTEM_MEMORY as *const u32) }
+}

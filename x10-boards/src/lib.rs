@@ -43,6 +43,7 @@
 #[macro_use]
 pub mod pins;
 pub mod address;
+pub mod c011_rom;
 pub mod crash;
 pub mod g431_boot;
 pub mod i2c_v2;
