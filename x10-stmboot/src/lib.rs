@@ -53,9 +53,9 @@ use embedded_hal_async::i2c::I2c;
 #[cfg(feature = "model")]
 pub mod model;
 
-/// The 7-bit I2C address of the STM32C011's ROM bootloader (Arduino's Modulino library,
-/// `MODULINO_BOOTLOADER_ADDR`; AN2606's STM32C011xx section gives the address as
-/// `0b1100100x`).
+/// The 7-bit I2C address of the STM32C011's ROM bootloader: Arduino's Modulino library's
+/// `MODULINO_BOOTLOADER_ADDR` and its MicroPython flasher's `BOOTLOADER_I2C_ADDRESS`, for the
+/// same chip on the same pins (AN2606's STM32C011xx section was not at hand).
 pub const ROM_ADDRESS: u8 = 0x64;
 
 /// The bootloader's acknowledge byte.
