@@ -104,6 +104,14 @@ fn count_status(d: &mut Diagnostics, s: Status) {
         | Status::Busy
         | Status::Timeout
         | Status::NoRequest
+        | Status::WrongKind
+        | Status::TooLarge
+        | Status::BadCrc
+        | Status::OutOfOrder
+        | Status::TooOld
+        | Status::FlashError
+        | Status::NoSession
+        | Status::Incomplete
         | Status::Unknown(_) => &mut d.other_errors,
     };
     bump(c);
@@ -348,6 +356,30 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         match self.record.lock(|r| r.borrow_mut().store(address)) {
             Ok(()) => {
                 self.with(|s| s.moving = Some(address));
+                Status::Ok
+            }
+            Err(StoreError::NoRecord) => Status::Unsupported,
+            Err(StoreError::Failed) => Status::Busy,
+        }
+    }
+
+    /// System 12 (`enter`) and 13 through the record's hooks; the status to answer. After
+    /// `enter_update` the board resets once its reply has been read, as after a move to the
+    /// address it has ([`Daughterboard::moved`]).
+    fn firmware(&self, enter: bool) -> Status {
+        let r = self.record.lock(|r| {
+            let mut r = r.borrow_mut();
+            if enter {
+                r.enter_update()
+            } else {
+                r.confirm_firmware()
+            }
+        });
+        match r {
+            Ok(()) => {
+                if enter {
+                    self.with(|s| s.moving = Some(self.config.address));
+                }
                 Status::Ok
             }
             Err(StoreError::NoRecord) => Status::Unsupported,
@@ -752,6 +784,10 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             // unaddressed boards (`execute_frame`): a board with an address ignores it.
             Op::Batch(_) | Op::Assign { .. } => Done::status(Status::BadArgument),
             Op::SetAddress(a) => Done::status(self.keep_address(a)),
+            Op::EnterUpdate => Done::status(self.firmware(true)),
+            Op::ConfirmFirmware => Done::status(self.firmware(false)),
+            // Function 7 is the bootloader's.
+            Op::Update(_) => Done::status(Status::Unsupported),
             Op::Blink(secs) => Done::from_port(p.blink(secs), |_| Done::ok()),
             Op::WhoIsThere => {
                 self.push_event(

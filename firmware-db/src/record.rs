@@ -32,6 +32,28 @@ pub trait AddressRecord {
     /// # Errors
     /// [`StoreError::NoRecord`], [`StoreError::Failed`].
     fn store(&mut self, address: Address) -> Result<(), StoreError>;
+
+    /// System 12, `enter_update`: marks the board's boot state so that its bootloader stays in
+    /// update mode at the next start (`x10_boot::enter_update` on a chip). On `Ok` the runtime
+    /// answers `ok` and, once the reply has been read, restarts the board as after a move to
+    /// the address it has ([`crate::Daughterboard::moved`]): the image resets the chip.
+    ///
+    /// # Errors
+    /// [`StoreError::NoRecord`] without a bootloader (the default: answered `unsupported`),
+    /// [`StoreError::Failed`] when the mark could not be written (`busy`).
+    fn enter_update(&mut self) -> Result<(), StoreError> {
+        Err(StoreError::NoRecord)
+    }
+
+    /// System 13, `confirm_firmware`: the running image marks itself good, so that the
+    /// bootloader keeps it at the next reset (`x10_boot::confirm_firmware` on a chip). The
+    /// default: nothing to confirm, `Ok`.
+    ///
+    /// # Errors
+    /// [`StoreError::Failed`] when the mark could not be written (`busy`).
+    fn confirm_firmware(&mut self) -> Result<(), StoreError> {
+        Ok(())
+    }
 }
 
 /// A board that keeps no address: with a build-time override, or without flash to spare.
@@ -55,6 +77,14 @@ impl<R: AddressRecord> AddressRecord for &mut R {
 
     fn store(&mut self, address: Address) -> Result<(), StoreError> {
         (**self).store(address)
+    }
+
+    fn enter_update(&mut self) -> Result<(), StoreError> {
+        (**self).enter_update()
+    }
+
+    fn confirm_firmware(&mut self) -> Result<(), StoreError> {
+        (**self).confirm_firmware()
     }
 }
 

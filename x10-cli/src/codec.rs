@@ -150,6 +150,8 @@ const OPS: &[OpInfo] = ops! {
     system set_address       0x09 Board [address]           true;
     system blink             0x0a Board [secs]              false;
     system who_is_there      0x0b Board []                  false;
+    system enter_update      0x0c Board []                  true;
+    system confirm_firmware  0x0d Board []                  true;
     io     input             0x10 Pin   []                  true;
     io     low               0x11 Pin   []                  false;
     io     high              0x12 Pin   []                  false;
@@ -164,6 +166,11 @@ const OPS: &[OpInfo] = ops! {
     serial config            0x42 Port  [baud]              false;
     batch  batch             0x50 Board [items]             true;
     scan   scan              0x60 Board []                  true;
+    update begin             0x70 Board [image_len crc32 board version] true;
+    update chunk             0x71 Board [offset bytes]      true;
+    update commit            0x72 Board []                  true;
+    update status            0x73 Board []                  true;
+    update leave             0x74 Board []                  true;
 };
 
 fn op_info(function: &str, operation: &str) -> Option<&'static OpInfo> {
@@ -659,6 +666,12 @@ struct OpFields {
     count: Option<u8>,
     baud: Option<u32>,
     items: Option<Vec<Value>>,
+    image_len: Option<u32>,
+    crc32: Option<u32>,
+    board: Option<x10_microcode::BoardKind>,
+    version: Option<[u8; 3]>,
+    offset: Option<u32>,
+    bytes: Option<Vec<u8>>,
 }
 
 /// The data bytes of operation `info` on `pin` from its fields in `o`, when `data` is not
@@ -706,6 +719,21 @@ fn data_from_fields(o: Input<'_>, info: &OpInfo, pin: Option<PinRef>) -> Result<
                 CodecError::new("`items` (an array of operations) is required for batch")
             })?;
             return batch_data(items);
+        }
+        ("update", "begin") => {
+            Op::Update(x10_microcode::UpdateOp::Begin(x10_microcode::ImageInfo {
+                len: need(f.image_len, "image_len", &what)?,
+                crc32: need(f.crc32, "crc32", &what)?,
+                board: need(f.board, "board", &what)?,
+                version: need(f.version, "version", &what)?,
+            }))
+        }
+        ("update", "chunk") => {
+            let offset = need(f.offset, "offset", &what)?;
+            let bytes = need(f.bytes, "bytes", &what)?;
+            let mut data = offset.to_le_bytes().to_vec();
+            data.extend_from_slice(&bytes);
+            return Ok(data);
         }
         // The others carry no data.
         _ => return Ok(Vec::new()),

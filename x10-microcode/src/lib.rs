@@ -58,6 +58,7 @@ mod system;
 #[doc(hidden)]
 pub mod test_support;
 mod types;
+mod update;
 
 pub use batch::{Batch, BatchItem, BatchItems, BatchResults, BatchWriter};
 pub use error::Error;
@@ -71,6 +72,9 @@ pub use system::{
     DIAGNOSTIC_NAMES,
 };
 pub use types::{Address, Edge, Level, Pin, PinRef, Port, PortKind, Uid};
+pub use update::{
+    image_crc32, ImageInfo, UpdateOp, UpdateReport, UpdateState, Version, CHUNK_MAX, IMAGE_CRC,
+};
 
 /// Result type of this crate.
 pub type Result<T> = core::result::Result<T, Error>;

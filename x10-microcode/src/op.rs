@@ -27,6 +27,8 @@ pub enum Function {
     Batch,
     /// 0x6, new: every sensor port of the board in one reply.
     Scan,
+    /// 0x7, new: the frames a board's bootloader answers during a firmware update.
+    Update,
     /// Any other code.
     Unknown(u8),
 }
@@ -42,6 +44,7 @@ impl Function {
             4 => Function::Serial,
             5 => Function::Batch,
             6 => Function::Scan,
+            7 => Function::Update,
             x => Function::Unknown(x),
         }
     }
@@ -56,6 +59,7 @@ impl Function {
             Function::Serial => 4,
             Function::Batch => 5,
             Function::Scan => 6,
+            Function::Update => 7,
             Function::Unknown(x) => x,
         }
     }
@@ -70,6 +74,7 @@ impl Function {
             Function::Serial => "serial",
             Function::Batch => "batch",
             Function::Scan => "scan",
+            Function::Update => "update",
             Function::Unknown(_) => "unknown",
         }
     }
@@ -92,6 +97,8 @@ impl Operand {
     pub const SYS_SET_ADDRESS: u8 = 9;
     pub const SYS_BLINK: u8 = 10;
     pub const SYS_WHO_IS_THERE: u8 = 11;
+    pub const SYS_ENTER_UPDATE: u8 = 12;
+    pub const SYS_CONFIRM_FIRMWARE: u8 = 13;
     pub const IO_INPUT: u8 = 0;
     pub const IO_LOW: u8 = 1;
     pub const IO_HIGH: u8 = 2;
@@ -151,6 +158,15 @@ pub enum Op<'a> {
     /// System 11, every board at the address queues an `announce` event from that address
     /// (two IDs for one address: a collision). No reply.
     WhoIsThere,
+    /// System 12, firmware update: the board answers `ok` and, once the reply has been read,
+    /// resets into its bootloader, which then answers [`Op::Update`] (a board without one
+    /// answers `unsupported`). Its outputs go to their safe state by the reset.
+    EnterUpdate,
+    /// System 13, the running image marks itself good (it is kept at the next reset instead
+    /// of being rolled back); `ok` also when there was nothing to confirm.
+    ConfirmFirmware,
+    /// Function 7, answered by a board's bootloader only ([`crate::UpdateOp`]).
+    Update(crate::UpdateOp<'a>),
     /// IO 0, read a digital pin (thesis `digitalIn`): reply payload 1 byte, 0 or 1.
     DigitalRead(PinRef),
     /// IO 1 / IO 2, drive a digital pin (thesis `digitalOut`). No reply.
@@ -299,6 +315,8 @@ impl<'a> Op<'a> {
                         _ => Err(Error::BadLength),
                     },
                     Operand::SYS_WHO_IS_THERE => no_data(data).map(|_| Op::WhoIsThere),
+                    Operand::SYS_ENTER_UPDATE => no_data(data).map(|_| Op::EnterUpdate),
+                    Operand::SYS_CONFIRM_FIRMWARE => no_data(data).map(|_| Op::ConfirmFirmware),
                     _ => Err(unknown),
                 }?;
                 no_port(port)?;
@@ -398,6 +416,7 @@ impl<'a> Op<'a> {
                 no_port(port)?;
                 Ok(Op::Scan)
             }
+            Function::Update => crate::UpdateOp::parse(operand, port, data).map(Op::Update),
             Function::Unknown(f) => Err(Error::UnknownFunction(f)),
         }
     }
@@ -416,13 +435,16 @@ impl<'a> Op<'a> {
             | Op::Assign { .. }
             | Op::SetAddress(_)
             | Op::Blink(_)
-            | Op::WhoIsThere => Function::System,
+            | Op::WhoIsThere
+            | Op::EnterUpdate
+            | Op::ConfirmFirmware => Function::System,
             Op::DigitalRead(_) | Op::DigitalWrite(..) | Op::PulseIn { .. } => Function::Io,
             Op::PwmDuty(..) | Op::PwmFrequency(..) | Op::PwmPulseWidth(..) => Function::Pwm,
             Op::AnalogRead(_) => Function::Analog,
             Op::SerialWrite(..) | Op::SerialRead(..) | Op::SerialConfig(..) => Function::Serial,
             Op::Batch(_) => Function::Batch,
             Op::Scan => Function::Scan,
+            Op::Update(_) => Function::Update,
         }
     }
 
@@ -441,6 +463,9 @@ impl<'a> Op<'a> {
             Op::SetAddress(_) => Operand::SYS_SET_ADDRESS,
             Op::Blink(_) => Operand::SYS_BLINK,
             Op::WhoIsThere => Operand::SYS_WHO_IS_THERE,
+            Op::EnterUpdate => Operand::SYS_ENTER_UPDATE,
+            Op::ConfirmFirmware => Operand::SYS_CONFIRM_FIRMWARE,
+            Op::Update(u) => u.operand(),
             Op::DigitalRead(_) => Operand::IO_INPUT,
             Op::DigitalWrite(_, Level::Low) => Operand::IO_LOW,
             Op::DigitalWrite(_, Level::High) => Operand::IO_HIGH,
@@ -493,6 +518,9 @@ impl<'a> Op<'a> {
             | Op::SetAddress(_)
             | Op::Blink(_)
             | Op::WhoIsThere
+            | Op::EnterUpdate
+            | Op::ConfirmFirmware
+            | Op::Update(_)
             | Op::Batch(_)
             | Op::Scan => None,
         }
@@ -519,6 +547,9 @@ impl<'a> Op<'a> {
             Op::SetAddress(_) => "set_address",
             Op::Blink(_) => "blink",
             Op::WhoIsThere => "who_is_there",
+            Op::EnterUpdate => "enter_update",
+            Op::ConfirmFirmware => "confirm_firmware",
+            Op::Update(u) => u.name(),
             Op::DigitalRead(_) => "input",
             Op::DigitalWrite(_, Level::Low) => "low",
             Op::DigitalWrite(_, Level::High) => "high",
@@ -553,6 +584,8 @@ impl<'a> Op<'a> {
             | Op::DigitalWrite(..)
             | Op::AnalogRead(_)
             | Op::WhoIsThere
+            | Op::EnterUpdate
+            | Op::ConfirmFirmware
             | Op::Scan => 0,
             Op::SetPec(_)
             | Op::SetAddress(_)
@@ -572,6 +605,7 @@ impl<'a> Op<'a> {
             Op::EventEnable(..) => EventConfig::LEN,
             Op::SerialWrite(_, data) => data.len(),
             Op::Batch(b) => b.as_bytes().len(),
+            Op::Update(u) => u.data_len(),
         }
     }
 
@@ -604,6 +638,7 @@ impl<'a> Op<'a> {
             Op::EventEnable(_, cfg) => copy_into(buf, &cfg.to_bytes()),
             Op::SerialWrite(_, data) => copy_into(buf, data),
             Op::Batch(b) => copy_into(buf, b.as_bytes()),
+            Op::Update(u) => u.emit_data(buf),
             // The operations without data: those whose `data_len` is 0 (which of them carry
             // data is `data_len`'s to say; tests/vectors.rs `request_emit` checks that the two
             // agree for every operation).
@@ -641,6 +676,9 @@ impl<'a> Op<'a> {
                 | Op::SerialRead(..)
                 | Op::Batch(_)
                 | Op::Scan
+                | Op::EnterUpdate
+                | Op::ConfirmFirmware
+                | Op::Update(_)
         )
     }
 
@@ -656,6 +694,7 @@ impl<'a> Op<'a> {
             Op::SerialRead(_, n) => *n as usize,
             Op::Scan => crate::ScanResult::MAX_LEN,
             Op::Batch(b) => b.reply_capacity(),
+            Op::Update(u) => u.reply_len(),
             _ => 0,
         }
     }
@@ -663,8 +702,18 @@ impl<'a> Op<'a> {
     /// True for the plug-and-play operations that change or report where a board is
     /// (`assign`, `set_address`, `who_is_there`): never in a batch (`bad_argument`), each is
     /// a transaction of its own.
+    /// The firmware-update operations (`enter_update`, `confirm_firmware`, function 7) are
+    /// counted here too: never in a batch.
     pub const fn moves_board(&self) -> bool {
-        matches!(self, Op::Assign { .. } | Op::SetAddress(_) | Op::WhoIsThere)
+        matches!(
+            self,
+            Op::Assign { .. }
+                | Op::SetAddress(_)
+                | Op::WhoIsThere
+                | Op::EnterUpdate
+                | Op::ConfirmFirmware
+                | Op::Update(_)
+        )
     }
 
     /// True for long operations whose value arrives later in a deferred-reply event.
@@ -698,6 +747,7 @@ impl<'a> Op<'a> {
             },
             // `pending` (empty) comes first; the width follows in the deferred reply.
             Op::PulseIn { .. } => ReplyLen::Exact(0),
+            Op::Update(u) => ReplyLen::Exact(u.reply_len() as u8),
             Op::Ping
             | Op::Heartbeat
             | Op::SetFailsafe { .. }
@@ -708,6 +758,8 @@ impl<'a> Op<'a> {
             | Op::SetAddress(_)
             | Op::Blink(_)
             | Op::WhoIsThere
+            | Op::EnterUpdate
+            | Op::ConfirmFirmware
             | Op::DigitalWrite(..)
             | Op::PwmDuty(..)
             | Op::PwmFrequency(..)

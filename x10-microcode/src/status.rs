@@ -35,6 +35,23 @@ pub enum Status {
     Timeout,
     /// 0x0D: the MB read a reply, but no request is waiting for one.
     NoRequest,
+    /// 0x10 (update): the image is built for another board kind.
+    WrongKind,
+    /// 0x11 (update): the image is longer than the board's update slot.
+    TooLarge,
+    /// 0x12 (update): the CRC-32 over the received image is not the one `begin` announced.
+    BadCrc,
+    /// 0x13 (update): a chunk at an offset other than the next expected one (or the last
+    /// one again).
+    OutOfOrder,
+    /// 0x14 (update): the image's version is below the floor compiled into the bootloader.
+    TooOld,
+    /// 0x15 (update): the flash refused an erase or a write.
+    FlashError,
+    /// 0x16 (update): a chunk or commit with no transfer begun.
+    NoSession,
+    /// 0x17 (update): commit before every byte of the image was received.
+    Incomplete,
     /// A code this version does not know.
     Unknown(u8),
 }
@@ -57,6 +74,14 @@ impl Status {
             0x0B => Status::Busy,
             0x0C => Status::Timeout,
             0x0D => Status::NoRequest,
+            0x10 => Status::WrongKind,
+            0x11 => Status::TooLarge,
+            0x12 => Status::BadCrc,
+            0x13 => Status::OutOfOrder,
+            0x14 => Status::TooOld,
+            0x15 => Status::FlashError,
+            0x16 => Status::NoSession,
+            0x17 => Status::Incomplete,
             x => Status::Unknown(x),
         }
     }
@@ -78,6 +103,14 @@ impl Status {
             Status::Busy => 0x0B,
             Status::Timeout => 0x0C,
             Status::NoRequest => 0x0D,
+            Status::WrongKind => 0x10,
+            Status::TooLarge => 0x11,
+            Status::BadCrc => 0x12,
+            Status::OutOfOrder => 0x13,
+            Status::TooOld => 0x14,
+            Status::FlashError => 0x15,
+            Status::NoSession => 0x16,
+            Status::Incomplete => 0x17,
             Status::Unknown(x) => x,
         }
     }
@@ -104,15 +137,23 @@ impl Status {
             Status::Busy => "busy",
             Status::Timeout => "timeout",
             Status::NoRequest => "no_request",
+            Status::WrongKind => "wrong_kind",
+            Status::TooLarge => "too_large",
+            Status::BadCrc => "bad_crc",
+            Status::OutOfOrder => "out_of_order",
+            Status::TooOld => "too_old",
+            Status::FlashError => "flash_error",
+            Status::NoSession => "no_session",
+            Status::Incomplete => "incomplete",
             Status::Unknown(_) => "unknown",
         }
     }
 
     /// Inverse of [`Status::name`] for the known codes.
     pub fn from_name(name: &str) -> Option<Status> {
-        (0u8..=0x0D)
+        (0u8..=0x17)
             .map(Status::from_byte)
-            .find(|s| s.name() == name)
+            .find(|s| !matches!(s, Status::Unknown(_)) && s.name() == name)
     }
 }
 

@@ -10,7 +10,8 @@ use std::collections::{BTreeMap, BTreeSet};
 
 use x10_microcode::{
     Address, BatchResults, Diagnostics, Event, EventKind, Identity, Op, Pin, PinRef, PortKind,
-    Reply, Request, ScanResult, Status, DIAGNOSTIC_NAMES, MAX_FRAME_LEN, MAX_REQUEST_DATA,
+    Reply, Request, ScanResult, Status, UpdateOp, DIAGNOSTIC_NAMES, MAX_FRAME_LEN,
+    MAX_REQUEST_DATA,
 };
 
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -187,6 +188,16 @@ fn op_fields(m: &mut Flat, prefix: &str, op: &Op<'_>) {
         Op::PwmPulseWidth(_, us) => put(m, p("us"), Val::Int(us.into())),
         Op::SerialRead(_, n) => put(m, p("count"), Val::Int(n.into())),
         Op::SerialConfig(_, baud) => put(m, p("baud"), Val::Int(baud.into())),
+        Op::Update(UpdateOp::Begin(info)) => {
+            put(m, p("image_len"), Val::Int(info.len.into()));
+            put(m, p("crc32"), Val::Int(info.crc32.into()));
+            put(m, p("board"), Val::Str(info.board.name().into()));
+            put(m, p("version"), list(&info.version));
+        }
+        Op::Update(UpdateOp::Chunk { offset, data }) => {
+            put(m, p("offset"), Val::Int(offset.into()));
+            put(m, p("bytes"), list(data));
+        }
         Op::Batch(b) => {
             for (i, item) in b.iter().enumerate() {
                 op_fields(m, &format!("{prefix}items.{i}."), &item);
@@ -493,7 +504,7 @@ fn every_example_frame_decodes_to_what_the_document_says() {
     }
     // Every operation and every event kind has an example; every kind has examples with PEC
     // and refused examples.
-    assert_eq!(ops.len(), 26, "operations with an example: {ops:?}");
+    assert_eq!(ops.len(), 33, "operations with an example: {ops:?}");
     assert_eq!(
         event_kinds.len(),
         9,

@@ -60,6 +60,21 @@ fn op_table_agrees_with_the_protocol_crate() {
         Op::SerialRead(s1, 1),
         Op::SerialConfig(s1, 1),
         Op::Scan,
+        Op::EnterUpdate,
+        Op::ConfirmFirmware,
+        Op::Update(x10_microcode::UpdateOp::Begin(x10_microcode::ImageInfo {
+            len: 1,
+            crc32: 2,
+            board: x10_microcode::BoardKind::PICO,
+            version: [0, 1, 0],
+        })),
+        Op::Update(x10_microcode::UpdateOp::Chunk {
+            offset: 0,
+            data: b"x",
+        }),
+        Op::Update(x10_microcode::UpdateOp::Commit),
+        Op::Update(x10_microcode::UpdateOp::Status),
+        Op::Update(x10_microcode::UpdateOp::Leave),
     ];
     assert_eq!(ops.len() + 1, OPS.len()); // + batch, checked below
     for op in ops {
