@@ -59,9 +59,46 @@ pub fn hal_config() -> embassy_stm32::Config {
     c
 }
 
-/// Starts the HAL with [`hal_config`].
+/// Starts the HAL with [`hal_config`]; first, when System 12 asked for it before the reset
+/// ([`request_rom_bootloader`]), ST's ROM bootloader instead ([`enter_rom_bootloader`]).
 pub fn init() -> embassy_stm32::Peripherals {
+    if crate::c011_rom::requested(take_rom_request()) {
+        // A ROM that does not look like one is not jumped into: the image starts.
+        enter_rom_bootloader();
+    }
     embassy_stm32::init(hal_config())
+}
+
+/// The RAM word System 12 leaves for the next start: in `.uninit`, which cortex-m-rt's
+/// start-up neither zeroes nor initialises and a system reset keeps (RM0490 §6.1.2), like
+/// the crash record (`watchdog`).
+#[allow(unsafe_code)]
+#[link_section = ".uninit.x10_rom"]
+static mut ROM_REQUEST: core::mem::MaybeUninit<u32> = core::mem::MaybeUninit::uninit();
+
+/// System 12 (`enter_update`) on the C011: asks the next start for ST's ROM bootloader; the
+/// daughterboard runtime resets the chip once its reply has been read.
+#[allow(unsafe_code)]
+pub fn request_rom_bootloader() {
+    // SAFETY: a plain aligned word written with a volatile store; read by `take_rom_request`.
+    unsafe {
+        core::ptr::write_volatile(
+            core::ptr::addr_of_mut!(ROM_REQUEST).cast::<u32>(),
+            crate::c011_rom::REQUEST,
+        )
+    }
+}
+
+/// Reads the request word and clears it (a failed jump or the next reset starts the image).
+#[allow(unsafe_code)]
+fn take_rom_request() -> u32 {
+    let p = core::ptr::addr_of_mut!(ROM_REQUEST).cast::<u32>();
+    // SAFETY: as above; any bit pattern is a valid u32 (after a power cut it is noise).
+    unsafe {
+        let w = core::ptr::read_volatile(p);
+        core::ptr::write_volatile(p, 0);
+        w
+    }
 }
 
 fn new_adc(p: Peri<'static, peripherals::ADC1>) -> adc::Adc<'static, peripherals::ADC1> {
@@ -184,58 +221,26 @@ pub fn address_record(
     x10_store::Record::append_only(C011Otp::new(flash), 0, crate::record::C011_OTP_LEN)
 }
 
-/// System 12 on the C011 (issue 25): leaves the image for ST's ROM bootloader, which then
-/// answers the motherboard at 0x64 on the same pins (I2C1, PB6/PB7) and takes the new image
-/// (`x10-stmboot`). The steps are [`crate::c011_rom`]'s; every register named here was read
-/// in stm32-metapac 21 (`rcc_c0.rs`, `syscfg_c0.rs`) and the steps against RM0490 and ST's
-/// STM32C0 HAL, not run on a board: verified by reading only.
+/// The C011's way into ST's ROM bootloader (issue 25), called by [`init`] at the start after
+/// System 12 ([`request_rom_bootloader`]), before the HAL starts: the chip is in its reset
+/// state (the system reset that followed System 12's reply reset every peripheral, the clock
+/// is the reset one, HSI48 / 4, no interrupt is enabled, the watchdog is not started yet), so
+/// what is left is the jump through the ROM's vector table (stack pointer, reset vector),
+/// the reset vector checked first by [`c011_rom::rom_entry`](crate::c011_rom::rom_entry). The ROM
+/// bootloader then answers the motherboard at 0x64 on the same pins (I2C1, PB6/PB7) and takes
+/// the new image (`x10-stmboot`). Arduino's Modulino firmware (the same chip) jumps so too,
+/// without remapping address 0 to the system memory; no more is done here (32 bytes of flash
+/// the image does not have). Not run on a board: verified by reading only.
 ///
-/// The independent watchdog keeps running (nothing stops it); AN2606's STM32C011xx section
-/// says the bootloader refreshes it (and Arduino's Modulino firmware, whose watchdog runs with
-/// a 0.5 s timeout, is updated this way). The actuator pins go to their reset state (inputs)
-/// with the GPIO reset, as at any reset.
-///
-/// # Errors
-/// [`c011_rom::RomEntryError`](crate::c011_rom::RomEntryError) when the system memory does
-/// not hold a vector table (nothing has been changed then).
+/// Returns only when the system memory does not hold a vector table (nothing has been changed
+/// then).
 #[allow(unsafe_code)]
-pub fn enter_rom_bootloader() -> Result<core::convert::Infallible, crate::c011_rom::RomEntryError> {
-    use crate::c011_rom::{rom_vector, SYSTEM_MEMORY};
-    use embassy_stm32::pac;
+pub fn enter_rom_bootloader() {
+    use crate::c011_rom::{rom_entry, SYSTEM_MEMORY};
     // SAFETY: the system memory is readable ROM.
-    let words = unsafe {
-        [
-            core::ptr::read_volatile(SYSTEM_MEMORY as *const u32),
-            core::ptr::read_volatile((SYSTEM_MEMORY + 4) as *const u32),
-        ]
-    };
-    rom_vector(words)?;
-    cortex_m::interrupt::disable();
-    // SAFETY: interrupts are off; what follows only stops and resets, and never returns.
-    unsafe {
-        let nvic = &*cortex_m::peripheral::NVIC::PTR;
-        nvic.icer[0].write(!0);
-        nvic.icpr[0].write(!0);
-        (*cortex_m::peripheral::SYST::PTR).csr.write(0);
+    let reset = unsafe { core::ptr::read_volatile((SYSTEM_MEMORY + 4) as *const u32) };
+    if rom_entry(reset) {
+        // SAFETY: the reset vector was checked; the jump never returns.
+        unsafe { cortex_m::asm::bootload(SYSTEM_MEMORY as *const u32) }
     }
-    // The clock back to its reset value (HSISYS = HSI48 / 4, 12 MHz: the flash's wait state
-    // stays, more than enough), then every peripheral reset and released.
-    let rcc = pac::RCC;
-    rcc.cr()
-        .modify(|w| w.set_hsidiv(pac::rcc::vals::Hsidiv::DIV4));
-    rcc.gpiorstr().write_value(pac::rcc::regs::Gpiorstr(!0));
-    rcc.ahbrstr().write_value(pac::rcc::regs::Ahbrstr(!0));
-    rcc.apbrstr1().write_value(pac::rcc::regs::Apbrstr1(!0));
-    rcc.apbrstr2().write_value(pac::rcc::regs::Apbrstr2(!0));
-    rcc.gpiorstr().write_value(pac::rcc::regs::Gpiorstr(0));
-    rcc.ahbrstr().write_value(pac::rcc::regs::Ahbrstr(0));
-    rcc.apbrstr1().write_value(pac::rcc::regs::Apbrstr1(0));
-    rcc.apbrstr2().write_value(pac::rcc::regs::Apbrstr2(0));
-    // The system memory at address 0, as when the chip boots into it.
-    rcc.apbenr2().modify(|w| w.set_syscfgen(true));
-    pac::SYSCFG
-        .cfgr1()
-        .modify(|w| w.set_mem_mode(pac::syscfg::vals::MemMode::SYSTEM_FLASH));
-    // SAFETY: the vector table was checked above; the jump never returns.
-    unsafe { cortex_m::asm::bootload(SYSTEM_MEMORY as *const u32) }
 }

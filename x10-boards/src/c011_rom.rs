@@ -2,15 +2,16 @@
 //! what `c011::enter_rom_bootloader` checks before it jumps. The MB's side of the update is
 //! `x10-stmboot`; `docs/boards.md` ("Updating the boards") says what each claim rests on.
 //!
-//! The jump (as Arduino's Modulino firmware, the same chip, does it, and ST's knowledge-base
-//! sequence for a jump to the system memory): interrupts off, every NVIC interrupt disabled
-//! and its pending bit cleared, SysTick stopped, the system clock back to its reset value
-//! (HSI48 / 4), every peripheral of the GPIO, AHB and APB buses reset (the STM32C0 HAL's
-//! `__HAL_RCC_*_FORCE_RESET` macros write all ones to the reset registers, then release
-//! them), the system memory mapped at address 0 (`SYSCFG_CFGR1.MEM_MODE`), then the ROM's
-//! stack pointer and reset vector, read from its vector table at [`SYSTEM_MEMORY`] — which
-//! this module checks first, so that a chip whose ROM is not where the manual says is never
-//! jumped into.
+//! System 12 does not jump from the running image: it leaves [`REQUEST`] in a RAM word a
+//! reset keeps and resets the chip once its reply has been read (firmware-db's `moving`);
+//! the next start finds the word before the HAL starts and jumps from there, with the chip in
+//! its reset state and the watchdog not started.
+//!
+//! The jump, from that reset state: the ROM's stack pointer and reset vector from its vector
+//! table at [`SYSTEM_MEMORY`], the reset vector checked first ([`rom_entry`]), so that a chip
+//! whose ROM is not where the manual says is never jumped into. Arduino's Modulino firmware
+//! (the same chip) jumps from its running image instead, after `HAL_RCC_DeInit` and clearing
+//! the NVIC; starting from a reset needs neither.
 
 /// The C011's system memory, where the ROM bootloader's vector table is (RM0490 §2.2,
 /// "Memory map"; AN2606's STM32C011xx section).
@@ -18,43 +19,24 @@ pub const SYSTEM_MEMORY: u32 = 0x1FFF_0000;
 /// Where the one-time-programmable area starts, past the system memory (`record`'s
 /// `C011_OTP_BASE`).
 pub const SYSTEM_MEMORY_END: u32 = 0x1FFF_7000;
-/// The C011's SRAM: 6 KiB from 0x20000000.
-pub const SRAM: core::ops::Range<u32> = 0x2000_0000..0x2000_1800;
 
-/// The ROM bootloader's first two vectors, checked.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct RomVector {
-    /// Its initial stack pointer.
-    pub sp: u32,
-    /// Its reset handler (a Thumb address: bit 0 set).
-    pub reset: u32,
+/// The word System 12 leaves in RAM (`.uninit`, kept by the system reset that follows) to
+/// ask the next start for the ROM bootloader: "XROM".
+pub const REQUEST: u32 = u32::from_be_bytes(*b"XROM");
+
+/// Whether the word read at start asks for the ROM bootloader. After a power cut the word is
+/// noise: one chance in 2^32 to start the ROM bootloader, which the motherboard then finds at
+/// 0x64 and sends back (Go) or updates.
+pub const fn requested(word: u32) -> bool {
+    word == REQUEST
 }
 
-/// Why the jump is refused.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum RomEntryError {
-    /// The initial stack pointer is not a word-aligned address in SRAM (or its top).
-    Stack(u32),
-    /// The reset vector is not a Thumb address in the system memory.
-    Reset(u32),
-}
-
-/// Checks the two words at [`SYSTEM_MEMORY`]: a stack pointer in SRAM (up to its top, word
-/// aligned) and a Thumb reset vector inside the system memory.
-///
-/// # Errors
-/// [`RomEntryError`] for the first word that is not so.
-pub const fn rom_vector(words: [u32; 2]) -> Result<RomVector, RomEntryError> {
-    let [sp, reset] = words;
-    if sp < SRAM.start || sp > SRAM.end || sp % 4 != 0 {
-        return Err(RomEntryError::Stack(sp));
-    }
-    let target = reset & !1;
-    if reset & 1 == 0 || target < SYSTEM_MEMORY || target >= SYSTEM_MEMORY_END {
-        return Err(RomEntryError::Reset(reset));
-    }
-    Ok(RomVector { sp, reset })
+/// Whether `reset`, the second word of the ROM's vector table, is a Thumb address (bit 0
+/// set) inside the system memory: the one check before the jump. (A stack pointer that is not
+/// one would fault at once; the fault goes to the image's own HardFault handler, since VTOR
+/// still points at it, which resets the chip into the image: the request word is spent.)
+pub const fn rom_entry(reset: u32) -> bool {
+    reset & 1 == 1 && (reset & !1).wrapping_sub(SYSTEM_MEMORY) < SYSTEM_MEMORY_END - SYSTEM_MEMORY
 }
 
 #[cfg(test)]
@@ -62,43 +44,26 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_rom_vector_is_a_stack_in_sram_and_a_thumb_handler_in_system_memory() {
-        assert_eq!(
-            rom_vector([0x2000_1800, 0x1FFF_0A2D]),
-            Ok(RomVector {
-                sp: 0x2000_1800,
-                reset: 0x1FFF_0A2D
-            })
-        );
-        assert_eq!(
-            rom_vector([0x2000_0400, 0x1FFF_0001]).map(|v| v.sp),
-            Ok(0x2000_0400)
-        );
-        // An erased or unreadable ROM, a stack past the SRAM or unaligned.
-        assert_eq!(
-            rom_vector([0xFFFF_FFFF, 0xFFFF_FFFF]),
-            Err(RomEntryError::Stack(0xFFFF_FFFF))
-        );
-        assert_eq!(
-            rom_vector([0x2000_1804, 0x1FFF_0A2D]),
-            Err(RomEntryError::Stack(0x2000_1804))
-        );
-        assert_eq!(
-            rom_vector([0x2000_17FE, 0x1FFF_0A2D]),
-            Err(RomEntryError::Stack(0x2000_17FE))
-        );
-        // An ARM-state address, one in main flash, one past the system memory.
-        assert_eq!(
-            rom_vector([0x2000_1800, 0x1FFF_0A2C]),
-            Err(RomEntryError::Reset(0x1FFF_0A2C))
-        );
-        assert_eq!(
-            rom_vector([0x2000_1800, 0x0800_00C1]),
-            Err(RomEntryError::Reset(0x0800_00C1))
-        );
-        assert_eq!(
-            rom_vector([0x2000_1800, 0x1FFF_7001]),
-            Err(RomEntryError::Reset(0x1FFF_7001))
-        );
+    fn only_the_request_word_asks_for_the_rom_bootloader() {
+        assert_eq!(REQUEST, 0x5852_4F4D);
+        assert!(requested(0x5852_4F4D));
+        assert!(!requested(0));
+        assert!(!requested(!0));
+        assert!(!requested(0x4D4F_5258));
+    }
+
+    #[test]
+    fn the_rom_entry_is_a_thumb_address_in_system_memory() {
+        assert!(rom_entry(0x1FFF_0A2D));
+        assert!(rom_entry(0x1FFF_0001));
+        assert!(rom_entry(0x1FFF_6FFF));
+        // Erased or unreadable, ARM state, main flash, SRAM, past the system memory (the OTP),
+        // just below it.
+        assert!(!rom_entry(0xFFFF_FFFF));
+        assert!(!rom_entry(0x1FFF_0A2C));
+        assert!(!rom_entry(0x0800_00C1));
+        assert!(!rom_entry(0x2000_0101));
+        assert!(!rom_entry(0x1FFF_7001));
+        assert!(!rom_entry(0x1FFE_FFFF));
     }
 }
