@@ -15,7 +15,7 @@ mod build {
             (BOOT.len, ACTIVE.start, ACTIVE.len)
         );
         assert_eq!(ACTIVE.start, 0x6800);
-        assert_eq!(DFU.end(), 0x17000);
+        assert_eq!(DFU.end(), 0x1B000);
         assert_eq!(RECORD.start, 0x1F000);
         assert_eq!(
             g431_memory(G431Image::Bootloader),
@@ -23,7 +23,7 @@ mod build {
         );
         assert_eq!(
             g431_memory(G431Image::Daughterboard),
-            "MEMORY {\n    FLASH : ORIGIN = 0x08006800, LENGTH = 32K\n    RAM   : ORIGIN = 0x20000000, LENGTH = 32K\n}\n"
+            "MEMORY {\n    FLASH : ORIGIN = 0x08006800, LENGTH = 40K\n    RAM   : ORIGIN = 0x20000000, LENGTH = 32K\n}\n"
         );
         assert_eq!(g431_memory(G431Image::Motherboard), G431_MEMORY);
     }
