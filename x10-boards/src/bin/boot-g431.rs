@@ -10,7 +10,8 @@
 //! (System 13, `mark_booted`) is swapped back (the rollback). When the image asked for the
 //! update mode (System 12: embassy-boot's DFU-detach magic, `x10_boot::start_mode`), the
 //! bootloader serves the bus at the board's address (its record) with `x10_boot::Session`
-//! until `commit` or `leave`, then resets; else it jumps to ACTIVE.
+//! (its flash work done after each reply has been read) until `commit` or `leave`, then
+//! resets; else it jumps to ACTIVE.
 //!
 //! Outside the update mode the HAL is not started (no clock change, no time driver, no
 //! interrupt): the flash driver works on the reset clock (HSI16, zero wait states), and the
@@ -114,9 +115,16 @@ fn update_mode(flash: &G4Flash) {
             }
             SlaveCommandKind::Read => {
                 let n = session.take_reply(&mut reply);
-                let sent = bus.blocking_respond_to_read(&reply[..n.min(reply.len())]);
-                if sent.is_ok() && session.exit() != Exit::Stay {
-                    cortex_m::peripheral::SCB::sys_reset();
+                if bus
+                    .blocking_respond_to_read(&reply[..n.min(reply.len())])
+                    .is_ok()
+                {
+                    // The flash work the request left (an erase, a buffer's write, the swap
+                    // mark), now that its reply has been read: never inside a transaction.
+                    session.work();
+                    if session.exit() != Exit::Stay {
+                        cortex_m::peripheral::SCB::sys_reset();
+                    }
                 }
             }
         }

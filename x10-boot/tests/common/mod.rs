@@ -294,7 +294,7 @@ impl Board {
 }
 
 /// The MB's side of one request to the bootloader: the frame with its check, the reply read
-/// and checked. `None` when the session held no reply.
+/// and checked; then the glue's part, the flash work.
 pub fn call<D: NorFlash, S: NorFlash, const W: usize>(
     s: &mut Session<'_, D, S, W>,
     seq: u8,
@@ -320,7 +320,10 @@ pub fn read_reply<D: NorFlash, S: NorFlash, const W: usize>(
     let body = pec::strip(Address::new(DB).unwrap().addr_byte(false), &rx[..n]).unwrap();
     let r = Reply::parse(body).unwrap();
     assert_eq!(r.seq, seq);
-    (r.status, r.payload.to_vec())
+    let out = (r.status, r.payload.to_vec());
+    // The glue: the flash work once the reply has been read.
+    s.work();
+    out
 }
 
 /// A whole transfer: begin, every chunk, commit. The first status other than `ok`, or `ok`.
