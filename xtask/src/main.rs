@@ -150,7 +150,7 @@ const IMAGES: &[Image] = &[
         chip_flash: 128 * 1024,
         record: G431_RECORD,
         // The bootloader's region of the G431's flash (`x10_boards::g431_boot::BOOT`): the
-        // linker refuses more. 13 396 B when set (embassy-boot's swap, the flash driver, the
+        // linker refuses more. 13 684 B when set (embassy-boot's swap, the flash driver, the
         // update mode: the record, the HAL, embassy-stm32's blocking I2C target, x10-boot's
         // session; issue 25).
         budget: Budget {
