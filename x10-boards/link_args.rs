@@ -17,7 +17,7 @@ const PICO_MEMORY: &str = "MEMORY {
 }
 ";
 
-/// The Pico's bootloader, `boot-pico` (issue 25): boot2, then the bootloader up to embassy-boot's
+/// The Pico's bootloader, `boot-pico` (feature `pico-bootloader`, issue 25): boot2, then the bootloader up to embassy-boot's
 /// STATE sector at 0x10008000 (`x10_boards::rp_flash::layout`).
 const PICO_BOOT_MEMORY: &str = "MEMORY {
     BOOT2 : ORIGIN = 0x10000000, LENGTH = 0x100
@@ -44,6 +44,43 @@ const G431_MEMORY: &str = "MEMORY {
 }
 ";
 
+/// The G431 daughterboard's flash with its bootloader (issue 25; `x10_boards::g431_boot`
+/// holds the same numbers, with the layout's rules, and a test compares them): the bootloader
+/// `boot-g431` in the first 24 KiB, embassy-boot's STATE page, then ACTIVE, the 40 KiB
+/// `db-g431` is linked into (DFU and the address record follow).
+const G431_BOOT_LEN: u32 = 24 * 1024;
+/// Where ACTIVE starts (after the bootloader and the STATE page), from 0x08000000.
+const G431_ACTIVE_START: u32 = G431_BOOT_LEN + 2 * 1024;
+/// ACTIVE's size: more than a daughterboard image's 32 KiB budget, which `cargo xtask size`
+/// holds it to.
+const G431_ACTIVE_LEN: u32 = 40 * 1024;
+
+/// Which G431 image a memory map is for.
+#[derive(Clone, Copy)]
+enum G431Image {
+    /// `mb-g431`: the whole flash but the address record.
+    Motherboard,
+    /// `boot-g431`: the bootloader's part.
+    Bootloader,
+    /// `db-g431`: ACTIVE, started by `boot-g431`.
+    Daughterboard,
+}
+
+/// The G431's memory map for one image (the RAM is the same for all: SRAM1, SRAM2 and CCM
+/// SRAM, contiguous from 0x20000000).
+fn g431_memory(image: G431Image) -> String {
+    let (origin, len) = match image {
+        G431Image::Motherboard => return G431_MEMORY.to_string(),
+        G431Image::Bootloader => (0, G431_BOOT_LEN),
+        G431Image::Daughterboard => (G431_ACTIVE_START, G431_ACTIVE_LEN),
+    };
+    format!(
+        "MEMORY {{\n    FLASH : ORIGIN = 0x{:08X}, LENGTH = {}K\n    RAM   : ORIGIN = 0x20000000, LENGTH = 32K\n}}\n",
+        0x0800_0000 + origin,
+        len / 1024
+    )
+}
+
 /// Prints the link arguments of the package's bins, only when building for a board (target OS
 /// `none`; host builds get nothing):
 ///
@@ -58,15 +95,22 @@ fn link_args() {
     if std::env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;
     }
-    let feature = |f: &str| std::env::var_os(["CARGO_FEATURE_", f].concat()).is_some();
-    let memory = if feature("BOOTLOADER") {
-        Some(PICO_BOOT_MEMORY)
+    let feature = |f: &str| std::env::var_os(format!("CARGO_FEATURE_{f}")).is_some();
+    let memory = if feature("PICO_BOOTLOADER") {
+        Some(PICO_BOOT_MEMORY.to_string())
     } else if feature("ACTIVE_SLOT") {
-        Some(PICO_ACTIVE_MEMORY)
-    } else if std::env::var_os("CARGO_FEATURE_RP2040").is_some() {
-        Some(PICO_MEMORY)
-    } else if std::env::var_os("CARGO_FEATURE_STM32G431").is_some() {
-        Some(G431_MEMORY)
+        Some(PICO_ACTIVE_MEMORY.to_string())
+    } else if feature("RP2040") {
+        Some(PICO_MEMORY.to_string())
+    } else if feature("STM32G431") {
+        // x10-boards' `bootloader` and `daughterboard` features; x10-robots has neither.
+        Some(g431_memory(if feature("BOOTLOADER") {
+            G431Image::Bootloader
+        } else if feature("DAUGHTERBOARD") {
+            G431Image::Daughterboard
+        } else {
+            G431Image::Motherboard
+        }))
     } else {
         None
     };

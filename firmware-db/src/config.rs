@@ -118,6 +118,9 @@ pub struct DbConfig {
     /// The board's unique ID (the image reads it from the chip; all zero by default), sent in
     /// its `boot` and `announce` events and matched against every `assign`.
     pub uid: Uid,
+    /// Firmware version reported by `identify` and the `boot` event ([`FIRMWARE_VERSION`];
+    /// the simulator gives a board the version its simulated flash holds).
+    pub firmware: [u8; 3],
 }
 
 impl DbConfig {
@@ -133,6 +136,7 @@ impl DbConfig {
             failsafe_timeout_ms: 0,
             reset_reason: ResetReason::PowerOn,
             uid: Uid([0; Uid::LEN]),
+            firmware: FIRMWARE_VERSION,
         }
     }
 }

@@ -14,7 +14,7 @@ use x10_microcode::{
     MAX_PAYLOAD, MAX_REPLY_LEN, PROTOCOL_VERSION,
 };
 
-use crate::config::{DbConfig, FIRMWARE_VERSION};
+use crate::config::DbConfig;
 use crate::event::OutEvent;
 use crate::record::{AddressRecord, NoRecord, StoreError};
 use x10_hal::ports::{EdgeCount, PortError, Ports};
@@ -289,7 +289,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     pub fn identity(&self) -> Identity {
         Identity {
             protocol_version: PROTOCOL_VERSION,
-            firmware: FIRMWARE_VERSION,
+            firmware: self.config.firmware,
             board: self.config.board,
             sensor_ports: self.ports.sensor_ports().min(Port::MAX_PORTS),
             actuator_ports: self.ports.actuator_ports().min(Port::MAX_PORTS),

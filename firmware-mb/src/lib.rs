@@ -60,6 +60,7 @@ mod transfer;
 // 7. The dispatcher (transfers, events) and the programs' handle (calls, events).
 mod dispatch;
 mod handle;
+pub mod update;
 // 8. The top: the motherboard and its tasks.
 mod motherboard;
 

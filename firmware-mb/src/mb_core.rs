@@ -250,6 +250,9 @@ impl MbCore {
         op: Op<'_>,
         timeout_us: u64,
     ) -> Result<Payload, LinkError> {
+        if self.with(|t| t.updating == Some(db)) && !crate::update::is_update_op(&op) {
+            return Err(LinkError::Updating);
+        }
         op.validate()?;
         if self.config.pec && !db.is_internal() && pec_change(&op) == Some(false) {
             // PEC stays on with the safe defaults (MbConfig::pec).

@@ -401,7 +401,12 @@ impl Requests {
             Err(LinkError::Bus) => bump(&mut d.bus_errors),
             Err(LinkError::BadReply) => bump(&mut d.bad_replies),
             Err(LinkError::Status(_)) => bump(&mut d.status_errors),
-            Err(LinkError::Invalid(_) | LinkError::Busy | LinkError::Unsupported) => {}
+            Err(
+                LinkError::Invalid(_)
+                | LinkError::Busy
+                | LinkError::Unsupported
+                | LinkError::Updating,
+            ) => {}
         }
         true
     }

@@ -38,6 +38,9 @@ pub(crate) struct Table {
     /// How many callers wait for a slot: while any does, a new caller waits behind them, so
     /// a task that ends a call and makes the next at once cannot take every freed slot.
     pub(crate) slot_waiting: u16,
+    /// The board whose firmware is being updated (`crate::update`): other callers' requests
+    /// to it end in `LinkError::Updating`.
+    pub(crate) updating: Option<x10_microcode::Address>,
 }
 
 /// Callers whose wakers are kept while they wait for a slot; more wake all and register
@@ -56,6 +59,7 @@ impl Table {
             directory: Directory::new(),
             slot_waiters: MultiWakerRegistration::new(),
             slot_waiting: 0,
+            updating: None,
         }
     }
 

@@ -59,9 +59,46 @@ pub fn hal_config() -> embassy_stm32::Config {
     c
 }
 
-/// Starts the HAL with [`hal_config`].
+/// Starts the HAL with [`hal_config`]; first, when System 12 asked for it before the reset
+/// ([`request_rom_bootloader`]), ST's ROM bootloader instead ([`enter_rom_bootloader`]).
 pub fn init() -> embassy_stm32::Peripherals {
+    if crate::c011_rom::requested(take_rom_request()) {
+        // A ROM that does not look like one is not jumped into: the image starts.
+        enter_rom_bootloader();
+    }
     embassy_stm32::init(hal_config())
+}
+
+/// The RAM word System 12 leaves for the next start: in `.uninit`, which cortex-m-rt's
+/// start-up neither zeroes nor initialises and a system reset keeps (RM0490 §6.1.2), like
+/// the crash record (`watchdog`).
+#[allow(unsafe_code)]
+#[link_section = ".uninit.x10_rom"]
+static mut ROM_REQUEST: core::mem::MaybeUninit<u32> = core::mem::MaybeUninit::uninit();
+
+/// System 12 (`enter_update`) on the C011: asks the next start for ST's ROM bootloader; the
+/// daughterboard runtime resets the chip once its reply has been read.
+#[allow(unsafe_code)]
+pub fn request_rom_bootloader() {
+    // SAFETY: a plain aligned word written with a volatile store; read by `take_rom_request`.
+    unsafe {
+        core::ptr::write_volatile(
+            core::ptr::addr_of_mut!(ROM_REQUEST).cast::<u32>(),
+            crate::c011_rom::REQUEST,
+        )
+    }
+}
+
+/// Reads the request word and clears it (a failed jump or the next reset starts the image).
+#[allow(unsafe_code)]
+fn take_rom_request() -> u32 {
+    let p = core::ptr::addr_of_mut!(ROM_REQUEST).cast::<u32>();
+    // SAFETY: as above; any bit pattern is a valid u32 (after a power cut it is noise).
+    unsafe {
+        let w = core::ptr::read_volatile(p);
+        core::ptr::write_volatile(p, 0);
+        w
+    }
 }
 
 fn new_adc(p: Peri<'static, peripherals::ADC1>) -> adc::Adc<'static, peripherals::ADC1> {
@@ -182,4 +219,28 @@ pub fn address_record(
     flash: Peri<'static, peripherals::FLASH>,
 ) -> Result<x10_store::Record<C011Otp>, x10_store::StoreError> {
     x10_store::Record::append_only(C011Otp::new(flash), 0, crate::record::C011_OTP_LEN)
+}
+
+/// The C011's way into ST's ROM bootloader (issue 25), called by [`init`] at the start after
+/// System 12 ([`request_rom_bootloader`]), before the HAL starts: the chip is in its reset
+/// state (the system reset that followed System 12's reply reset every peripheral, the clock
+/// is the reset one, HSI48 / 4, no interrupt is enabled, the watchdog is not started yet), so
+/// what is left is the jump through the ROM's vector table (stack pointer, reset vector),
+/// the reset vector checked first by [`c011_rom::rom_entry`](crate::c011_rom::rom_entry). The ROM
+/// bootloader then answers the motherboard at 0x64 on the same pins (I2C1, PB6/PB7) and takes
+/// the new image (`x10-stmboot`). Arduino's Modulino firmware (the same chip) jumps so too,
+/// without remapping address 0 to the system memory; no more is done here (32 bytes of flash
+/// the image does not have). Not run on a board: verified by reading only.
+///
+/// Returns only when the system memory does not hold a vector table (nothing has been changed
+/// then).
+#[allow(unsafe_code)]
+pub fn enter_rom_bootloader() {
+    use crate::c011_rom::{rom_entry, SYSTEM_MEMORY};
+    // SAFETY: the system memory is readable ROM.
+    let reset = unsafe { core::ptr::read_volatile((SYSTEM_MEMORY + 4) as *const u32) };
+    if rom_entry(reset) {
+        // SAFETY: the reset vector was checked; the jump never returns.
+        unsafe { cortex_m::asm::bootload(SYSTEM_MEMORY as *const u32) }
+    }
 }

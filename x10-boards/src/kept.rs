@@ -46,34 +46,26 @@ impl<F: NorFlash> AddressRecord for Kept<F> {
     }
 
     /// System 12 under the Pico's bootloader (`active-slot`): embassy-boot's DFU-detach mark
-    /// in STATE (`x10_boot::enter_update`), through the flash the record owns.
+    /// in STATE (`boot_state::enter_update`, the bytes `x10_boot::enter_update` writes), through
+    /// the flash the record owns.
     #[cfg(feature = "active-slot")]
     fn enter_update(&mut self) -> Result<(), StoreError> {
-        let mut aligned = [0u8; 1];
-        let mut state = boot_state(self.record.flash(), &mut aligned);
-        x10_boot::enter_update(&mut state).map_err(|_| StoreError::Failed)
+        crate::boot_state::enter_update(&mut pico_state(self.record.flash()))
+            .map_err(|_| StoreError::Failed)
     }
 
     /// System 13 under the Pico's bootloader: embassy-boot's boot mark when the image was
-    /// swapped in (`x10_boot::confirm_firmware`).
+    /// swapped in (`boot_state::confirm_firmware`).
     #[cfg(feature = "active-slot")]
     fn confirm_firmware(&mut self) -> Result<(), StoreError> {
-        let mut aligned = [0u8; 1];
-        let mut state = boot_state(self.record.flash(), &mut aligned);
-        x10_boot::confirm_firmware(&mut state).map_err(|_| StoreError::Failed)
+        crate::boot_state::confirm_firmware(&mut pico_state(self.record.flash()))
+            .map_err(|_| StoreError::Failed)
     }
 }
 
-/// embassy-boot's STATE partition (`rp_flash::layout`) over `flash`, written a byte at a time
-/// (`aligned`: one byte, as the bootloader reads it).
+/// embassy-boot's STATE partition of the Pico's layout (`rp_flash::layout`) over `flash`.
 #[cfg(feature = "active-slot")]
-fn boot_state<'a, F: NorFlash>(
-    flash: &'a mut F,
-    aligned: &'a mut [u8],
-) -> embassy_boot::BlockingFirmwareState<'a, crate::region::Region<'a, F>> {
+fn pico_state<F: NorFlash>(flash: &mut F) -> crate::flash_window::Window<'_, F> {
     use crate::rp_flash::layout::{STATE, STATE_LEN};
-    embassy_boot::BlockingFirmwareState::new(
-        crate::region::Region::new(flash, STATE, STATE_LEN),
-        aligned,
-    )
+    crate::flash_window::Window::new(flash, STATE, STATE_LEN)
 }

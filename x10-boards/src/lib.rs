@@ -43,7 +43,11 @@
 #[macro_use]
 pub mod pins;
 pub mod address;
+pub mod boot_state;
+pub mod c011_rom;
 pub mod crash;
+pub mod flash_window;
+pub mod g431_boot;
 pub mod i2c_v2;
 // Raw-pointer loops behind the images' memcpy/memset (see the module): the one place of
 // this crate that needs `unsafe`.
@@ -54,7 +58,6 @@ pub mod port_lookup;
 pub mod pulse;
 pub mod pwm;
 pub mod record;
-pub mod region;
 pub mod rp_flash;
 pub mod stm32_latch;
 

@@ -101,7 +101,8 @@ mod tests {
     mod link {
         #![allow(dead_code)]
         extern crate std;
-        use std::println;
+        use std::string::{String, ToString};
+        use std::{format, println};
         include!("../link_args.rs");
         pub const PICO: &str = PICO_MEMORY;
         pub const G431: &str = G431_MEMORY;

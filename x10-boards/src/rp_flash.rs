@@ -324,7 +324,8 @@ mod tests {
     mod link {
         #![allow(dead_code)]
         extern crate std;
-        use std::println;
+        use std::string::{String, ToString};
+        use std::{format, println};
         include!("../link_args.rs");
         pub const BOOT: &str = PICO_BOOT_MEMORY;
         pub const ACTIVE: &str = PICO_ACTIVE_MEMORY;

@@ -40,8 +40,20 @@ use embassy_boot::{BlockingFirmwareState, FirmwareUpdaterError, State};
 use embedded_storage::nor_flash::NorFlash;
 use x10_microcode::{
     pec, Address, BoardKind, ImageInfo, Op, Reply, RequestFrame, Status, UpdateOp, UpdateReport,
-    UpdateState, Version, MAX_REPLY_LEN,
+    UpdateState, Version, CHUNK_MAX, MAX_REPLY_LEN,
 };
+
+/// Flash work a reply does not wait for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Work {
+    None,
+    /// Erase the first sector (after `begin`).
+    Start,
+    /// Write the full buffer, erase the next sector when the next buffer starts one.
+    Flush,
+    /// Mark the slot for the swap (after a verified `commit`).
+    Mark,
+}
 
 pub use embassy_boot;
 
@@ -139,8 +151,13 @@ pub struct Session<'d, D: NorFlash, S: NorFlash, const W: usize> {
     /// Bytes of the slot erased since `begin` (whole sectors, from 0).
     erased: u32,
     buf: [u8; W],
+    /// The bytes of the chunk that filled `buf` beyond it (they go into `buf` once it has been
+    /// written).
+    carry: [u8; CHUNK_MAX],
     /// Image offset of `buf[0]`.
     buf_start: u32,
+    /// Flash work that waits until the reply has been read ([`Session::work`]).
+    pending: Work,
     last_error: Status,
     reply: [u8; MAX_REPLY_LEN + 1],
     reply_len: usize,
@@ -168,7 +185,9 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
             last_chunk: None,
             erased: 0,
             buf: [0xff; W],
+            carry: [0xff; CHUNK_MAX],
             buf_start: 0,
+            pending: Work::None,
             last_error: Status::Ok,
             reply: [0; MAX_REPLY_LEN + 1],
             reply_len: 0,
@@ -199,10 +218,36 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
 
     /// What to do now that the last reply has been read.
     pub fn exit(&self) -> Exit {
-        if self.reply_len == 0 {
+        if self.reply_len == 0 && self.pending == Work::None {
             self.exit
         } else {
             Exit::Stay
+        }
+    }
+
+    /// Does the flash work the last request left (an erase, a buffer's write, the swap mark).
+    /// The glue calls it once the reply has been read, before it listens again: an erase
+    /// (45 ms on the Pico's flash) never delays a reply past an SMBus stretch timeout; the
+    /// motherboard's next request meanwhile finds the board deaf and is tried again. A
+    /// failure drops the transfer (`flash_error` in `status`; the next chunk is answered
+    /// `no_session`).
+    pub fn work(&mut self) {
+        let r = match core::mem::replace(&mut self.pending, Work::None) {
+            Work::None => return,
+            Work::Start => self.erase_for(0),
+            Work::Flush => self.flush_full(),
+            Work::Mark => match self.state.mark_updated() {
+                Ok(()) => {
+                    self.phase = UpdateState::Committed;
+                    self.exit = Exit::Reset;
+                    Ok(())
+                }
+                Err(_) => Err(Status::FlashError),
+            },
+        };
+        if let Err(s) = r {
+            self.last_error = s;
+            self.drop_transfer();
         }
     }
 
@@ -214,6 +259,8 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
     /// Executes one write addressed to the board: `bytes` as received, check included. The
     /// reply is held for the next read.
     pub fn handle_write(&mut self, bytes: &[u8]) {
+        // Work the glue left undone (it should call `work` after each reply) comes first.
+        self.work();
         let seq = bytes.get(3).copied().unwrap_or(0);
         let addr_byte = self.config.address.addr_byte(false);
         let (status, payload) = match pec::strip(addr_byte, bytes) {
@@ -231,25 +278,21 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
             status,
             payload: payload.as_ref().map_or(&[][..], |p| &p[..]),
         };
+        // A reply's check covers the read address byte, as every reply's does.
         self.reply_len = reply
-            .emit(&mut self.reply)
-            .and_then(|n| pec::append(addr_byte, &mut self.reply, n))
+            .emit_with_pec(self.config.address, &mut self.reply)
             .unwrap_or(0);
     }
 
     /// Writes the held reply (or a `no_request` reply) into `buf`; returns its length.
     pub fn take_reply(&mut self, buf: &mut [u8]) -> usize {
         if self.reply_len == 0 {
-            let addr_byte = self.config.address.addr_byte(false);
             let reply = Reply {
                 seq: 0,
                 status: Status::NoRequest,
                 payload: &[],
             };
-            return reply
-                .emit(buf)
-                .and_then(|n| pec::append(addr_byte, buf, n))
-                .unwrap_or(0);
+            return reply.emit_with_pec(self.config.address, buf).unwrap_or(0);
         }
         let n = self.reply_len;
         self.reply_len = 0;
@@ -275,8 +318,10 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
             Err(e) => return (e.status(), None),
         };
         match op {
-            Op::Update(UpdateOp::Status) => (Status::Ok, Some(self.report().to_bytes())),
-            Op::Update(u) => (self.update(u), None),
+            Op::Update(f) => match f.op() {
+                UpdateOp::Status => (Status::Ok, Some(self.report().to_bytes())),
+                u => (self.update(u), None),
+            },
             // A bootloader is found by a ping; the application's operations wait for it.
             Op::Ping => (Status::Ok, None),
             _ => (Status::Unsupported, None),
@@ -302,6 +347,7 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
     }
 
     fn drop_transfer(&mut self) {
+        self.pending = Work::None;
         self.info = None;
         self.phase = UpdateState::Idle;
         self.received = 0;
@@ -330,6 +376,7 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
             self.info = Some(info);
             self.phase = UpdateState::Receiving;
             self.last_error = Status::Ok;
+            self.pending = Work::Start;
         }
         status
     }
@@ -350,42 +397,73 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
         }
         for &b in data {
             let i = (self.received - self.buf_start) as usize;
-            if let Some(slot) = self.buf.get_mut(i) {
+            let slot = if i < W {
+                self.buf.get_mut(i)
+            } else {
+                self.carry.get_mut(i - W)
+            };
+            if let Some(slot) = slot {
                 *slot = b;
             }
             self.received += 1;
-            if (self.received - self.buf_start) as usize == W {
-                if let Err(s) = self.flush() {
-                    self.drop_transfer();
-                    return s;
-                }
-            }
+        }
+        if (self.received - self.buf_start) as usize >= W {
+            self.pending = Work::Flush;
         }
         self.last_chunk = Some((offset, data.len()));
         Status::Ok
     }
 
-    /// Writes the buffer (padded with the erased value) at `buf_start`, erasing the sector
-    /// first when the transfer first reaches it.
-    fn flush(&mut self) -> Result<(), Status> {
-        let start = self.buf_start;
-        let fill = (self.received - start) as usize;
-        if fill == 0 {
-            return Ok(());
-        }
-        if let Some(tail) = self.buf.get_mut(fill..) {
-            tail.fill(0xff);
-        }
-        while self.erased < start + W as u32 {
+    /// Erases the sector that holds image offset `at`, unless done already (the transfer goes
+    /// forward only, so `erased` is where erased flash ends).
+    fn erase_for(&mut self, at: u32) -> Result<(), Status> {
+        while self.erased <= at {
             let from = self.erased;
             let to = from + D::ERASE_SIZE as u32;
             self.dfu.erase(from, to).map_err(|_| Status::FlashError)?;
             self.erased = to;
         }
+        Ok(())
+    }
+
+    /// Writes the full buffer, moves the carried bytes in, and erases the next sector when
+    /// the next buffer starts one.
+    fn flush_full(&mut self) -> Result<(), Status> {
+        let start = self.buf_start;
+        self.erase_for(start)?;
         self.dfu
             .write(start, &self.buf)
             .map_err(|_| Status::FlashError)?;
         self.buf_start = start + W as u32;
+        self.buf.fill(0xff);
+        let carried = (self.received - self.buf_start) as usize;
+        if let (Some(to), Some(from)) = (self.buf.get_mut(..carried), self.carry.get(..carried)) {
+            to.copy_from_slice(from);
+        }
+        self.carry.fill(0xff);
+        if let Some(info) = self.info {
+            if self.buf_start < info.len {
+                self.erase_for(self.buf_start)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Writes what the buffer holds of the image's end (padded with the erased value).
+    fn flush_tail(&mut self) -> Result<(), Status> {
+        if self.pending == Work::Flush {
+            self.pending = Work::None;
+            self.flush_full()?;
+        }
+        let start = self.buf_start;
+        if self.received == start {
+            return Ok(());
+        }
+        self.erase_for(start)?;
+        self.dfu
+            .write(start, &self.buf)
+            .map_err(|_| Status::FlashError)?;
+        self.buf_start = self.received;
         self.buf.fill(0xff);
         Ok(())
     }
@@ -397,18 +475,18 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
         if self.received != info.len {
             return Status::Incomplete;
         }
-        let status = self.verify_and_mark(&info);
+        let status = self.verify(&info);
         if status.is_ok() {
-            self.phase = UpdateState::Committed;
-            self.exit = Exit::Reset;
+            // The mark (an erase and two writes of the state sector) once the reply is read.
+            self.pending = Work::Mark;
         } else {
             self.drop_transfer();
         }
         status
     }
 
-    fn verify_and_mark(&mut self, info: &ImageInfo) -> Status {
-        if let Err(s) = self.flush() {
+    fn verify(&mut self, info: &ImageInfo) -> Status {
+        if let Err(s) = self.flush_tail() {
             return s;
         }
         let status = self.check_info(info);
@@ -430,12 +508,10 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
             at += n as u32;
         }
         self.buf.fill(0xff);
-        if digest.finalize() != info.crc32 {
-            return Status::BadCrc;
-        }
-        match self.state.mark_updated() {
-            Ok(()) => Status::Ok,
-            Err(_) => Status::FlashError,
+        if digest.finalize() == info.crc32 {
+            Status::Ok
+        } else {
+            Status::BadCrc
         }
     }
 }

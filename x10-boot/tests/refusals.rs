@@ -195,10 +195,11 @@ fn frames_without_their_check_or_for_another_board_are_refused() {
             board: KIND,
             version: NEW,
         };
+        let mut data = [0u8; 28];
         let req = x10_microcode::Request {
             db: Address::new(DB).unwrap(),
             seq: 9,
-            op: x10_microcode::Op::Update(UpdateOp::Begin(info)),
+            op: UpdateOp::Begin(info).to_op(&mut data),
         };
         let mut buf = [0u8; 40];
         let n = req.emit(&mut buf).unwrap();
@@ -234,7 +235,7 @@ fn frames_without_their_check_or_for_another_board_are_refused() {
         // A read with nothing held.
         let mut rx = [0u8; 8];
         let n = s.take_reply(&mut rx);
-        let body = pec::strip(Address::new(DB).unwrap().addr_byte(false), &rx[..n]).unwrap();
+        let body = pec::strip(Address::new(DB).unwrap().addr_byte(true), &rx[..n]).unwrap();
         assert_eq!(Reply::parse(body).unwrap().status, Status::NoRequest);
     }));
 }
@@ -257,10 +258,11 @@ fn leave_boots_the_current_image() {
 #[test]
 fn the_exit_waits_for_the_reply_to_be_read() {
     with_session(|s| {
+        let mut data = [0u8; 28];
         let req = x10_microcode::Request {
             db: Address::new(DB).unwrap(),
             seq: 1,
-            op: x10_microcode::Op::Update(UpdateOp::Leave),
+            op: UpdateOp::Leave.to_op(&mut data),
         };
         let mut buf = [0u8; 16];
         let n = req.emit_with_pec(&mut buf).unwrap();
@@ -269,4 +271,65 @@ fn the_exit_waits_for_the_reply_to_be_read() {
         assert_eq!(read_reply(s, 1).0, Status::Ok);
         assert_eq!(s.exit(), Exit::Leave);
     });
+}
+
+#[test]
+fn flash_work_waits_until_the_reply_has_been_read() {
+    let old = image(20_000, OLD, 1);
+    let board = Board::new(&old);
+    let power = Power::new(None, Cut::Clean);
+    let mut aligned = [0u8; WRITE];
+    let st = BlockingFirmwareState::new(board.part(0, &power), &mut aligned);
+    let mut s: Session<'_, Part, Part, BUF> = Session::new(config(), board.part(2, &power), st);
+    let img = image(300, NEW, 7);
+    let send = |s: &mut Session<'_, Part, Part, BUF>, op: UpdateOp<'_>| {
+        let mut data = [0u8; 28];
+        let req = x10_microcode::Request {
+            db: Address::new(DB).unwrap(),
+            seq: 1,
+            op: op.to_op(&mut data),
+        };
+        let mut buf = [0u8; 40];
+        let n = req.emit_with_pec(&mut buf).unwrap();
+        s.handle_write(&buf[..n]);
+        let mut rx = [0u8; 40];
+        s.take_reply(&mut rx);
+    };
+    // begin: answered without touching the flash; the first sector's erase follows.
+    send(&mut s, UpdateOp::Begin(info(&img, NEW)));
+    assert_eq!(power.ops.get(), 0);
+    s.work();
+    assert_eq!(power.ops.get(), 1);
+    // Chunks up to the buffer's 256 bytes: no flash; the one that fills it leaves a write.
+    for i in 0..11 {
+        let op = UpdateOp::Chunk {
+            offset: (i * CHUNK_MAX) as u32,
+            data: &img[i * CHUNK_MAX..(i + 1) * CHUNK_MAX],
+        };
+        send(&mut s, op);
+        assert_eq!(power.ops.get(), 1, "chunk {i}");
+        s.work();
+    }
+    // 264 bytes taken: the 11th chunk filled the buffer; its write came after its reply.
+    assert_eq!(power.ops.get(), 2);
+    let rest = UpdateOp::Chunk {
+        offset: 264,
+        data: &img[264..288],
+    };
+    send(&mut s, rest);
+    s.work();
+    let last = UpdateOp::Chunk {
+        offset: 288,
+        data: &img[288..],
+    };
+    send(&mut s, last);
+    s.work();
+    assert_eq!(power.ops.get(), 2);
+    // commit: the tail is written and read back before the reply; the mark after it.
+    send(&mut s, UpdateOp::Commit);
+    assert_eq!(power.ops.get(), 3);
+    assert_eq!(s.exit(), Exit::Stay);
+    s.work();
+    assert_eq!(s.exit(), Exit::Reset);
+    assert_eq!(board.state_magic(), State::Swap);
 }

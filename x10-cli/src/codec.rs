@@ -721,12 +721,13 @@ fn data_from_fields(o: Input<'_>, info: &OpInfo, pin: Option<PinRef>) -> Result<
             return batch_data(items);
         }
         ("update", "begin") => {
-            Op::Update(x10_microcode::UpdateOp::Begin(x10_microcode::ImageInfo {
+            let info = x10_microcode::ImageInfo {
                 len: need(f.image_len, "image_len", &what)?,
                 crc32: need(f.crc32, "crc32", &what)?,
                 board: need(f.board, "board", &what)?,
                 version: need(f.version, "version", &what)?,
-            }))
+            };
+            return Ok(info.to_bytes().to_vec());
         }
         ("update", "chunk") => {
             let offset = need(f.offset, "offset", &what)?;

@@ -84,6 +84,7 @@ pub fn error_text(e: &CallError) -> String {
         CallError::Busy => "no free request slot".into(),
         CallError::Unsupported => "not supported by the link".into(),
         CallError::BadAddress => "bad board address".into(),
+        CallError::Updating => "the board's firmware is being updated".into(),
     }
 }
 

@@ -27,6 +27,9 @@ pub enum LinkError {
     Busy,
     /// The link does not offer this (e.g. events on a test double that has none).
     Unsupported,
+    /// The board is having its firmware updated by the motherboard (issue 25): nothing was
+    /// sent; it answers again once the update has ended.
+    Updating,
 }
 
 impl From<x10_microcode::Error> for LinkError {
@@ -47,6 +50,7 @@ impl fmt::Display for LinkError {
             LinkError::Invalid(e) => write!(f, "invalid operation: {e}"),
             LinkError::Busy => f.write_str("too many requests outstanding"),
             LinkError::Unsupported => f.write_str("not supported by this link"),
+            LinkError::Updating => f.write_str("the board's firmware is being updated"),
         }
     }
 }

@@ -45,6 +45,8 @@ pub enum CallError {
     Unsupported,
     /// 9: the board address is not a valid address.
     BadAddress,
+    /// 10: the board's firmware is being updated.
+    Updating,
 }
 
 /// How a call ended: its reply payload, or why not.

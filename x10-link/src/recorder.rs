@@ -105,6 +105,7 @@ pub fn call_error(e: &LinkError) -> CallError {
         LinkError::Invalid(_) => CallError::Invalid,
         LinkError::Busy => CallError::Busy,
         LinkError::Unsupported => CallError::Unsupported,
+        LinkError::Updating => CallError::Updating,
     }
 }
 

@@ -73,7 +73,8 @@ pub use system::{
 };
 pub use types::{Address, Edge, Level, Pin, PinRef, Port, PortKind, Uid};
 pub use update::{
-    image_crc32, ImageInfo, UpdateOp, UpdateReport, UpdateState, Version, CHUNK_MAX, IMAGE_CRC,
+    image_crc32, ImageInfo, UpdateFrame, UpdateOp, UpdateReport, UpdateState, Version, CHUNK_MAX,
+    IMAGE_CRC,
 };
 
 /// Result type of this crate.

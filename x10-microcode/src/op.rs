@@ -165,8 +165,9 @@ pub enum Op<'a> {
     /// System 13, the running image marks itself good (it is kept at the next reset instead
     /// of being rolled back); `ok` also when there was nothing to confirm.
     ConfirmFirmware,
-    /// Function 7, answered by a board's bootloader only ([`crate::UpdateOp`]).
-    Update(crate::UpdateOp<'a>),
+    /// Function 7, answered by a board's bootloader only ([`crate::UpdateFrame`]; build it
+    /// with [`crate::UpdateOp::to_op`]).
+    Update(crate::UpdateFrame<'a>),
     /// IO 0, read a digital pin (thesis `digitalIn`): reply payload 1 byte, 0 or 1.
     DigitalRead(PinRef),
     /// IO 1 / IO 2, drive a digital pin (thesis `digitalOut`). No reply.
@@ -416,7 +417,7 @@ impl<'a> Op<'a> {
                 no_port(port)?;
                 Ok(Op::Scan)
             }
-            Function::Update => crate::UpdateOp::parse(operand, port, data).map(Op::Update),
+            Function::Update => crate::UpdateFrame::parse(operand, port, data).map(Op::Update),
             Function::Unknown(f) => Err(Error::UnknownFunction(f)),
         }
     }
@@ -605,7 +606,7 @@ impl<'a> Op<'a> {
             Op::EventEnable(..) => EventConfig::LEN,
             Op::SerialWrite(_, data) => data.len(),
             Op::Batch(b) => b.as_bytes().len(),
-            Op::Update(u) => u.data_len(),
+            Op::Update(u) => u.data().len(),
         }
     }
 
@@ -638,7 +639,7 @@ impl<'a> Op<'a> {
             Op::EventEnable(_, cfg) => copy_into(buf, &cfg.to_bytes()),
             Op::SerialWrite(_, data) => copy_into(buf, data),
             Op::Batch(b) => copy_into(buf, b.as_bytes()),
-            Op::Update(u) => u.emit_data(buf),
+            Op::Update(u) => copy_into(buf, u.data()),
             // The operations without data: those whose `data_len` is 0 (which of them carry
             // data is `data_len`'s to say; tests/vectors.rs `request_emit` checks that the two
             // agree for every operation).

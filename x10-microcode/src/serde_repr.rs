@@ -263,17 +263,20 @@ fn op_entries<M: SerializeMap>(m: &mut M, op: &Op<'_>) -> Result<(), M::Error> {
         Op::SerialRead(_, count) => m.serialize_entry("count", &count),
         Op::SerialConfig(_, baud) => m.serialize_entry("baud", &baud),
         Op::Batch(b) => m.serialize_entry("items", &Items(b)),
-        Op::Update(crate::UpdateOp::Begin(info)) => {
-            m.serialize_entry("image_len", &info.len)?;
-            m.serialize_entry("crc32", &info.crc32)?;
-            m.serialize_entry("board", &info.board)?;
-            m.serialize_entry("version", &info.version)
-        }
-        Op::Update(crate::UpdateOp::Chunk { offset, data }) => {
-            m.serialize_entry("offset", &offset)?;
-            m.serialize_entry("bytes", data)
-        }
-        Op::Update(_) | Op::EnterUpdate | Op::ConfirmFirmware => Ok(()),
+        Op::Update(f) => match f.op() {
+            crate::UpdateOp::Begin(info) => {
+                m.serialize_entry("image_len", &info.len)?;
+                m.serialize_entry("crc32", &info.crc32)?;
+                m.serialize_entry("board", &info.board)?;
+                m.serialize_entry("version", &info.version)
+            }
+            crate::UpdateOp::Chunk { offset, data } => {
+                m.serialize_entry("offset", &offset)?;
+                m.serialize_entry("bytes", data)
+            }
+            _ => Ok(()),
+        },
+        Op::EnterUpdate | Op::ConfirmFirmware => Ok(()),
         Op::Ping
         | Op::Identify
         | Op::Heartbeat

@@ -204,6 +204,90 @@ impl<'a> UpdateOp<'a> {
     }
 }
 
+/// Function 7 as [`crate::Op::Update`] carries it: the operand and the data bytes, checked
+/// for their lengths only. An application refuses function 7 whatever it says, so it never
+/// pays for decoding it; a bootloader decodes it with [`UpdateFrame::op`]. Build one with
+/// [`UpdateOp::to_op`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct UpdateFrame<'a> {
+    operand: u8,
+    data: &'a [u8],
+}
+
+impl<'a> UpdateFrame<'a> {
+    /// Checks operand, port byte and data length.
+    ///
+    /// # Errors
+    /// [`Error::UnknownOperand`], [`Error::BadLength`], [`Error::BadArgument`] (a port byte).
+    pub fn parse(operand: u8, port: u8, data: &'a [u8]) -> Result<UpdateFrame<'a>> {
+        let ok = match operand {
+            UpdateOp::BEGIN => data.len() == ImageInfo::LEN,
+            UpdateOp::CHUNK => data.len() > 4,
+            UpdateOp::COMMIT | UpdateOp::STATUS | UpdateOp::LEAVE => data.is_empty(),
+            _ => {
+                return Err(Error::UnknownOperand {
+                    function: 7,
+                    operand,
+                })
+            }
+        };
+        if !ok {
+            return Err(Error::BadLength);
+        }
+        if port != 0 {
+            return Err(Error::BadArgument);
+        }
+        Ok(UpdateFrame { operand, data })
+    }
+
+    /// The operand.
+    pub const fn operand(&self) -> u8 {
+        self.operand
+    }
+
+    /// The data bytes.
+    pub const fn data(&self) -> &'a [u8] {
+        self.data
+    }
+
+    /// The operation, decoded.
+    pub fn op(&self) -> UpdateOp<'a> {
+        UpdateOp::parse(self.operand, 0, self.data).unwrap_or(UpdateOp::Status)
+    }
+
+    /// Name, as the `x10` tool prints it.
+    pub const fn name(&self) -> &'static str {
+        match self.operand {
+            UpdateOp::BEGIN => "begin",
+            UpdateOp::CHUNK => "chunk",
+            UpdateOp::COMMIT => "commit",
+            UpdateOp::STATUS => "status",
+            _ => "leave",
+        }
+    }
+
+    /// Payload length of an `ok` reply: [`UpdateReport::LEN`] for `status`, else 0.
+    pub const fn reply_len(&self) -> usize {
+        if self.operand == UpdateOp::STATUS {
+            UpdateReport::LEN
+        } else {
+            0
+        }
+    }
+}
+
+impl UpdateOp<'_> {
+    /// The operation as a request's [`crate::Op`], its data written into `buf`.
+    pub fn to_op<'b>(&self, buf: &'b mut [u8; MAX_REQUEST_DATA]) -> crate::Op<'b> {
+        let n = self.emit_data(buf).unwrap_or(0);
+        crate::Op::Update(UpdateFrame {
+            operand: self.operand(),
+            data: buf.get(..n).unwrap_or(&[]),
+        })
+    }
+}
+
 /// Where a bootloader's transfer is (byte 0 of the `status` reply).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -188,13 +188,19 @@ fn op_fields(m: &mut Flat, prefix: &str, op: &Op<'_>) {
         Op::PwmPulseWidth(_, us) => put(m, p("us"), Val::Int(us.into())),
         Op::SerialRead(_, n) => put(m, p("count"), Val::Int(n.into())),
         Op::SerialConfig(_, baud) => put(m, p("baud"), Val::Int(baud.into())),
-        Op::Update(UpdateOp::Begin(info)) => {
+        Op::Update(f) if matches!(f.op(), UpdateOp::Begin(_)) => {
+            let UpdateOp::Begin(info) = f.op() else {
+                unreachable!()
+            };
             put(m, p("image_len"), Val::Int(info.len.into()));
             put(m, p("crc32"), Val::Int(info.crc32.into()));
             put(m, p("board"), Val::Str(info.board.name().into()));
             put(m, p("version"), list(&info.version));
         }
-        Op::Update(UpdateOp::Chunk { offset, data }) => {
+        Op::Update(f) if matches!(f.op(), UpdateOp::Chunk { .. }) => {
+            let UpdateOp::Chunk { offset, data } = f.op() else {
+                unreachable!()
+            };
             put(m, p("offset"), Val::Int(offset.into()));
             put(m, p("bytes"), list(data));
         }

@@ -6,7 +6,7 @@ use std::future::{poll_fn, Future};
 use std::pin::pin;
 use std::rc::Rc;
 
-use embassy_futures::select::{select3, Either3};
+use embassy_futures::select::{select, select3, Either, Either3};
 use embassy_sync::blocking_mutex::raw::NoopRawMutex;
 use firmware_db::{
     start_address, AddressRecord, Daughterboard, DbConfig, StoreError, TargetConfig,
@@ -48,6 +48,8 @@ pub struct SimRecord {
     writes: Rc<Cell<u32>>,
     /// The board has a build-time address: it keeps none (`set_address` is `unsupported`).
     fixed: bool,
+    /// Its flash with A/B slots and a bootloader (issue 25), if it has one.
+    pub firmware: Option<crate::firmware::SimFirmware>,
 }
 
 impl SimRecord {
@@ -74,6 +76,21 @@ impl AddressRecord for SimRecord {
         self.kept.set(Some(address));
         self.writes.set(self.writes.get() + 1);
         Ok(())
+    }
+
+    fn enter_update(&mut self) -> Result<(), StoreError> {
+        match &self.firmware {
+            None => Err(StoreError::NoRecord),
+            Some(f) if f.enter_update() => Ok(()),
+            Some(_) => Err(StoreError::Failed),
+        }
+    }
+
+    fn confirm_firmware(&mut self) -> Result<(), StoreError> {
+        match &self.firmware {
+            Some(f) if !f.confirm() => Err(StoreError::Failed),
+            _ => Ok(()),
+        }
     }
 }
 
@@ -254,6 +271,34 @@ impl DbBoard {
             if moved {
                 config.reset_reason = ResetReason::Software;
             }
+            if let Some(fw) = &self.record.firmware {
+                // The bootloader first: the swap (or revert) costs its flash time.
+                let (mode, spent) = fw.start();
+                clock.sleep_ns(spent).await;
+                if mode == x10_boot::StartMode::Update {
+                    let end = select(
+                        self.bootloader(&bus, node, fw, address),
+                        bus.wait_reset(node, generation),
+                    )
+                    .await;
+                    let text = match end {
+                        Either::First(exit) => {
+                            bus.restart_node(node);
+                            moved = true;
+                            format!("bootloader: {exit:?}, restarting")
+                        }
+                        Either::Second(()) => "reset in the bootloader".to_string(),
+                    };
+                    notes.push(TraceLine::new(
+                        clock.now_ns(),
+                        Severity::Info,
+                        self.name.clone(),
+                        text,
+                    ));
+                    continue;
+                }
+                config.firmware = fw.version();
+            }
             let db: Daughterboard<NoopRawMutex, SimPorts, SimRecord> =
                 Daughterboard::with_record(self.ports.fresh(), config, self.record.clone());
             let serve = async {
@@ -298,6 +343,61 @@ impl DbBoard {
                 self.name.clone(),
                 text,
             ));
+        }
+    }
+}
+
+impl DbBoard {
+    /// The board in update mode: x10-boot's session on its port until `commit` or `leave`
+    /// (the exit), deaf while it works its flash.
+    async fn bootloader(
+        &self,
+        bus: &SimBus,
+        node: NodeId,
+        fw: &crate::firmware::SimFirmware,
+        address: Address,
+    ) -> x10_boot::Exit {
+        use x10_hal::bus::{Incoming, MultiMaster};
+        let clock = bus.clock().clone();
+        let mut aligned = [0u8; 1];
+        let state = embassy_boot::BlockingFirmwareState::new(fw.part(0), &mut aligned);
+        let cfg = x10_boot::BootConfig {
+            board: self.config.board,
+            floor: [0, 0, 0],
+            address,
+        };
+        let mut s: x10_boot::Session<'_, _, _, 256> =
+            x10_boot::Session::new(cfg, fw.part(2), state);
+        let mut port = bus.port(node);
+        let mut rx = [0u8; x10_microcode::MAX_FRAME_LEN];
+        let mut tx = [0u8; x10_microcode::MAX_FRAME_LEN];
+        loop {
+            if port.addressed().await.is_err() {
+                continue;
+            }
+            match port.listen(&mut rx).await {
+                Ok(Incoming::Write(n)) => s.handle_write(rx.get(..n).unwrap_or(&[])),
+                Ok(Incoming::WriteRead(n)) => {
+                    s.handle_write(rx.get(..n).unwrap_or(&[]));
+                    let m = s.take_reply(&mut tx);
+                    let _ = port.respond(&tx[..m]).await;
+                }
+                Ok(Incoming::Read) => {
+                    let m = s.take_reply(&mut tx);
+                    let _ = port.respond(&tx[..m]).await;
+                }
+                Err(_) => continue,
+            }
+            let before = fw.busy_ns();
+            s.work();
+            let spent = fw.busy_ns() - before;
+            if spent > 0 {
+                clock.sleep_ns(spent).await;
+            }
+            match s.exit() {
+                x10_boot::Exit::Stay => {}
+                exit => return exit,
+            }
         }
     }
 }

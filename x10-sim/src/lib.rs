@@ -32,6 +32,7 @@ pub mod board;
 pub mod bus;
 pub mod examples;
 pub mod exec;
+pub mod firmware;
 pub mod isolate;
 pub mod physics;
 pub mod ports;

@@ -591,6 +591,16 @@ impl Sim {
         self
     }
 
+    /// Gives board `name` a flash with A/B slots and a bootloader (issue 25): it reports the
+    /// version its active slot holds and can be updated over the bus; `fw` is shared, so the
+    /// caller sees what it holds after the run.
+    pub fn with_firmware(mut self, name: &str, fw: crate::firmware::SimFirmware) -> Sim {
+        if let Some(b) = self.board_mut(name) {
+            b.record.firmware = Some(fw);
+        }
+        self
+    }
+
     /// The board called `name`, to change its configuration.
     pub fn board_mut(&mut self, name: &str) -> Option<&mut DbBoard> {
         self.boards.iter_mut().find(|b| b.name == name)

@@ -120,7 +120,7 @@ const IMAGES: &[Image] = &[
         bin: "boot-pico",
         package: "x10-boards",
         target: "thumbv6m-none-eabi",
-        features: "bootloader",
+        features: "pico-bootloader",
         daughterboard: false,
         chip: None,
         chip_flash: 2048 * 1024 - 256,
@@ -152,6 +152,24 @@ const IMAGES: &[Image] = &[
         chip_flash: 128 * 1024,
         record: G431_RECORD,
         budget: DB_BUDGET,
+    },
+    Image {
+        bin: "boot-g431",
+        package: "x10-boards",
+        target: "thumbv7em-none-eabihf",
+        features: "stm32g431,bootloader",
+        daughterboard: false,
+        chip: None,
+        chip_flash: 128 * 1024,
+        record: G431_RECORD,
+        // The bootloader's region of the G431's flash (`x10_boards::g431_boot::BOOT`): the
+        // linker refuses more. 13 684 B when set (embassy-boot's swap, the flash driver, the
+        // update mode: the record, the HAL, embassy-stm32's blocking I2C target, x10-boot's
+        // session; issue 25).
+        budget: Budget {
+            flash: 24 * 1024,
+            ram: 2 * 1024,
+        },
     },
     Image {
         bin: "db-c011",
@@ -662,6 +680,16 @@ fn main() -> ExitCode {
 mod tests {
     use super::*;
 
+    /// `x10_boards::g431_boot::BOOT.len`, as the build script has it (`link_args.rs`).
+    fn x10_boards_boot_len() -> u32 {
+        #[allow(dead_code)]
+        mod build {
+            include!("../../x10-boards/link_args.rs");
+            pub(super) const BOOT_LEN: u32 = G431_BOOT_LEN;
+        }
+        build::BOOT_LEN
+    }
+
     #[test]
     fn arguments() {
         assert!(matches!(run(&["sizes".into()]), Err(Error::Usage(_))));
@@ -672,7 +700,7 @@ mod tests {
             e.to_string(),
             "unknown image `mb-uno`\n\
              usage: cargo xtask size [--no-build]\n       \
-             cargo xtask image NAME [ARGS...]   (NAME: mb-pico, db-pico, boot-pico, mb-g431, db-g431, db-c011)\n       \
+             cargo xtask image NAME [ARGS...]   (NAME: mb-pico, db-pico, boot-pico, mb-g431, db-g431, boot-g431, db-c011)\n       \
              cargo xtask emu [--list] [--check-docs | --write-docs] [SCENARIO...]"
         );
     }
@@ -835,7 +863,12 @@ mod tests {
                 ram: 6_144
             }
         );
-        assert_eq!(IMAGES.len(), 6);
+        assert_eq!(IMAGES.len(), 7);
+        // The bootloader within its region of the G431's flash.
+        assert_eq!(
+            image("boot-g431").unwrap().budget.flash,
+            u64::from(x10_boards_boot_len())
+        );
         assert_eq!(image("boot-pico").unwrap().budget.flash, 32_512);
         assert_eq!(IMAGES.iter().filter(|i| i.daughterboard).count(), 3);
         // The motherboards no larger than their budgets.

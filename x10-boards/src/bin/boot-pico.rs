@@ -167,6 +167,10 @@ async fn serve(mut session: Session<'static, Part, Part, 256>, mut bus: I2cSlave
             let n = session.take_reply(&mut tx);
             let _ = bus.respond_and_fill(tx.get(..n).unwrap_or(&[]), 0xFF).await;
         }
+        // The flash work the request left (an erase, a buffer's write, the swap mark), once
+        // its reply has gone: the motherboard's next request meanwhile finds the board deaf
+        // and is tried again.
+        session.work();
         if session.exit() != Exit::Stay {
             break;
         }

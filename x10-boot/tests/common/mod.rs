@@ -12,8 +12,7 @@ use embedded_storage::nor_flash::{
 };
 use x10_boot::{BootConfig, Exit, Session, StartMode};
 use x10_microcode::{
-    pec, Address, BoardKind, ImageInfo, Op, Reply, Request, Status, UpdateOp, UpdateReport,
-    CHUNK_MAX,
+    pec, Address, BoardKind, ImageInfo, Reply, Request, Status, UpdateOp, UpdateReport, CHUNK_MAX,
 };
 
 /// Erase sector (the RP2040's flash: 4 KiB).
@@ -294,16 +293,17 @@ impl Board {
 }
 
 /// The MB's side of one request to the bootloader: the frame with its check, the reply read
-/// and checked. `None` when the session held no reply.
+/// and checked; then the glue's part, the flash work.
 pub fn call<D: NorFlash, S: NorFlash, const W: usize>(
     s: &mut Session<'_, D, S, W>,
     seq: u8,
     op: UpdateOp<'_>,
 ) -> (Status, Vec<u8>) {
+    let mut data = [0u8; 28];
     let req = Request {
         db: Address::new(DB).unwrap(),
         seq,
-        op: Op::Update(op),
+        op: op.to_op(&mut data),
     };
     let mut buf = [0u8; 40];
     let n = req.emit_with_pec(&mut buf).unwrap();
@@ -317,10 +317,13 @@ pub fn read_reply<D: NorFlash, S: NorFlash, const W: usize>(
 ) -> (Status, Vec<u8>) {
     let mut rx = [0u8; 40];
     let n = s.take_reply(&mut rx);
-    let body = pec::strip(Address::new(DB).unwrap().addr_byte(false), &rx[..n]).unwrap();
+    let body = pec::strip(Address::new(DB).unwrap().addr_byte(true), &rx[..n]).unwrap();
     let r = Reply::parse(body).unwrap();
     assert_eq!(r.seq, seq);
-    (r.status, r.payload.to_vec())
+    let out = (r.status, r.payload.to_vec());
+    // The glue: the flash work once the reply has been read.
+    s.work();
+    out
 }
 
 /// A whole transfer: begin, every chunk, commit. The first status other than `ok`, or `ok`.

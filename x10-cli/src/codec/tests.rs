@@ -23,6 +23,8 @@ fn req_json(hex: &str) -> Value {
 fn op_table_agrees_with_the_protocol_crate() {
     let s1 = Port::sensor(1).unwrap();
     let a1 = Port::actuator(1).unwrap();
+    let (mut b1, mut b2, mut b3) = ([0u8; 28], [0u8; 28], [0u8; 28]);
+    let (mut b4, mut b5) = ([0u8; 28], [0u8; 28]);
     let ops = [
         Op::Ping,
         Op::Identify,
@@ -62,19 +64,21 @@ fn op_table_agrees_with_the_protocol_crate() {
         Op::Scan,
         Op::EnterUpdate,
         Op::ConfirmFirmware,
-        Op::Update(x10_microcode::UpdateOp::Begin(x10_microcode::ImageInfo {
+        x10_microcode::UpdateOp::Begin(x10_microcode::ImageInfo {
             len: 1,
             crc32: 2,
             board: x10_microcode::BoardKind::PICO,
             version: [0, 1, 0],
-        })),
-        Op::Update(x10_microcode::UpdateOp::Chunk {
+        })
+        .to_op(&mut b1),
+        x10_microcode::UpdateOp::Chunk {
             offset: 0,
             data: b"x",
-        }),
-        Op::Update(x10_microcode::UpdateOp::Commit),
-        Op::Update(x10_microcode::UpdateOp::Status),
-        Op::Update(x10_microcode::UpdateOp::Leave),
+        }
+        .to_op(&mut b2),
+        x10_microcode::UpdateOp::Commit.to_op(&mut b3),
+        x10_microcode::UpdateOp::Status.to_op(&mut b4),
+        x10_microcode::UpdateOp::Leave.to_op(&mut b5),
     ];
     assert_eq!(ops.len() + 1, OPS.len()); // + batch, checked below
     for op in ops {

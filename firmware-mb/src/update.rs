@@ -1,0 +1,494 @@
+//! Firmware over the bus on the motherboard (issue 25): an MB image carries the daughterboards'
+//! images ([`DbImage`]) and brings every board of a carried kind to the carried version
+//! (`docs/protocol.md`, "Firmware over the bus").
+//!
+//! [`run_updates`] is a task of its own, started by an image (or the simulator) that carries
+//! images: an MB image that carries none does not link it. It looks at the boards the
+//! directory knows (their `boot`, `announce` and `identify` give kind and version) at start and
+//! every [`UPDATE_POLL_US`], and updates a board of a carried kind that runs another version,
+//! one board at a time, as [`update_board`] says. Every request goes through the normal
+//! request queue, one at a time, so the robot's calls to the other boards interleave; between
+//! two chunks the updater leaves the bus alone for [`UpdateConfig::chunk_gap_us`], which bounds
+//! its share of the bus. While a board is updated, the robot's calls to it end at once in
+//! `LinkError::Updating`, never a hang.
+//!
+//! A C011 board has no room for a bootloader of ours: its method is ST's ROM bootloader over
+//! I2C (AN4221), written as a crate of its own; [`Method::for_kind`] is the seam, and this
+//! module refuses to update a board whose method it does not implement.
+
+use x10_devices::LinkError;
+use x10_microcode::{
+    Address, BoardKind, Identity, ImageInfo, Op, Status, Uid, UpdateOp, UpdateReport, Version,
+    CHUNK_MAX, MAX_REQUEST_DATA,
+};
+
+/// An image of a daughterboard's firmware, as an MB image carries it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DbImage {
+    /// The board kind it is built for.
+    pub kind: BoardKind,
+    /// Its firmware version (what the board reports once it runs it).
+    pub version: Version,
+    /// The image, as it goes into the board's slot.
+    pub bytes: &'static [u8],
+    /// CRC-32/ISO-HDLC of `bytes` (`x10_microcode::image_crc32`, computed at build time).
+    pub crc32: u32,
+}
+
+impl DbImage {
+    /// What `begin` announces.
+    pub fn info(&self) -> ImageInfo {
+        ImageInfo {
+            len: self.bytes.len() as u32,
+            crc32: self.crc32,
+            board: self.kind,
+            version: self.version,
+        }
+    }
+}
+
+/// Which boards the motherboard updates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum UpdatePolicy {
+    /// Every board of a carried kind that runs another version (the default).
+    Auto,
+    /// None.
+    Never,
+    /// Every board but these (pinned to the firmware they run).
+    Except(&'static [Uid]),
+}
+
+/// How a board kind is updated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Method {
+    /// `enter_update`, then function 7 answered by the board's bootloader (`x10-boot`):
+    /// RP2040 and STM32G431 boards, and the simulator's.
+    X10Boot,
+    /// ST's ROM bootloader over I2C (AN4221): the STM32C011, whose 32 KiB hold one image.
+    /// Not implemented here (its client is a crate of its own).
+    StRom,
+    /// No known way.
+    None,
+}
+
+impl Method {
+    /// The method for a board kind.
+    pub const fn for_kind(kind: BoardKind) -> Method {
+        match kind.0 {
+            1 | 3 | 4 => Method::X10Boot,
+            5 => Method::StRom,
+            _ => Method::None,
+        }
+    }
+}
+
+/// Timing of the updater.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct UpdateConfig {
+    /// The bus is left alone this long after each chunk's reply (µs): the robot's requests
+    /// queued meanwhile go first. With a chunk transaction of about 1 ms at 400 kHz, 1 ms
+    /// caps the update at about half of the bus.
+    pub chunk_gap_us: u64,
+    /// How often a board is asked whether it is back (its bootloader, its new image), µs.
+    pub poll_us: u64,
+    /// How long a board may take to come back in its bootloader, µs.
+    pub bootloader_wait_us: u64,
+    /// How long it may take to come back with the new image (the swap of two 32 KiB slots on
+    /// an RP2040 takes about 0.8 s), µs.
+    pub boot_wait_us: u64,
+    /// Tries per board; a board that failed this often (e.g. rolled back each time) is left
+    /// alone until the motherboard restarts.
+    pub tries: u8,
+    /// Tries of one request of the transfer after a transport error (the board is deaf while
+    /// it erases a sector, 45 ms on the Pico's flash; a lost reply: the repeat is idempotent).
+    pub chunk_retries: u8,
+}
+
+impl UpdateConfig {
+    /// 1 ms between chunks, polls every 20 ms, 2 s for the bootloader, 5 s for the new image,
+    /// 2 tries per board, 5 per chunk.
+    pub const DEFAULT: UpdateConfig = UpdateConfig {
+        chunk_gap_us: 1_000,
+        poll_us: 20_000,
+        bootloader_wait_us: 2_000_000,
+        boot_wait_us: 5_000_000,
+        tries: 2,
+        chunk_retries: 5,
+    };
+}
+
+impl Default for UpdateConfig {
+    fn default() -> Self {
+        Self::DEFAULT
+    }
+}
+
+/// Why an update failed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum UpdateError {
+    /// The board's kind has no update method here ([`Method`]).
+    NoMethod,
+    /// `enter_update` refused (`unsupported`: no bootloader) or failed.
+    Enter(LinkError),
+    /// The bootloader did not answer in time.
+    NoBootloader,
+    /// The bootloader refused `begin`, a chunk or `commit` with this status.
+    Refused(Status),
+    /// A transfer failed on the bus after every retry.
+    Link(LinkError),
+    /// The board did not come back with a version in time.
+    NotBack,
+    /// It came back with this version instead of the new one (rolled back).
+    RolledBack(Version),
+}
+
+/// What the updater needs of the motherboard: calls that bypass the `Updating` refusal, the
+/// mark that refuses the others, and time.
+#[allow(async_fn_in_trait)]
+pub trait UpdateLink {
+    /// Sends `op` to `db` through the request queue (the board may be marked as updating).
+    ///
+    /// # Errors
+    /// As `X10::call`.
+    async fn call(&self, db: Address, op: Op<'_>) -> Result<x10_microcode::Payload, LinkError>;
+    /// Marks `db` as being updated (`Some`) or no board (`None`).
+    fn set_updating(&self, db: Option<Address>);
+    /// Waits `us` microseconds.
+    async fn pause(&self, us: u64);
+    /// Microseconds since start.
+    fn now_us(&self) -> u64;
+}
+
+/// Counters of the updater.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct UpdateStats {
+    /// Boards brought to the carried version.
+    pub done: u16,
+    /// Updates that failed (each try counts).
+    pub failed: u16,
+    /// Of those, boards that came back with their old version.
+    pub rolled_back: u16,
+    /// Requests of the transfer sent again after a transport error.
+    pub chunk_retries: u32,
+    /// Transfers started again from `begin` (the board lost its session: a reset).
+    pub restarts: u16,
+}
+
+/// The image `images` carries for a board of `kind` running `version` under `policy`, when the
+/// board is to be updated: pure, the whole decision (`x10 update --plan` prints it).
+pub fn plan(
+    images: &[DbImage],
+    policy: UpdatePolicy,
+    uid: Uid,
+    kind: BoardKind,
+    version: Version,
+) -> Option<&DbImage> {
+    match policy {
+        UpdatePolicy::Never => return None,
+        UpdatePolicy::Except(pinned) if pinned.contains(&uid) => return None,
+        _ => {}
+    }
+    images
+        .iter()
+        .find(|i| i.kind == kind)
+        .filter(|i| i.version != version)
+}
+
+async fn wait_for<L: UpdateLink, T>(
+    link: &L,
+    cfg: &UpdateConfig,
+    within_us: u64,
+    mut ask: impl AsyncFnMut() -> Option<T>,
+) -> Option<T> {
+    let end = link.now_us().saturating_add(within_us);
+    loop {
+        if let Some(v) = ask().await {
+            return Some(v);
+        }
+        if link.now_us() >= end {
+            return None;
+        }
+        link.pause(cfg.poll_us).await;
+    }
+}
+
+/// `op` to `db`, tried again after a transport error (the board is deaf while it erases or
+/// writes its flash; a repeated chunk is idempotent) up to [`UpdateConfig::chunk_retries`]
+/// times, [`UpdateConfig::poll_us`] apart.
+async fn call_retrying<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    db: Address,
+    op: Op<'_>,
+    stats: &mut UpdateStats,
+) -> Result<x10_microcode::Payload, LinkError> {
+    let mut tries = 0u8;
+    loop {
+        match link.call(db, op).await {
+            Err(LinkError::Status(s)) => return Err(LinkError::Status(s)),
+            Err(e) if tries >= cfg.chunk_retries => return Err(e),
+            Err(_) => {
+                tries += 1;
+                stats.chunk_retries += 1;
+                link.pause(cfg.poll_us).await;
+            }
+            ok => return ok,
+        }
+    }
+}
+
+/// One transfer: `begin`, the chunks, `commit`. `Ok(false)`: the board lost its session
+/// (`no_session`, or no answer after the retries: it was reset): start again from `begin`.
+async fn transfer<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    db: Address,
+    image: &DbImage,
+    stats: &mut UpdateStats,
+) -> Result<bool, UpdateError> {
+    let refused = |e: LinkError| match e {
+        LinkError::Status(Status::NoSession) => Ok(false),
+        LinkError::Status(s) => Err(UpdateError::Refused(s)),
+        _ => Ok(false),
+    };
+    let mut buf = [0u8; MAX_REQUEST_DATA];
+    let begin = UpdateOp::Begin(image.info()).to_op(&mut buf);
+    if let Err(e) = call_retrying(link, cfg, db, begin, stats).await {
+        return refused(e);
+    }
+    let mut offset = 0usize;
+    for data in image.bytes.chunks(CHUNK_MAX) {
+        let mut buf = [0u8; MAX_REQUEST_DATA];
+        let op = UpdateOp::Chunk {
+            offset: offset as u32,
+            data,
+        }
+        .to_op(&mut buf);
+        if let Err(e) = call_retrying(link, cfg, db, op, stats).await {
+            return refused(e);
+        }
+        offset += data.len();
+        link.pause(cfg.chunk_gap_us).await;
+    }
+    let commit = UpdateOp::Commit.to_op(&mut buf);
+    match call_retrying(link, cfg, db, commit, stats).await {
+        Ok(_) => Ok(true),
+        Err(e) => refused(e),
+    }
+}
+
+/// Updates the board at `db` to `image`: `enter_update`; waits until its bootloader answers
+/// `status`; `begin`, every chunk, `commit` (from `begin` again, once more, when the board
+/// lost its session: it was reset); waits until the board answers `identify` with the new
+/// version, then `confirm_firmware`. The board is marked as updating from the first request
+/// to the end.
+///
+/// # Errors
+/// [`UpdateError`].
+pub async fn update_board<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    db: Address,
+    kind: BoardKind,
+    image: &DbImage,
+    stats: &mut UpdateStats,
+) -> Result<(), UpdateError> {
+    if Method::for_kind(kind) != Method::X10Boot {
+        return Err(UpdateError::NoMethod);
+    }
+    link.set_updating(Some(db));
+    let r = update_marked(link, cfg, db, image, stats).await;
+    link.set_updating(None);
+    match r {
+        Ok(()) => stats.done = stats.done.saturating_add(1),
+        Err(e) => {
+            stats.failed = stats.failed.saturating_add(1);
+            if matches!(e, UpdateError::RolledBack(_)) {
+                stats.rolled_back = stats.rolled_back.saturating_add(1);
+            }
+        }
+    }
+    r
+}
+
+async fn update_marked<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    db: Address,
+    image: &DbImage,
+    stats: &mut UpdateStats,
+) -> Result<(), UpdateError> {
+    // A board already in its bootloader (a power cut during an earlier update) answers
+    // `status`; an application answers it `unsupported`, and takes `enter_update`.
+    let mut buf = [0u8; MAX_REQUEST_DATA];
+    let status = UpdateOp::Status.to_op(&mut buf);
+    let in_bootloader = link.call(db, status).await.is_ok();
+    if !in_bootloader {
+        link.call(db, Op::EnterUpdate)
+            .await
+            .map_err(UpdateError::Enter)?;
+    }
+    let mut restarts = 0u8;
+    loop {
+        let up = wait_for(link, cfg, cfg.bootloader_wait_us, async || {
+            let p = link.call(db, status).await.ok()?;
+            UpdateReport::parse(&p).ok()
+        })
+        .await;
+        if up.is_none() {
+            return Err(UpdateError::NoBootloader);
+        }
+        if transfer(link, cfg, db, image, stats).await? {
+            break;
+        }
+        restarts += 1;
+        stats.restarts = stats.restarts.saturating_add(1);
+        if restarts > cfg.tries {
+            return Err(UpdateError::Refused(Status::NoSession));
+        }
+    }
+    // The board resets, embassy-boot swaps the slots, the new image starts (its `boot`
+    // event reaches the directory) and answers `identify`.
+    let version = wait_for(link, cfg, cfg.boot_wait_us, async || {
+        let p = link.call(db, Op::Identify).await.ok()?;
+        Identity::parse(&p).ok().map(|id| id.firmware)
+    })
+    .await
+    .ok_or(UpdateError::NotBack)?;
+    if version != image.version {
+        return Err(UpdateError::RolledBack(version));
+    }
+    link.call(db, Op::ConfirmFirmware)
+        .await
+        .map_err(UpdateError::Link)?;
+    Ok(())
+}
+
+/// True for the operations the updater sends (they pass while their board is marked as
+/// updating); `identify` and `ping` too, so that anyone may see whether the board is back.
+pub(crate) const fn is_update_op(op: &Op<'_>) -> bool {
+    matches!(
+        op,
+        Op::Update(_) | Op::EnterUpdate | Op::ConfirmFirmware | Op::Identify | Op::Ping
+    )
+}
+
+impl UpdateLink for crate::X10 {
+    async fn call(&self, db: Address, op: Op<'_>) -> Result<x10_microcode::Payload, LinkError> {
+        crate::X10::call(self, db, op).await
+    }
+
+    fn set_updating(&self, db: Option<Address>) {
+        self.core().with(|t| t.updating = db);
+    }
+
+    async fn pause(&self, us: u64) {
+        crate::mb_core::sleep_until(crate::mb_core::now().plus_us(us)).await;
+    }
+
+    fn now_us(&self) -> u64 {
+        crate::mb_core::now().0
+    }
+}
+
+/// How often [`run_updates`] looks at the directory (100 ms).
+pub const UPDATE_POLL_US: u64 = 100_000;
+
+/// Boards whose tries [`run_updates`] counts (more are tried once per start of it).
+pub const MAX_TRACKED: usize = 16;
+
+/// What [`update_pass`] remembers between passes: the tries per board and the counters.
+#[derive(Clone, Debug, Default)]
+pub struct UpdateState {
+    tried: heapless::Vec<(Uid, u8), MAX_TRACKED>,
+    /// The counters.
+    pub stats: UpdateStats,
+}
+
+impl UpdateState {
+    /// Tries so far for the board `uid`.
+    pub fn tries(&self, uid: Uid) -> u8 {
+        self.tried
+            .iter()
+            .find(|(u, _)| *u == uid)
+            .map_or(0, |(_, c)| *c)
+    }
+
+    fn count(&mut self, uid: Uid) {
+        match self.tried.iter_mut().find(|(u, _)| *u == uid) {
+            Some(e) => e.1 = e.1.saturating_add(1),
+            None => {
+                let _ = self.tried.push((uid, 1));
+            }
+        }
+    }
+}
+
+/// One look at the boards: each present board of `boards` that [`plan`] says to update, and
+/// that has had fewer than [`UpdateConfig::tries`] tries, is updated ([`update_board`]), one
+/// after the other; `on_result` hears every end (the log line). Returns how many were tried.
+pub async fn update_pass<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    images: &[DbImage],
+    policy: UpdatePolicy,
+    boards: &[crate::KnownBoard],
+    state: &mut UpdateState,
+    mut on_result: impl FnMut(&crate::KnownBoard, &DbImage, &Result<(), UpdateError>),
+) -> usize {
+    let mut n = 0;
+    for b in boards {
+        if !b.present {
+            continue;
+        }
+        let Some(image) = plan(images, policy, b.uid, b.kind, b.firmware) else {
+            continue;
+        };
+        if state.tries(b.uid) >= cfg.tries {
+            continue;
+        }
+        state.count(b.uid);
+        n += 1;
+        info!(
+            "update: board {} from {}.{}.{} to {}.{}.{}",
+            b.address.get(),
+            b.firmware[0],
+            b.firmware[1],
+            b.firmware[2],
+            image.version[0],
+            image.version[1],
+            image.version[2]
+        );
+        let r = update_board(link, cfg, b.address, b.kind, image, &mut state.stats).await;
+        match r {
+            Ok(()) => info!("update: board {} done", b.address.get()),
+            Err(_) => warn!("update: board {} failed", b.address.get()),
+        }
+        on_result(b, image, &r);
+    }
+    n
+}
+
+/// The updater task on the motherboard: at start and every [`UPDATE_POLL_US`], an
+/// [`update_pass`] over the boards its directory knows (`Motherboard::with_directory`).
+pub async fn run_updates(
+    x10: crate::X10,
+    cfg: UpdateConfig,
+    images: &[DbImage],
+    policy: UpdatePolicy,
+) -> ! {
+    let mut state = UpdateState::default();
+    let mut list = [crate::KnownBoard::EMPTY; MAX_TRACKED];
+    loop {
+        let n = x10.boards(&mut list);
+        let boards = list.get(..n).unwrap_or(&[]);
+        update_pass(&x10, &cfg, images, policy, boards, &mut state, |_, _, _| {}).await;
+        UpdateLink::pause(&x10, UPDATE_POLL_US).await;
+    }
+}

@@ -1,0 +1,613 @@
+//! The motherboard's updater (issue 25) against boards made of the real parts: x10-boot's
+//! session as the bootloader, embassy-boot's `prepare_boot` at every start, an application that
+//! answers `identify` with the version its slot holds and takes `enter_update` and
+//! `confirm_firmware` through x10-boot's hooks. Every frame is encoded and checked as on the
+//! bus (with its check). Time is virtual: each transaction costs its wire time at the bus
+//! clock, each flash operation the RP2040 flash's typical time (W25Q16JV datasheet: 4 KiB
+//! sector erase 45 ms, 256-byte page program 0.4 ms), each start the swap's flash work.
+//!
+//! Checked: an update end to end (new version, confirmed, counters), a power cut (board reset)
+//! in the middle of the transfer and during the swap (the update finishes), a new image that
+//! never comes back is rolled back and reported, bounded tries, refusals reported, policy,
+//! the plan; and the printed time of a 32 KiB update at 100 kHz, 400 kHz and 1 MHz against
+//! the wire-time floor.
+
+use std::cell::{Cell, RefCell};
+use std::rc::Rc;
+
+use embassy_boot::{BlockingFirmwareState, BootLoader, BootLoaderConfig};
+use embedded_storage::nor_flash::{
+    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
+};
+use firmware_mb::update::{
+    plan, update_board, update_pass, DbImage, UpdateConfig, UpdateError, UpdateLink, UpdatePolicy,
+    UpdateState, UpdateStats,
+};
+use firmware_mb::KnownBoard;
+use x10_boot::{BootConfig, Exit, Session, StartMode};
+use x10_devices::LinkError;
+use x10_microcode::{
+    pec, Address, BoardKind, Capabilities, Identity, Op, Payload, Reply, Request, Status, Uid,
+    UpdateOp, Version, PROTOCOL_VERSION,
+};
+
+const ERASE: usize = 4096;
+const ACTIVE: usize = 32 * 1024;
+const DFU: usize = ACTIVE + ERASE;
+const STATE: usize = ERASE;
+/// Flash times (ns), typical, of the Pico's W25Q16JV.
+const ERASE_NS: u64 = 45_000_000;
+const PROGRAM_NS: u64 = 400_000;
+/// The board's start before its image answers (ns).
+const BOOT_NS: u64 = 20_000_000;
+
+#[derive(Debug)]
+struct Err0;
+impl NorFlashError for Err0 {
+    fn kind(&self) -> NorFlashErrorKind {
+        NorFlashErrorKind::Other
+    }
+}
+
+/// A partition of the board's flash; each erase and write adds its time to `busy_ns`.
+struct Part {
+    mem: Rc<RefCell<Vec<u8>>>,
+    base: usize,
+    len: usize,
+    busy_ns: Rc<Cell<u64>>,
+}
+
+impl ErrorType for Part {
+    type Error = Err0;
+}
+
+impl ReadNorFlash for Part {
+    const READ_SIZE: usize = 1;
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Err0> {
+        let o = self.base + offset as usize;
+        bytes.copy_from_slice(&self.mem.borrow()[o..o + bytes.len()]);
+        Ok(())
+    }
+    fn capacity(&self) -> usize {
+        self.len
+    }
+}
+
+impl NorFlash for Part {
+    const WRITE_SIZE: usize = 1;
+    const ERASE_SIZE: usize = ERASE;
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Err0> {
+        let (f, t) = (self.base + from as usize, self.base + to as usize);
+        self.mem.borrow_mut()[f..t].fill(0xff);
+        self.busy_ns
+            .set(self.busy_ns.get() + ERASE_NS * ((t - f) / ERASE) as u64);
+        Ok(())
+    }
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Err0> {
+        let o = self.base + offset as usize;
+        for (m, b) in self.mem.borrow_mut()[o..o + bytes.len()]
+            .iter_mut()
+            .zip(bytes)
+        {
+            *m &= *b;
+        }
+        self.busy_ns
+            .set(self.busy_ns.get() + PROGRAM_NS * bytes.len().div_ceil(256) as u64);
+        Ok(())
+    }
+}
+
+/// A fake image: a header (`X10I`, version, good flag) and filler.
+fn image(len: usize, version: Version, good: bool, seed: u8) -> &'static [u8] {
+    let mut v: Vec<u8> = (0..len)
+        .map(|i| (i as u8).wrapping_mul(31) ^ seed)
+        .collect();
+    v[..4].copy_from_slice(b"X10I");
+    v[4..7].copy_from_slice(&version);
+    v[7] = good as u8;
+    Box::leak(v.into_boxed_slice())
+}
+
+fn db_image(bytes: &'static [u8]) -> DbImage {
+    DbImage {
+        kind: BoardKind::SIMULATED,
+        version: [bytes[4], bytes[5], bytes[6]],
+        bytes,
+        crc32: x10_microcode::image_crc32(bytes),
+    }
+}
+
+enum Mode {
+    App,
+    Boot(Box<Session<'static, Part, Part, 256>>),
+    Down,
+}
+
+/// One board: flash, what runs, when it is up again.
+struct Board {
+    addr: Address,
+    mem: Rc<RefCell<Vec<u8>>>,
+    busy: Rc<Cell<u64>>,
+    mode: RefCell<Mode>,
+    up_at: Cell<u64>,
+    /// Resets (power cuts) to inject: at these chunk offsets.
+    cut_at_offset: RefCell<Vec<u32>>,
+    /// Cut the power during the start that swaps (once).
+    cut_in_swap: Cell<bool>,
+    starts: Cell<u32>,
+    /// Busy with flash work after its last reply until then (ns): it does not answer.
+    deaf_until: Cell<u64>,
+}
+
+impl Board {
+    fn new(addr: u8, img: &[u8]) -> Board {
+        let mut mem = vec![0xffu8; STATE + ACTIVE + DFU];
+        mem[STATE..STATE + img.len()].copy_from_slice(img);
+        Board {
+            addr: Address::new(addr).unwrap(),
+            mem: Rc::new(RefCell::new(mem)),
+            busy: Rc::new(Cell::new(0)),
+            mode: RefCell::new(Mode::App),
+            up_at: Cell::new(0),
+            cut_at_offset: RefCell::new(Vec::new()),
+            cut_in_swap: Cell::new(false),
+            starts: Cell::new(0),
+            deaf_until: Cell::new(0),
+        }
+    }
+
+    fn part(&self, which: usize) -> Part {
+        let (base, len) = match which {
+            0 => (0, STATE),
+            1 => (STATE, ACTIVE),
+            _ => (STATE + ACTIVE, DFU),
+        };
+        Part {
+            mem: self.mem.clone(),
+            base,
+            len,
+            busy_ns: self.busy.clone(),
+        }
+    }
+
+    fn version(&self) -> Version {
+        let m = self.mem.borrow();
+        [m[STATE + 4], m[STATE + 5], m[STATE + 6]]
+    }
+
+    fn good(&self) -> bool {
+        self.mem.borrow()[STATE + 7] == 1
+    }
+
+    /// The board goes down now and starts at `at`.
+    fn reset(&self, now: u64) {
+        *self.mode.borrow_mut() = Mode::Down;
+        self.up_at.set(now + BOOT_NS);
+    }
+
+    /// Brings the board up if its time has come: the bootloader's start.
+    fn poll_up(&self, now: &Cell<u64>) {
+        if !matches!(*self.mode.borrow(), Mode::Down) || now.get() < self.up_at.get() {
+            return;
+        }
+        self.starts.set(self.starts.get() + 1);
+        loop {
+            let before = self.busy.get();
+            let mut bl = BootLoader::new(BootLoaderConfig {
+                active: self.part(1),
+                dfu: self.part(2),
+                state: self.part(0),
+            });
+            let mut buf = [0u8; 256];
+            let state = bl.prepare_boot(&mut buf).unwrap();
+            now.set(now.get() + self.busy.get() - before);
+            if self.cut_in_swap.get() && self.busy.get() > before {
+                // The power goes in the middle of that swap: undo nothing, start again (the
+                // swap goes on where its progress says).
+                self.cut_in_swap.set(false);
+                continue;
+            }
+            match x10_boot::start_mode(&state) {
+                StartMode::Update => {
+                    let aligned: &'static mut [u8] = Box::leak(Box::new([0u8; 1]));
+                    let st = BlockingFirmwareState::new(self.part(0), aligned);
+                    let cfg = BootConfig {
+                        board: BoardKind::SIMULATED,
+                        floor: [0, 1, 0],
+                        address: self.addr,
+                    };
+                    *self.mode.borrow_mut() =
+                        Mode::Boot(Box::new(Session::new(cfg, self.part(2), st)));
+                }
+                StartMode::Application if !self.good() => {
+                    // A bad image: its watchdog resets it before it answers anyone.
+                    continue;
+                }
+                StartMode::Application => *self.mode.borrow_mut() = Mode::App,
+            }
+            return;
+        }
+    }
+
+    /// The application's answer.
+    fn app(&self, op: &Op<'_>, now: u64) -> (Status, Vec<u8>, bool) {
+        let mut aligned = [0u8; 1];
+        let mut st = BlockingFirmwareState::new(self.part(0), &mut aligned);
+        match op {
+            Op::Identify => {
+                let id = Identity {
+                    protocol_version: PROTOCOL_VERSION,
+                    firmware: self.version(),
+                    board: BoardKind::SIMULATED,
+                    sensor_ports: 2,
+                    actuator_ports: 2,
+                    capabilities: Capabilities(0),
+                    adc_bits: 12,
+                };
+                (Status::Ok, id.to_bytes().to_vec(), false)
+            }
+            Op::Ping => (Status::Ok, vec![], false),
+            Op::EnterUpdate => {
+                x10_boot::enter_update(&mut st).unwrap();
+                let _ = now;
+                (Status::Ok, vec![], true)
+            }
+            Op::ConfirmFirmware => {
+                x10_boot::confirm_firmware(&mut st).unwrap();
+                (Status::Ok, vec![], false)
+            }
+            Op::Update(_) => (Status::Unsupported, vec![], false),
+            _ => (Status::Ok, vec![], false),
+        }
+    }
+}
+
+/// The bus: one board, virtual time, the wire time of every transaction at `hz`.
+struct Bus {
+    board: Board,
+    now: Cell<u64>,
+    hz: u64,
+    wire_ns: Cell<u64>,
+    transactions: Cell<u64>,
+    updating: Cell<Option<Address>>,
+}
+
+impl Bus {
+    fn new(board: Board, hz: u64) -> Bus {
+        Bus {
+            board,
+            now: Cell::new(0),
+            hz,
+            wire_ns: Cell::new(0),
+            transactions: Cell::new(0),
+            updating: Cell::new(None),
+        }
+    }
+
+    /// START, address and `w` bytes, repeated START, address and `r` bytes, STOP: 9 bits a byte.
+    fn spend_wire(&self, w: usize, r: usize) {
+        let bits = (1 + w + 1 + r) as u64 * 9 + 3;
+        let ns = bits * 1_000_000_000 / self.hz;
+        self.wire_ns.set(self.wire_ns.get() + ns);
+        self.now.set(self.now.get() + ns);
+        self.transactions.set(self.transactions.get() + 1);
+    }
+}
+
+impl UpdateLink for Bus {
+    async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
+        assert_eq!(db, self.board.addr);
+        let b = &self.board;
+        b.poll_up(&self.now);
+        let req = Request { db, seq: 7, op };
+        let mut buf = [0u8; 40];
+        let n = req.emit_with_pec(&mut buf).unwrap();
+        if let Some(UpdateOp::Chunk { offset, .. }) = match op {
+            Op::Update(f) => Some(f.op()),
+            _ => None,
+        } {
+            let cut = b.cut_at_offset.borrow().first() == Some(&offset);
+            if cut {
+                b.cut_at_offset.borrow_mut().remove(0);
+                b.reset(self.now.get());
+            }
+        }
+        if matches!(*b.mode.borrow(), Mode::Down) || self.now.get() < b.deaf_until.get() {
+            self.spend_wire(0, 0);
+            return Err(LinkError::Nack);
+        }
+        let read = 3 + op.reply_capacity() + 1;
+        self.spend_wire(n, read);
+        let (status, payload, reset) = {
+            let mut mode = b.mode.borrow_mut();
+            match &mut *mode {
+                Mode::Boot(s) => {
+                    let before = b.busy.get();
+                    s.handle_write(&buf[..n]);
+                    let mut rx = [0u8; 40];
+                    let m = s.take_reply(&mut rx);
+                    // Reading back the slot for the CRC at commit, or the final write.
+                    self.now.set(self.now.get() + b.busy.get() - before);
+                    // The flash work after the reply: the board is deaf meanwhile.
+                    let before = b.busy.get();
+                    s.work();
+                    b.deaf_until.set(self.now.get() + b.busy.get() - before);
+                    let body = pec::strip(db.addr_byte(true), &rx[..m]).unwrap();
+                    let r = Reply::parse(body).unwrap();
+                    (r.status, r.payload.to_vec(), s.exit() != Exit::Stay)
+                }
+                Mode::App => {
+                    drop(mode);
+                    b.app(&op, self.now.get())
+                }
+                Mode::Down => unreachable!(),
+            }
+        };
+        if reset {
+            b.reset(self.now.get());
+        }
+        match status {
+            Status::Ok => Ok(Payload::from_slice(&payload).unwrap()),
+            s => Err(LinkError::Status(s)),
+        }
+    }
+
+    fn set_updating(&self, db: Option<Address>) {
+        self.updating.set(db);
+    }
+
+    async fn pause(&self, us: u64) {
+        self.now.set(self.now.get() + us * 1_000);
+    }
+
+    fn now_us(&self) -> u64 {
+        self.now.get() / 1_000
+    }
+}
+
+fn run<F: core::future::Future>(f: F) -> F::Output {
+    embassy_futures::block_on(f)
+}
+
+const OLD: Version = [0, 1, 0];
+const NEW: Version = [0, 2, 0];
+
+fn update(bus: &Bus, img: &DbImage) -> (Result<(), UpdateError>, UpdateStats) {
+    let mut stats = UpdateStats::default();
+    let cfg = UpdateConfig::DEFAULT;
+    let r = run(update_board(
+        bus,
+        &cfg,
+        bus.board.addr,
+        BoardKind::SIMULATED,
+        img,
+        &mut stats,
+    ));
+    (r, stats)
+}
+
+#[test]
+fn an_update_end_to_end() {
+    let new = db_image(image(ACTIVE, NEW, true, 2));
+    let bus = Bus::new(Board::new(0x2a, image(20_000, OLD, true, 1)), 400_000);
+    let (r, stats) = update(&bus, &new);
+    assert_eq!(r, Ok(()));
+    assert_eq!(bus.board.version(), NEW);
+    // The board is deaf while it erases a sector (45 ms) after the reply of the chunk that
+    // reached it: the next chunk is tried again every 20 ms, 3 times for each of the 8 sectors.
+    assert_eq!(
+        (
+            stats.done,
+            stats.failed,
+            stats.restarts,
+            stats.chunk_retries
+        ),
+        (1, 0, 0, 24)
+    );
+    assert_eq!(bus.updating.get(), None);
+    // Confirmed: a reset keeps it.
+    bus.board.reset(bus.now.get());
+    bus.now.set(bus.now.get() + BOOT_NS);
+    bus.board.poll_up(&bus.now);
+    assert_eq!(bus.board.version(), NEW);
+    assert!(matches!(*bus.board.mode.borrow(), Mode::App));
+}
+
+#[test]
+fn power_cuts_mid_transfer_are_recovered_within_the_update() {
+    let new = db_image(image(ACTIVE, NEW, true, 2));
+    let board = Board::new(0x2a, image(20_000, OLD, true, 1));
+    *board.cut_at_offset.borrow_mut() = vec![24 * 700, 24 * 1000];
+    let bus = Bus::new(board, 400_000);
+    let (r, stats) = update(&bus, &new);
+    assert_eq!(r, Ok(()));
+    assert_eq!(bus.board.version(), NEW);
+    // Each cut: the chunk is not acknowledged and tried again 20 ms later; the board is back
+    // in its bootloader by then, without the session (`no_session`): the transfer starts again
+    // from `begin`.
+    assert_eq!(stats.restarts, 2, "{stats:?}");
+    assert!(bus.board.cut_at_offset.borrow().is_empty());
+}
+
+#[test]
+fn a_reset_before_the_confirm_rolls_back_and_the_next_try_finishes() {
+    let new = db_image(image(ACTIVE, NEW, true, 2));
+    let board = Board::new(0x2a, image(20_000, OLD, true, 1));
+    // The board resets once more right after its swap, before it could answer: embassy-boot
+    // reverts the unconfirmed image.
+    board.cut_in_swap.set(true);
+    let bus = Bus::new(board, 400_000);
+    let mut b = KnownBoard::EMPTY;
+    b.uid = Uid([3; 8]);
+    b.address = bus.board.addr;
+    b.kind = BoardKind::SIMULATED;
+    b.firmware = OLD;
+    b.present = true;
+    let mut state = UpdateState::default();
+    let mut ends = Vec::new();
+    for _ in 0..2 {
+        run(update_pass(
+            &bus,
+            &UpdateConfig::DEFAULT,
+            &[new],
+            UpdatePolicy::Auto,
+            &[b],
+            &mut state,
+            |_, _, r| ends.push(*r),
+        ));
+    }
+    assert_eq!(ends, [Err(UpdateError::RolledBack(OLD)), Ok(())]);
+    assert_eq!(bus.board.version(), NEW);
+    assert_eq!((state.stats.done, state.stats.rolled_back), (1, 1));
+}
+
+#[test]
+fn an_image_that_never_comes_back_is_rolled_back_and_tries_are_bounded() {
+    let bad = db_image(image(ACTIVE, NEW, false, 3));
+    let bus = Bus::new(Board::new(0x2a, image(20_000, OLD, true, 1)), 400_000);
+    let mut b = KnownBoard::EMPTY;
+    b.uid = Uid([1; 8]);
+    b.address = bus.board.addr;
+    b.kind = BoardKind::SIMULATED;
+    b.firmware = OLD;
+    b.present = true;
+    let cfg = UpdateConfig::DEFAULT;
+    let mut state = UpdateState::default();
+    let mut ends = Vec::new();
+    for _ in 0..4 {
+        run(update_pass(
+            &bus,
+            &cfg,
+            &[bad],
+            UpdatePolicy::Auto,
+            &[b],
+            &mut state,
+            |_, _, r| ends.push(*r),
+        ));
+    }
+    assert_eq!(
+        ends,
+        [
+            Err(UpdateError::RolledBack(OLD)),
+            Err(UpdateError::RolledBack(OLD))
+        ]
+    );
+    assert_eq!(state.tries(b.uid), 2);
+    assert_eq!(
+        (
+            state.stats.done,
+            state.stats.failed,
+            state.stats.rolled_back
+        ),
+        (0, 2, 2)
+    );
+    assert_eq!(bus.board.version(), OLD);
+    assert!(matches!(*bus.board.mode.borrow(), Mode::App));
+}
+
+#[test]
+fn refusals_are_reported_and_leave_the_old_image() {
+    let bus = Bus::new(Board::new(0x2a, image(20_000, OLD, true, 1)), 400_000);
+    // Older than the bootloader's floor (0.1.0).
+    let old = db_image(image(1_000, [0, 0, 9], true, 4));
+    let (r, _) = update(&bus, &old);
+    assert_eq!(r, Err(UpdateError::Refused(Status::TooOld)));
+    // A wrong CRC.
+    let mut corrupt = db_image(image(1_000, NEW, true, 5));
+    corrupt.crc32 ^= 1;
+    let (r, _) = update(&bus, &corrupt);
+    assert_eq!(r, Err(UpdateError::Refused(Status::BadCrc)));
+    assert_eq!(bus.board.version(), OLD);
+    // The board stays in its bootloader (it was asked to), answers `status`, and a right
+    // image goes through from there.
+    let new = db_image(image(1_000, NEW, true, 6));
+    let (r, _) = update(&bus, &new);
+    assert_eq!(r, Ok(()));
+    assert_eq!(bus.board.version(), NEW);
+}
+
+#[test]
+fn plan_follows_kind_version_and_policy() {
+    let img = db_image(image(100, NEW, true, 7));
+    let u = Uid([2; 8]);
+    assert_eq!(
+        plan(&[img], UpdatePolicy::Auto, u, BoardKind::SIMULATED, OLD),
+        Some(&img)
+    );
+    assert_eq!(
+        plan(&[img], UpdatePolicy::Auto, u, BoardKind::SIMULATED, NEW),
+        None
+    );
+    assert_eq!(
+        plan(&[img], UpdatePolicy::Auto, u, BoardKind::PICO, OLD),
+        None
+    );
+    assert_eq!(
+        plan(&[img], UpdatePolicy::Never, u, BoardKind::SIMULATED, OLD),
+        None
+    );
+    let pinned: &'static [Uid] = Box::leak(Box::new([u]));
+    assert_eq!(
+        plan(
+            &[img],
+            UpdatePolicy::Except(pinned),
+            u,
+            BoardKind::SIMULATED,
+            OLD
+        ),
+        None
+    );
+    assert_eq!(
+        firmware_mb::update::Method::for_kind(BoardKind::C011),
+        firmware_mb::update::Method::StRom
+    );
+}
+
+/// The time of a 32 KiB update at three bus clocks, against the wire-time floor (every chunk
+/// and its status reply once, nothing else), with the flash's typical times and the 1 ms
+/// between chunks that leaves the bus to the robot. Printed; run with `--nocapture`.
+#[test]
+fn time_of_a_32_kib_update() {
+    println!("32 KiB update (1366 chunks of 24 bytes), flash: 45 ms per 4 KiB erase, 0.4 ms per 256 B program (W25Q16JV typ.)");
+    println!("| bus | floor (chunks on the wire) | update, 1 ms between chunks | bus share while updating | update, no gap |");
+    println!("|---|---|---|---|---|");
+    for hz in [100_000u64, 400_000, 1_000_000] {
+        let mut row = Vec::new();
+        for gap in [1_000u64, 0] {
+            let new = db_image(image(ACTIVE, NEW, true, 2));
+            let bus = Bus::new(Board::new(0x2a, image(20_000, OLD, true, 1)), hz);
+            let mut stats = UpdateStats::default();
+            let cfg = UpdateConfig {
+                chunk_gap_us: gap,
+                ..UpdateConfig::DEFAULT
+            };
+            let t0 = bus.now.get();
+            let r = run(update_board(
+                &bus,
+                &cfg,
+                bus.board.addr,
+                BoardKind::SIMULATED,
+                &new,
+                &mut stats,
+            ));
+            assert_eq!(r, Ok(()), "{hz} Hz, gap {gap} µs: {stats:?}");
+            let total = bus.now.get() - t0;
+            row.push((total, bus.wire_ns.get()));
+        }
+        // The floor: each chunk request (4 + 28 data + 2 check) and its reply (3 + 1).
+        let chunks = ACTIVE.div_ceil(24) as u64;
+        let floor = chunks * ((1 + 34 + 1 + 4) * 9 + 3) * 1_000_000_000 / hz;
+        let (with_gap, wire) = row[0];
+        println!(
+            "| {} kHz | {:.2} s | {:.2} s | {:.0} % | {:.2} s |",
+            hz / 1000,
+            floor as f64 / 1e9,
+            with_gap as f64 / 1e9,
+            100.0 * wire as f64 / with_gap as f64,
+            row[1].0 as f64 / 1e9
+        );
+        if hz == 400_000 {
+            assert!(with_gap < 5_000_000_000, "{with_gap} ns at 400 kHz");
+        }
+    }
+}
