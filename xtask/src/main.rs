@@ -185,7 +185,7 @@ const IMAGES: &[Image] = &[
 ];
 
 /// boot-pico's budget: its link region (0x10000100 to the STATE sector at 0x10008000), and a
-/// static RAM guard (2 540 B when set: the update session and its task, embassy-rp's state,
+/// static RAM guard (2 596 B when set: the update session and its task, embassy-rp's state,
 /// defmt-rtt's buffer).
 const BOOT_PICO_BUDGET: Budget = Budget {
     flash: 0x8000 - 0x100,
@@ -223,10 +223,7 @@ const DB_BUDGET: Budget = Budget {
 /// images shrink.
 const MB_PICO_FLASH: u64 = 102_144;
 /// See [`MB_PICO_FLASH`].
-// Raised by 1 KiB for issue 25's first part (h13-update's update frames, System 12 and 13 in
-// the MB's share of the DB code; its merge with the Pico's bootloader branch measured mb-g431
-// 95 948 B, 204 B over 93.5 KiB), with the ports' locks already smaller.
-const MB_G431_FLASH: u64 = 96_768;
+const MB_G431_FLASH: u64 = 95_744;
 /// The motherboard images' static RAM budget (the Pico has 264 KiB, the G431 32 KiB): see
 /// [`MB_PICO_FLASH`]; 12 KiB until issue 22's per-board port table, keepalive retries, slot
 /// waiters and remembered event enables (13 272 B on mb-pico when set); 18 KiB since issue 26's
