@@ -25,8 +25,7 @@ use std::collections::BTreeMap;
 use std::future::Future;
 use std::pin::Pin;
 use std::rc::Rc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll, Wake, Waker};
 
 use x10_hal::time::{Clock, Instant};
@@ -247,7 +246,16 @@ impl Future for Sleep {
                 key
             }
         };
-        st.timers.insert(key, cx.waker().clone());
+        match st.timers.entry(key) {
+            std::collections::btree_map::Entry::Occupied(mut e) => {
+                if !e.get().will_wake(cx.waker()) {
+                    e.insert(cx.waker().clone());
+                }
+            }
+            std::collections::btree_map::Entry::Vacant(e) => {
+                e.insert(cx.waker().clone());
+            }
+        }
         Poll::Pending
     }
 }
@@ -262,17 +270,68 @@ impl Drop for Sleep {
     }
 }
 
+/// The tasks woken since they were last polled, one bit per task (by index): the executor
+/// finds the next woken task without looking at every task, so a simulation of many boards
+/// (each a task, most of them idle at any instant) costs what its woken tasks cost.
+#[derive(Default)]
+struct WakeSet {
+    words: Mutex<Vec<u64>>,
+}
+
+impl WakeSet {
+    fn mark(&self, index: usize) {
+        if let Ok(mut words) = self.words.lock() {
+            let w = index / 64;
+            if words.len() <= w {
+                words.resize(w + 1, 0);
+            }
+            if let Some(word) = words.get_mut(w) {
+                *word |= 1 << (index % 64);
+            }
+        }
+    }
+
+    fn is_marked(&self, index: usize) -> bool {
+        self.words.lock().is_ok_and(|words| {
+            words
+                .get(index / 64)
+                .is_some_and(|w| w & (1 << (index % 64)) != 0)
+        })
+    }
+
+    /// Clears and returns the lowest marked index at or above `from`.
+    fn take_next(&self, from: usize) -> Option<usize> {
+        let mut words = self.words.lock().ok()?;
+        let first = from / 64;
+        for (w, word) in words.iter_mut().enumerate().skip(first) {
+            let mask = if w == first {
+                u64::MAX << (from % 64)
+            } else {
+                u64::MAX
+            };
+            let hits = *word & mask;
+            if hits != 0 {
+                let bit = hits.trailing_zeros() as usize;
+                *word &= !(1 << bit);
+                return Some(w * 64 + bit);
+            }
+        }
+        None
+    }
+}
+
 struct TaskFlag {
-    woken: AtomicBool,
+    set: Arc<WakeSet>,
+    index: usize,
 }
 
 impl Wake for TaskFlag {
     fn wake(self: Arc<Self>) {
-        self.woken.store(true, Ordering::Relaxed);
+        self.set.mark(self.index);
     }
 
     fn wake_by_ref(self: &Arc<Self>) {
-        self.woken.store(true, Ordering::Relaxed);
+        self.set.mark(self.index);
     }
 }
 
@@ -281,7 +340,6 @@ type BoxFuture<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
 struct Task<'a> {
     name: Rc<str>,
     future: BoxFuture<'a>,
-    flag: Arc<TaskFlag>,
     waker: Waker,
 }
 
@@ -348,6 +406,7 @@ pub struct RunStats {
 pub struct Executor<'a> {
     time: Rc<TimeCore>,
     tasks: Vec<Option<Task<'a>>>,
+    woken: Arc<WakeSet>,
     spawn_queue: Rc<RefCell<Vec<(String, BoxFuture<'a>)>>>,
     polls: Cell<u64>,
     finished: usize,
@@ -372,6 +431,7 @@ impl<'a> Executor<'a> {
         Executor {
             time: clock.core.clone(),
             tasks: Vec::new(),
+            woken: Arc::new(WakeSet::default()),
             spawn_queue: Rc::new(RefCell::new(Vec::new())),
             polls: Cell::new(0),
             finished: 0,
@@ -403,14 +463,16 @@ impl<'a> Executor<'a> {
     }
 
     fn push_task(&mut self, name: String, future: BoxFuture<'a>) -> TaskId {
-        let flag = Arc::new(TaskFlag {
-            woken: AtomicBool::new(true),
-        });
-        let waker = Waker::from(flag.clone());
+        let index = self.tasks.len();
+        let waker = Waker::from(Arc::new(TaskFlag {
+            set: self.woken.clone(),
+            index,
+        }));
+        // Polled first in the pass that comes next.
+        self.woken.mark(index);
         self.tasks.push(Some(Task {
             name: name.into(),
             future,
-            flag,
             waker,
         }));
         TaskId(self.tasks.len() - 1)
@@ -442,23 +504,24 @@ impl<'a> Executor<'a> {
         let mut polls_here = 0u64;
         loop {
             let mut progressed = self.drain_spawns();
-            for i in 0..self.tasks.len() {
-                let Some(slot) = self.tasks.get_mut(i) else {
+            // One pass in index order: a task woken during the pass is polled in it when its
+            // index is above the one being polled, in the next pass otherwise.
+            let mut from = 0;
+            while let Some(i) = self.woken.take_next(from) {
+                from = i + 1;
+                let Some(task) = self.tasks.get_mut(i).and_then(Option::as_mut) else {
                     continue;
                 };
-                let Some(task) = slot.as_mut() else { continue };
-                if !task.flag.woken.swap(false, Ordering::Relaxed) {
-                    continue;
-                }
                 progressed = true;
                 polls_here += 1;
-                let waker = task.waker.clone();
-                let mut cx = Context::from_waker(&waker);
+                let mut cx = Context::from_waker(&task.waker);
                 let previous = CURRENT_TASK.with(|c| c.replace(Some(task.name.clone())));
                 let ready = task.future.as_mut().poll(&mut cx).is_ready();
                 CURRENT_TASK.with(|c| c.replace(previous));
                 if ready {
-                    *slot = None;
+                    if let Some(slot) = self.tasks.get_mut(i) {
+                        *slot = None;
+                    }
                     self.finished += 1;
                 }
             }
@@ -472,9 +535,9 @@ impl<'a> Executor<'a> {
                 let tasks = self
                     .tasks
                     .iter()
-                    .flatten()
-                    .filter(|t| t.flag.woken.load(Ordering::Relaxed))
-                    .map(|t| t.name.to_string())
+                    .enumerate()
+                    .filter(|(i, _)| self.woken.is_marked(*i))
+                    .filter_map(|(_, t)| t.as_ref().map(|t| t.name.to_string()))
                     .collect();
                 return Err(RunError::Livelock {
                     at: self.time.now(),

@@ -94,6 +94,93 @@ pub struct SimConfig {
     pub plug_and_play: bool,
     /// Addresses pinned by the robot's configuration (`MbConfig::pinned`).
     pub pinned: &'static [PinnedAddress],
+    /// What the run keeps: everything (the default), or a summary built as it goes, in
+    /// memory that does not grow with the run's length.
+    pub keep: Keep,
+}
+
+/// What a run keeps ([`SimConfig::keep`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Keep {
+    /// Everything: every bus transaction ([`SimOutcome::records`], with its wire symbols
+    /// when [`SimConfig::record_wire`]), every call ([`SimOutcome::calls`]), every trace
+    /// line. Memory grows with the run: about 6 MB per virtual minute of Figure 4.4's bus
+    /// (docs/performance.md). What the trace, the timeline pages and the VCD need.
+    #[default]
+    All,
+    /// A summary built as the run goes, in memory bounded by [`KEEP_CAP`] entries per list,
+    /// whatever the run's length: every counter ([`SimOutcome::bus`] with the bus's busy
+    /// time, the boards' and the motherboard's), the number of calls and failed calls
+    /// ([`SimOutcome::kept`]); of the lists, only what goes wrong, the first [`KEEP_CAP`]
+    /// of each: failed or faulted bus transactions, failed calls, the simulator's warning
+    /// notes (resets, task ends), device warnings, and the first [`KEEP_CAP`] output
+    /// changes (all of them in a world with physics, which reads them as the run goes).
+    /// The trace holds the warnings only, [`SimOutcome::calls`] is empty, no wire symbols are
+    /// kept. What is past a cap is counted ([`Kept`]) and the summary says so.
+    Summary,
+}
+
+/// Entries a bounded run ([`Keep::Summary`]) keeps per list.
+pub const KEEP_CAP: usize = 10_000;
+
+/// What a run kept and what it only counted ([`SimConfig::keep`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Kept {
+    /// The mode of the run.
+    pub keep: Keep,
+    /// Calls of robot and test tasks, and of those the failed ones (whatever was kept).
+    pub calls: (u64, u64),
+    /// Failed calls whose trace line was not kept (past the cap).
+    pub call_lines_dropped: u64,
+    /// Bus records past the cap (failed or faulted transactions), counted, not kept.
+    pub records_dropped: u64,
+    /// Of those, the failures that [`SimOutcome::problems`] counts.
+    pub dropped_failures: crate::bus::DroppedFailures,
+    /// Output changes, device warnings, and other log entries (safe states, latches,
+    /// blinks) past the cap.
+    pub log_dropped: (u64, u64, u64),
+    /// Notes (resets, task ends) past the cap.
+    pub notes_dropped: u64,
+}
+
+impl Kept {
+    /// Entries counted but not kept, in all.
+    pub fn dropped(&self) -> u64 {
+        self.call_lines_dropped
+            + self.records_dropped
+            + self.log_dropped.0
+            + self.log_dropped.1
+            + self.log_dropped.2
+            + self.notes_dropped
+    }
+
+    /// Warning lines the trace would hold past the caps (failed calls, device warnings,
+    /// notes; a failed bus transaction past the cap counts once, though its full trace may
+    /// give it more than one line).
+    pub fn warnings_dropped(&self) -> u64 {
+        self.call_lines_dropped + self.records_dropped + self.log_dropped.1 + self.notes_dropped
+    }
+
+    /// The summary's line saying what a bounded run kept (`None` for [`Keep::All`]).
+    pub fn summary_line(&self) -> Option<String> {
+        if self.keep == Keep::All {
+            return None;
+        }
+        let mut s = format!(
+            "record: a summary (a long run): the counts and the bus load cover the whole run ({} calls, {} failed); kept of the lists only the first {KEEP_CAP} of each (failed bus transactions, failed calls, warnings, output changes)",
+            self.calls.0, self.calls.1
+        );
+        if self.dropped() == 0 {
+            s.push_str(": nothing was past that");
+        } else {
+            let (changes, warnings, others) = self.log_dropped;
+            s.push_str(&format!(
+                "; counted, not kept: {} bus transactions, {} failed calls, {changes} output changes, {warnings} device warnings, {} notes, {others} other log entries",
+                self.records_dropped, self.call_lines_dropped, self.notes_dropped
+            ));
+        }
+        Some(s)
+    }
 }
 
 /// The default motherboard address (the lowest ordinary I2C address, so events sent to it
@@ -122,6 +209,7 @@ impl Default for SimConfig {
             mb_safe_defaults: true,
             plug_and_play: false,
             pinned: &[],
+            keep: Keep::All,
         }
     }
 }
@@ -262,6 +350,10 @@ struct CallTracer {
     called: Mutex<Vec<u8>>,
     /// Told of everything too ([`Sim::also_observe`]).
     also: Option<&'static dyn CallObserver>,
+    /// Keeps only failed calls' lines, at most [`KEEP_CAP`], and no spans.
+    bounded: bool,
+    /// Calls, failed calls, failed calls' lines not kept.
+    counts: Mutex<(u64, u64, u64)>,
 }
 
 impl CallObserver for CallTracer {
@@ -275,13 +367,26 @@ impl CallObserver for CallTracer {
         if let Some(also) = self.also {
             also.observe(call);
         }
-        let who = current_task().map_or_else(|| "?".to_string(), |n| n.to_string());
+        let task = current_task();
+        let who: &str = task.as_deref().unwrap_or("?");
         if who == "mb" {
             return;
         }
         if let Ok(mut called) = self.called.lock() {
             if !called.contains(&call.db.get()) {
                 called.push(call.db.get());
+            }
+        }
+        if let Ok(mut counts) = self.counts.lock() {
+            counts.0 += 1;
+            if call.result.is_err() {
+                counts.1 += 1;
+                if self.bounded && self.lines.lock().map_or(0, |l| l.len()) >= KEEP_CAP {
+                    counts.2 += 1;
+                    return;
+                }
+            } else if self.bounded {
+                return;
             }
         }
         let took = trace::micros(call.ended.since(call.started).saturating_mul(1_000));
@@ -295,9 +400,15 @@ impl CallObserver for CallTracer {
             trace::describe_op(call.op)
         );
         let end_ns = call.ended.as_micros().saturating_mul(1_000);
+        if self.bounded {
+            if let Ok(mut lines) = self.lines.lock() {
+                lines.push(TraceLine::new(end_ns, severity, who.to_string(), text));
+            }
+            return;
+        }
         if let Ok(mut spans) = self.spans.lock() {
             spans.push(CallSpan {
-                task: who.clone(),
+                task: who.to_string(),
                 start_ns: call.started.as_micros().saturating_mul(1_000),
                 end_ns,
                 text: text.clone(),
@@ -305,7 +416,7 @@ impl CallObserver for CallTracer {
             });
         }
         if let Ok(mut lines) = self.lines.lock() {
-            lines.push(TraceLine::new(end_ns, severity, who, text));
+            lines.push(TraceLine::new(end_ns, severity, who.to_string(), text));
         }
     }
 }
@@ -369,6 +480,8 @@ pub struct SimOutcome {
     /// Ground truth of plug and play: for each external board, every address it started at,
     /// with the time (ns; `0x77` while unaddressed).
     pub addresses: Vec<(String, Vec<(u64, Address)>)>,
+    /// What the run kept and what it only counted ([`SimConfig::keep`]).
+    pub kept: Kept,
 }
 
 impl SimOutcome {
@@ -423,7 +536,19 @@ impl SimOutcome {
                 // (reported above when the program called it).
                 None => self.bus.resets == 0 && self.board_addresses.contains(&r.addr),
             })
-            .count();
+            .count() as u64;
+        let d = &self.kept.dropped_failures;
+        let unanswered: u64 = d
+            .unanswered
+            .iter()
+            .enumerate()
+            .filter(|(a, _)| {
+                self.bus.resets == 0
+                    && u8::try_from(*a).is_ok_and(|a| self.board_addresses.contains(&a))
+            })
+            .map(|(_, n)| n)
+            .sum();
+        let failed = failed + d.answered + unanswered;
         if failed > 0 {
             let noun = if failed == 1 {
                 "transaction"
@@ -755,6 +880,15 @@ impl Sim {
         bus_cfg.faults = config.faults;
         bus_cfg.stretch_timeout_ns = config.stretch_timeout_us * 1_000;
         bus_cfg.record_wire = config.record_wire;
+        let bounded = config.keep == Keep::Summary;
+        if bounded {
+            bus_cfg.record_wire = false;
+            bus_cfg.keep_clean_records = false;
+            bus_cfg.keep_failed_records = true;
+            bus_cfg.record_cap = KEEP_CAP;
+            log.bound_to(KEEP_CAP);
+            notes.bound_to(KEEP_CAP);
+        }
         let bus = SimBus::new(clock.clone(), bus_cfg);
         let mb_node = bus.add_node(
             NodeConfig::new("mb", Some(config.mb_address.get())).with_role(config.mb_role),
@@ -793,6 +927,8 @@ impl Sim {
             spans: Mutex::new(Vec::new()),
             called: Mutex::new(Vec::new()),
             also: also_observe,
+            bounded,
+            counts: Mutex::new((0, 0, 0)),
         }));
         let mut motherboard = Motherboard::new(mb_cfg, mb_ports).with_observer(tracer);
         if config.plug_and_play {
@@ -882,7 +1018,7 @@ impl Sim {
             }
             v
         };
-        let records = bus.records();
+        let records = bus.take_records();
         let bus_names = BusNames {
             names: &names,
             mb_address: Some(config.mb_address.get()),
@@ -912,6 +1048,7 @@ impl Sim {
         );
         let calls = tracer.lines.lock().map(|mut l| std::mem::take(&mut *l));
         let mut calls = calls.unwrap_or_default();
+        let notes_dropped = notes.dropped();
         let mut notes = notes.lines();
         let task_errors = task_errors.take();
         for (task, e) in &task_errors {
@@ -923,7 +1060,22 @@ impl Sim {
                 .chain(calls)
                 .filter(|l| config.trace_calls || l.severity >= Severity::Warn),
         );
+        if bounded {
+            // Only what went wrong: the summary reads the warnings and the resets.
+            lines.retain(|l| l.severity >= Severity::Warn);
+        }
         trace.extend(lines);
+        let (calls_made, calls_failed, call_lines_dropped) =
+            tracer.counts.lock().map(|c| *c).unwrap_or_default();
+        let kept = Kept {
+            keep: config.keep,
+            calls: (calls_made, calls_failed),
+            call_lines_dropped,
+            records_dropped: bus.stats().records_dropped,
+            dropped_failures: bus.dropped_failures(),
+            log_dropped: log.dropped(),
+            notes_dropped,
+        };
         Ok(SimOutcome {
             trace,
             records,
@@ -955,6 +1107,7 @@ impl Sim {
             task_errors,
             device_warnings: device_warnings.into_iter().map(|w| w.text).collect(),
             addresses,
+            kept,
         })
     }
 }
