@@ -514,6 +514,9 @@ struct BusInner {
     stats: BusStats,
     /// Failed transactions whose records were dropped at the cap.
     dropped: DroppedFailures,
+    /// Per 7-bit address: the first node at it and how many nodes are at it (a lookup per
+    /// transaction that does not grow with the number of nodes).
+    by_addr: Vec<(Option<NodeId>, usize)>,
     /// Transactions lost by a dropped `listen` before their record was made.
     lost: Vec<u64>,
     /// The newest transaction that has ended (records of older ones are made or dropped).
@@ -643,7 +646,37 @@ impl BusInner {
     }
 
     fn node_by_addr(&self, addr: u8) -> Option<NodeId> {
-        self.nodes.iter().position(|n| n.cfg.address == Some(addr))
+        match self.by_addr.get(usize::from(addr)) {
+            Some(&(first, _)) => first,
+            None => self.nodes.iter().position(|n| n.cfg.address == Some(addr)),
+        }
+    }
+
+    /// How many nodes have target address `addr`.
+    fn nodes_at(&self, addr: u8) -> usize {
+        match self.by_addr.get(usize::from(addr)) {
+            Some(&(_, n)) => n,
+            None => self
+                .nodes
+                .iter()
+                .filter(|n| n.cfg.address == Some(addr))
+                .count(),
+        }
+    }
+
+    /// Rebuilds [`BusInner::by_addr`] (after a node was added or changed its address).
+    fn index_addresses(&mut self) {
+        self.by_addr = vec![(None, 0); 128];
+        for (i, n) in self.nodes.iter().enumerate() {
+            if let Some(e) = n
+                .cfg
+                .address
+                .and_then(|a| self.by_addr.get_mut(usize::from(a)))
+            {
+                e.0 = e.0.or(Some(i));
+                e.1 += 1;
+            }
+        }
     }
 
     fn is_deaf(&self, node: NodeId, now: Nanos) -> bool {
@@ -709,6 +742,7 @@ impl SimBus {
                 records: Vec::new(),
                 yields: Vec::new(),
                 dropped: DroppedFailures::default(),
+                by_addr: vec![(None, 0); 128],
                 lost: Vec::new(),
                 stats: BusStats::default(),
                 closed_txn: None,
@@ -746,6 +780,7 @@ impl SimBus {
             receiving: None,
             discard: None,
         });
+        b.index_addresses();
         b.nodes.len() - 1
     }
 
@@ -836,9 +871,11 @@ impl SimBus {
     /// again there). Several nodes may share an address: a write goes to every one of them
     /// (see the module docs), a read to the first.
     pub fn set_node_address(&self, node: NodeId, address: Option<u8>) {
-        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(node) {
+        let mut b = self.inner.borrow_mut();
+        if let Some(n) = b.nodes.get_mut(node) {
             n.cfg.address = address;
         }
+        b.index_addresses();
     }
 
     /// How many times `node` was reset.
@@ -1353,7 +1390,7 @@ impl SimBus {
             // with one address) acknowledge a plain write too and each receive it; a read
             // is answered by the first alone (on a real bus their answers would mix, bit by
             // bit, and the check refuse them).
-            let co: Vec<NodeId> = if refused || read_len.is_some() {
+            let co: Vec<NodeId> = if refused || read_len.is_some() || b.nodes_at(seen_addr) < 2 {
                 Vec::new()
             } else {
                 b.nodes
