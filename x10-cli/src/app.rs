@@ -61,6 +61,11 @@ pub struct RunArgs {
     /// four options, `all` otherwise.
     #[arg(long, value_parser = keep)]
     pub keep: Option<Keep>,
+    /// Stream the bus's record to FILE as the run goes: the lines --trace prints for each
+    /// transaction (frames, replies, events, faults, lost arbitrations), written as each
+    /// ends, whatever the run keeps: the whole bus record of a long run, in bounded memory.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
     /// After the summary, print how fast the run went and its peak memory: bus
     /// transactions per wall second, virtual seconds per wall second, VmHWM.
     #[arg(long)]
@@ -205,6 +210,16 @@ pub fn run(
             return ExitCode::FAILURE;
         }
     };
+    let sim = match &args.record {
+        None => sim,
+        Some(path) => match std::fs::File::create(path) {
+            Ok(f) => robots_sim_record(sim, f),
+            Err(e) => {
+                eprintln!("sim: cannot write {}: {e}", path.display());
+                return ExitCode::FAILURE;
+            }
+        },
+    };
     let started = std::time::Instant::now();
     let cpu_before = cpu_seconds();
     let outcome = match robots(sim).run() {
@@ -216,6 +231,16 @@ pub fn run(
     };
     if let Err(code) = write_files(args, world, &outcome, title) {
         return code;
+    }
+    if outcome.record_errors > 0 {
+        if let Some(path) = &args.record {
+            eprintln!(
+                "sim: {} writes to {} failed",
+                outcome.record_errors,
+                path.display()
+            );
+            return ExitCode::FAILURE;
+        }
     }
     let problems = outcome.problems(world_label);
     let mut text: String = problems.iter().map(|p| format!("error: {p}\n")).collect();
@@ -238,6 +263,11 @@ pub fn run(
     } else {
         ExitCode::FAILURE
     }
+}
+
+/// `sim` streaming its bus record to `file` (buffered).
+fn robots_sim_record(sim: Sim, file: std::fs::File) -> Sim {
+    sim.record_to(Box::new(io::BufWriter::new(file)))
 }
 
 /// How fast a run went and its peak memory, one line: `stats: N bus transactions in S s
@@ -373,6 +403,43 @@ mod tests {
             config(&args(&["--duration-ms", "70000"])).keep,
             Keep::Summary
         );
+    }
+
+    #[test]
+    fn record_streams_the_bus_lines_of_the_trace_to_a_file() {
+        x10_sim::isolated(|| {
+            let Some(example) = x10_sim::examples::find("fig4_4") else {
+                panic!("fig4_4")
+            };
+            let Ok(world) = example.world() else {
+                panic!("its world")
+            };
+            let path = std::env::temp_dir().join(format!("x10-record-{}.txt", std::process::id()));
+            let p = path.display().to_string();
+            let a = args(&["--duration-ms", "300", "--keep", "summary", "--record", &p]);
+            assert_eq!(
+                run(&a, &world, example.add_tasks, "t", "w.toml"),
+                ExitCode::SUCCESS
+            );
+            let record = std::fs::read_to_string(&path).unwrap_or_default();
+            let _ = std::fs::remove_file(&path);
+            // Figure 4.4's first transaction: board 9's boot event to the motherboard.
+            let first = record.lines().next().unwrap_or_default();
+            assert!(
+                first.starts_with("0.000000 INFO  db09: -> mb event boot seq 0 ok "),
+                "{first}"
+            );
+            assert!(record.lines().count() > 10);
+            // The same lines as the trace of the same run.
+            let sim = world
+                .sim(config(&args(&["--duration-ms", "300"])))
+                .map(example.add_tasks);
+            let Ok(Ok(full)) = sim.map(Sim::run) else {
+                panic!("the run")
+            };
+            let trace = full.trace.render();
+            assert!(record.lines().all(|l| trace.lines().any(|t| t == l)));
+        });
     }
 
     #[test]

@@ -34,8 +34,10 @@ LONG RUNS
   counts and the bus load of the whole run, the first 10 000 failures, warnings and output
   changes; its memory does not grow with the run. --trace, --svg, --html and --vcd need the
   full record (--keep all, about 6 MB per virtual minute of a lightly loaded bus): with them
-  the run keeps everything, and warns past 10 virtual minutes. --stats prints the speed and
-  the peak memory; --bench runs the benchmark of docs/performance.md.
+  the run keeps everything, and warns past 10 virtual minutes. --record FILE streams the
+  bus's lines of --trace to FILE as each transaction ends, in any run: the whole bus record of
+  a long one without holding it. --stats prints the speed and the peak memory; --bench runs
+  the benchmark of docs/performance.md.
 
 YOUR OWN ROBOT
   `x10 new PATH` makes a crate of your own; its `cargo sim` takes the same options.

@@ -372,6 +372,9 @@ pub struct BusStats {
     pub records_dropped: u64,
 }
 
+/// What [`SimBus::on_record`] calls with each transaction as it ends.
+pub type RecordSink = Box<dyn FnMut(&BusRecord)>;
+
 /// Failed transactions (NACK, timeout, bus fault) with no fault noted whose records were
 /// dropped at the [`BusConfig::record_cap`]: what [`crate::sim::SimOutcome::problems`] needs
 /// of them.
@@ -514,6 +517,8 @@ struct BusInner {
     stats: BusStats,
     /// Failed transactions whose records were dropped at the cap.
     dropped: DroppedFailures,
+    /// Told of every transaction as it ends, kept or not ([`SimBus::on_record`]).
+    sink: Option<RecordSink>,
     /// Per 7-bit address: the first node at it and how many nodes are at it (a lookup per
     /// transaction that does not grow with the number of nodes).
     by_addr: Vec<(Option<NodeId>, usize)>,
@@ -578,6 +583,9 @@ impl BusInner {
         }
         self.closed_txn = Some(rec.txn);
         self.stats.busy_ns = self.stats.busy_ns.saturating_add(rec.duration_ns());
+        if let Some(sink) = self.sink.as_mut() {
+            sink(&rec);
+        }
         let failed = rec.outcome != Outcome::Ok;
         if !(self.cfg.keep_clean_records
             || !rec.faults.is_empty()
@@ -743,6 +751,7 @@ impl SimBus {
                 yields: Vec::new(),
                 dropped: DroppedFailures::default(),
                 by_addr: vec![(None, 0); 128],
+                sink: None,
                 lost: Vec::new(),
                 stats: BusStats::default(),
                 closed_txn: None,
@@ -806,6 +815,13 @@ impl SimBus {
     /// Transactions so far.
     pub fn records(&self) -> Vec<BusRecord> {
         self.inner.borrow().records.clone()
+    }
+
+    /// Calls `sink` with every transaction as it ends (its record as it is then: a lost
+    /// transfer found out later is not in it), whether the bus keeps its record or not: a
+    /// long run streams its record to a file this way.
+    pub fn on_record(&self, sink: RecordSink) {
+        self.inner.borrow_mut().sink = Some(sink);
     }
 
     /// Every transaction recorded, taken out of the bus (which keeps recording from none).

@@ -29,6 +29,7 @@
 
 use std::fmt;
 use std::future::Future;
+use std::io::Write as _;
 use std::pin::Pin;
 use std::rc::Rc;
 use std::sync::Mutex;
@@ -482,6 +483,9 @@ pub struct SimOutcome {
     pub addresses: Vec<(String, Vec<(u64, Address)>)>,
     /// What the run kept and what it only counted ([`SimConfig::keep`]).
     pub kept: Kept,
+    /// Lines of the streamed record ([`Sim::record_to`]) that could not be written, and 1
+    /// more if its last flush failed.
+    pub record_errors: u64,
 }
 
 impl SimOutcome {
@@ -585,6 +589,7 @@ pub struct Sim {
     task_errors: TaskErrors,
     shared_addresses: bool,
     also_observe: Option<&'static dyn CallObserver>,
+    record_to: Option<Box<dyn std::io::Write>>,
 }
 
 /// The robot tasks that ended with an error: (task, error text).
@@ -612,7 +617,18 @@ impl Sim {
             task_errors: TaskErrors::default(),
             shared_addresses: false,
             also_observe: None,
+            record_to: None,
         }
+    }
+
+    /// Streams the bus's record to `out` as the run goes: the lines `--trace` prints for each
+    /// transaction (`seconds LEVEL source: what`: frames, replies, events, faults, lost
+    /// arbitrations), written as each transaction ends, whatever the run keeps
+    /// ([`SimConfig::keep`]). Write errors are counted ([`SimOutcome::record_errors`]), the
+    /// run goes on.
+    pub fn record_to(mut self, out: Box<dyn std::io::Write>) -> Sim {
+        self.record_to = Some(out);
+        self
     }
 
     /// Tells `observer` too of every call (the robot tasks' and the motherboard's own) and
@@ -866,6 +882,7 @@ impl Sim {
             task_errors,
             shared_addresses: _,
             also_observe,
+            record_to,
         } = self;
         let mut board_addresses = vec![0];
         board_addresses.extend(
@@ -910,6 +927,32 @@ impl Sim {
             nodes.push((name, bus.add_node(n)));
         }
         let nodes = Rc::new(nodes);
+        let record_errors = Rc::new(std::cell::Cell::new(0u64));
+        let record_out = record_to.map(|out| Rc::new(std::cell::RefCell::new(out)));
+        if let Some(out) = record_out.clone() {
+            let mut names = vec![String::new(); nodes.len()];
+            for (name, id) in nodes.iter() {
+                if let Some(slot) = names.get_mut(*id) {
+                    *slot = name.clone();
+                }
+            }
+            let mb_address = config.mb_address.get();
+            let errors = record_errors.clone();
+            bus.on_record(Box::new(move |rec: &BusRecord| {
+                let bus_names = BusNames {
+                    names: &names,
+                    mb_address: Some(mb_address),
+                };
+                let mut lines = trace::bus_lines(rec, &bus_names);
+                lines.sort_by_key(|l| l.t_ns);
+                let mut out = out.borrow_mut();
+                for l in lines {
+                    if writeln!(out, "{l}").is_err() {
+                        errors.set(errors.get() + 1);
+                    }
+                }
+            }));
+        }
 
         let mut mb_cfg = if config.mb_safe_defaults {
             MbConfig::new(config.mb_address)
@@ -996,6 +1039,11 @@ impl Sim {
                 .map_err(SimError::Run)?
         };
         let end_ns = run.end_ns;
+        if let Some(out) = &record_out {
+            if out.borrow_mut().flush().is_err() {
+                record_errors.set(record_errors.get() + 1);
+            }
+        }
         // Every address a board had is on the bus (calls to them are no unknown board's).
         for b in &boards {
             for (_, a) in b.addresses.starts() {
@@ -1108,6 +1156,7 @@ impl Sim {
             device_warnings: device_warnings.into_iter().map(|w| w.text).collect(),
             addresses,
             kept,
+            record_errors: record_errors.get(),
         })
     }
 }

@@ -75,3 +75,58 @@ fn a_bounded_run_counts_what_the_full_record_holds() {
         assert_eq!(all.kept.summary_line(), None);
     });
 }
+
+/// A writer whose bytes the test reads afterwards.
+#[derive(Clone, Default)]
+struct Shared(std::rc::Rc<std::cell::RefCell<Vec<u8>>>);
+
+impl std::io::Write for Shared {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.0.borrow_mut().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        Ok(())
+    }
+}
+
+#[test]
+fn a_bounded_run_streams_the_whole_bus_record_when_asked() {
+    x10_sim::isolated(|| {
+        let all = run("fig4_4", 3_000, Keep::All);
+        let out = Shared::default();
+        let config = SimConfig {
+            duration_ms: 3_000,
+            keep: Keep::Summary,
+            ..SimConfig::default()
+        };
+        let streamed =
+            examples::sim("fig4_4", config).map(|s| s.record_to(Box::new(out.clone())).run());
+        let Some(Ok(streamed)) = streamed else {
+            panic!("fig4_4 runs")
+        };
+        assert_eq!(streamed.record_errors, 0);
+        assert!(streamed.records.is_empty());
+        // The lines --trace prints for each transaction of the full record, in order.
+        let names = ["mb".to_string(), "db09".to_string()];
+        let bus_names = x10_sim::trace::BusNames {
+            names: &names,
+            mb_address: Some(0x08),
+        };
+        let mut want = String::new();
+        for r in &all.records {
+            let mut lines = x10_sim::trace::bus_lines(r, &bus_names);
+            lines.sort_by_key(|l| l.t_ns);
+            for l in lines {
+                want.push_str(&format!("{l}\n"));
+            }
+        }
+        let got = String::from_utf8(out.0.borrow().clone()).unwrap_or_default();
+        assert!(got.lines().count() >= all.records.len());
+        assert_eq!(got, want);
+        // And they are the trace's own lines.
+        let trace = all.trace.render();
+        assert!(got.lines().all(|l| trace.contains(l)));
+    });
+}
