@@ -67,7 +67,8 @@ pub struct RunArgs {
     #[arg(long, value_name = "FILE")]
     pub record: Option<PathBuf>,
     /// After the summary, print how fast the run went and its peak memory: bus
-    /// transactions per wall second, virtual seconds per wall second, VmHWM.
+    /// transactions and virtual seconds per wall second and per CPU second of the process,
+    /// and its VmHWM.
     #[arg(long)]
     pub stats: bool,
 }

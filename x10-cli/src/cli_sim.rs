@@ -65,9 +65,10 @@ pub struct SimArgs {
     /// Print the latency table instead (as `x10 report`).
     #[arg(long)]
     pub report: bool,
-    /// Run the simulator's benchmark instead: each run of BENCH_RUNS in a process of its own
-    /// (`x10 sim NAME --keep summary --stats`), printing its bus transactions per wall second,
-    /// virtual seconds per wall second and peak memory (docs/performance.md).
+    /// Run the simulator's benchmark instead: fig4_4 for 10 virtual hours at 400k and
+    /// full_bus for one at 1M, each in a process of its own (`x10 sim NAME --keep summary
+    /// --stats`), printing its speed and peak memory (docs/performance.md; its figures are
+    /// from a build with `--profile sim`).
     #[arg(long)]
     pub bench: bool,
 }
