@@ -273,7 +273,7 @@ fn robots_sim_record(sim: Sim, file: std::fs::File) -> Sim {
 
 /// How fast a run went and its peak memory, one line: `stats: N bus transactions in S s
 /// wall (C s CPU): T transactions per wall s (U per CPU s), V virtual s per wall s (W per CPU
-/// s); peak memory M MB (VmHWM)`. The CPU time is the process's own (/proc/self/stat), what
+/// s); P task polls (Q per transaction); peak memory M MB (VmHWM)`. The CPU time is the process's own (/proc/self/stat), what
 /// the run costs on a core of its own when the machine is shared; `cpu_before` is its value
 /// before the run.
 pub fn stats_line(
@@ -293,12 +293,14 @@ pub fn stats_line(
     );
     match cpu_s {
         Some(cpu) => format!(
-            "stats: {} bus transactions in {wall_s:.2} s wall ({cpu:.2} s CPU): {:.0} transactions per wall s ({:.0} per CPU s), {:.0} virtual s per wall s ({:.0} per CPU s); peak memory {peak} (VmHWM)\n",
+            "stats: {} bus transactions in {wall_s:.2} s wall ({cpu:.2} s CPU): {:.0} transactions per wall s ({:.0} per CPU s), {:.0} virtual s per wall s ({:.0} per CPU s); {} task polls ({:.1} per transaction); peak memory {peak} (VmHWM)\n",
             outcome.bus.transactions,
             txns / wall_s,
             txns / cpu,
             virtual_s / wall_s,
             virtual_s / cpu,
+            outcome.polls,
+            outcome.polls as f64 / txns.max(1.0),
         ),
         None => format!(
             "stats: {} bus transactions in {wall_s:.2} s wall: {:.0} transactions per wall s, {:.0} virtual s per wall s; peak memory {peak} (VmHWM)\n",

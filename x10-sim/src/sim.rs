@@ -465,6 +465,9 @@ pub struct SimOutcome {
     /// Instants at which tasks were busy-looping when time moved on
     /// ([`crate::exec::SPIN_POLLS`]): 0 unless some task spins.
     pub spins: u64,
+    /// Task polls the executor made in all (the simulator's unit of work: each wake-up of a
+    /// runtime's task, a board's, the bus engine's or a robot's).
+    pub polls: u64,
     /// Every call of a robot or test task, in the order they ended (whether or not the trace
     /// keeps them, [`SimConfig::trace_calls`]).
     pub calls: Vec<CallSpan>,
@@ -1138,6 +1141,7 @@ impl Sim {
             end_ns,
             speed: config.speed,
             spins: run.spins,
+            polls: run.polls,
             calls: tracer
                 .spans
                 .lock()
