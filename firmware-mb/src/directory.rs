@@ -287,7 +287,7 @@ impl Directory {
         loop {
             let a = self.sweep?;
             self.sweep = (a < Address::UNADDRESSED.get() - 1).then_some(a + 1);
-            if a != mb.get() {
+            if a != mb.get() && a != Address::STM32_BOOTLOADER {
                 return Address::assignable(a).ok();
             }
         }
@@ -367,6 +367,7 @@ pub fn choose_address(
     (0..span)
         .map(|k| (start + k) % span + u32::from(Address::MIN_EXTERNAL))
         .filter_map(|raw| u8::try_from(raw).ok())
+        .filter(|&raw| raw != Address::STM32_BOOTLOADER)
         .filter_map(|raw| Address::assignable(raw).ok())
         .find(|&a| !taken(a))
 }
@@ -447,11 +448,22 @@ mod tests {
             choose_address(u, BoardKind::PICO, &[], &[], a(MB), all),
             None
         );
-        // Never the MB's, never 0x77: over all IDs of one byte.
+        // Never the MB's, never 0x77, never the STM32 ROM bootloader's 0x64: over all IDs of
+        // one byte (some of which hash to 0x64 itself: they get the next address).
+        let mut hashed_to_rom = 0;
         for n in 0..=255u8 {
-            let got = choose_address(uid(n), BoardKind::PICO, &[], &[], a(MB), none).unwrap();
-            assert!((0x09..=0x76).contains(&got.get()), "{n}: {got}");
+            for m in 0..4u8 {
+                let u = Uid([n, m, 2, 3, 4, 5, 6, 7]);
+                let got = choose_address(u, BoardKind::PICO, &[], &[], a(MB), none).unwrap();
+                assert!((0x09..=0x76).contains(&got.get()), "{n} {m}: {got}");
+                assert_ne!(got.get(), Address::STM32_BOOTLOADER, "{n} {m}");
+                if u.hash32() % 0x6f + 0x08 == u32::from(Address::STM32_BOOTLOADER) {
+                    hashed_to_rom += 1;
+                    assert_eq!(got.get(), 0x65, "{n} {m}");
+                }
+            }
         }
+        assert!(hashed_to_rom > 0);
     }
 
     #[test]
@@ -645,7 +657,7 @@ mod tests {
         let swept: Vec<u8> = core::iter::from_fn(|| d.next_sweep(a(0x30)))
             .map(Address::get)
             .collect();
-        let want: Vec<u8> = (0x08..=0x76).filter(|&x| x != 0x30).collect();
+        let want: Vec<u8> = (0x08..=0x76).filter(|&x| x != 0x30 && x != 0x64).collect();
         assert_eq!(swept, want);
         assert_eq!(d.next_sweep(a(0x30)), None);
         // A probe that lost arbitration is taken again next, around the MB's address too.

@@ -20,6 +20,7 @@
 //! | [`WallFollower`] | [`arena::wall_follower`] | SELF | a chassis keeps the wall on its left at 300 mm along its ranger's beam |
 //! | [`LineFollower`] | [`arena::line_follower`] | SELF | a chassis follows the edge of a dark floor line with one line sensor |
 //! | [`Doorbell`] | [`doorbell::doorbell`] | 9, SELF | a button's events from board 9 wake the task, which mirrors the button on a chime |
+//! | [`FullBus`] | [`full_bus::scan_all`] | 0x09 to 0x76 | a full bus: 110 boards, each scanned once every 100 ms (the load test of the bus and the simulator) |
 //!
 //! ## Keeping the actuators driven
 //! The thesis programs send an actuator command when the wanted state changes, and also every
@@ -43,6 +44,7 @@ pub mod doorbell;
 pub mod fig4_2;
 pub mod fig4_4;
 pub mod fig4_6;
+pub mod full_bus;
 pub mod pnp;
 
 x10::robot! {
@@ -83,6 +85,11 @@ x10::robot! {
 x10::robot! {
     /// Plug and play: two daughterboards from one image, addressed over the bus, both driven.
     pub struct TwoBoards { two_boards: pnp::two_boards }
+}
+
+x10::robot! {
+    /// A full bus: 110 daughterboards, each scanned once every 100 ms.
+    pub struct FullBus { scan_all: full_bus::scan_all }
 }
 
 x10::robot! {

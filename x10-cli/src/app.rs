@@ -16,7 +16,7 @@ use std::process::ExitCode;
 
 use clap::{Args, Parser};
 
-use x10_sim::sim::{Sim, SimConfig, SimOutcome};
+use x10_sim::sim::{Keep, Sim, SimConfig, SimOutcome};
 use x10_sim::timeline;
 use x10_sim::timing::Speed;
 use x10_sim::world::World;
@@ -27,8 +27,9 @@ pub struct RunArgs {
     /// The world to run against (default: the crate's world file).
     #[arg(long, value_name = "FILE")]
     pub world: Option<PathBuf>,
-    /// Virtual time to simulate, in ms.
-    #[arg(long, default_value_t = 5_000, value_parser = clap::value_parser!(u64).range(1..=3_600_000))]
+    /// Virtual time to simulate, in ms (up to 10 days). Runs longer than a virtual minute
+    /// keep a summary only (see --keep).
+    #[arg(long, default_value_t = 5_000, value_parser = clap::value_parser!(u64).range(1..=MAX_DURATION_MS))]
     pub duration_ms: u64,
     /// Seed of the simulation's randomness (backoff jitter, injected faults).
     #[arg(long, default_value_t = 1)]
@@ -52,6 +53,67 @@ pub struct RunArgs {
     /// Write the SDA/SCL waveform to FILE as VCD (GTKWave, Surfer).
     #[arg(long, value_name = "FILE")]
     pub vcd: Option<PathBuf>,
+    /// What the run keeps: `all` (every transaction and call: what --trace, --svg, --html
+    /// and --vcd need; memory grows with the run, about 6 MB per virtual minute of a lightly
+    /// loaded bus) or `summary` (counts, the bus load and the first 10 000 failures, output
+    /// changes and warnings, built as the run goes: memory independent of the run's length).
+    /// Default: `summary` for runs longer than a virtual minute (60 000 ms) without those
+    /// four options, `all` otherwise.
+    #[arg(long, value_parser = keep)]
+    pub keep: Option<Keep>,
+    /// Stream the bus's record to FILE as the run goes: the lines --trace prints for each
+    /// transaction (frames, replies, events, faults, lost arbitrations), written as each
+    /// ends, whatever the run keeps: the whole bus record of a long run, in bounded memory.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// After the summary, print how fast the run went and its peak memory: bus
+    /// transactions and virtual seconds per wall second and per CPU second of the process,
+    /// and its VmHWM.
+    #[arg(long)]
+    pub stats: bool,
+}
+
+/// The longest run `--duration-ms` takes: 10 virtual days.
+pub const MAX_DURATION_MS: u64 = 864_000_000;
+
+/// Runs longer than this (ms) keep a summary only unless an option needs the full record.
+pub const AUTO_SUMMARY_MS: u64 = 60_000;
+
+/// Runs longer than this (ms) with the full record get a warning (their memory).
+pub const WARN_FULL_MS: u64 = 600_000;
+
+fn keep(s: &str) -> Result<Keep, String> {
+    match s {
+        "all" => Ok(Keep::All),
+        "summary" => Ok(Keep::Summary),
+        _ => Err("`all` or `summary`".to_string()),
+    }
+}
+
+impl RunArgs {
+    /// The options that need every transaction and call (the trace, the pages, the VCD).
+    fn needs_full_record(&self) -> Option<&'static str> {
+        [
+            (self.trace, "--trace"),
+            (self.svg.is_some(), "--svg"),
+            (self.html.is_some(), "--html"),
+            (self.vcd.is_some(), "--vcd"),
+        ]
+        .into_iter()
+        .find_map(|(on, name)| on.then_some(name))
+    }
+
+    /// What the run keeps: `--keep`, else a summary for runs longer than
+    /// [`AUTO_SUMMARY_MS`] that no option needs the full record of.
+    pub fn keep(&self) -> Keep {
+        match self.keep {
+            Some(k) => k,
+            None if self.duration_ms > AUTO_SUMMARY_MS && self.needs_full_record().is_none() => {
+                Keep::Summary
+            }
+            None => Keep::All,
+        }
+    }
 }
 
 fn speed(s: &str) -> Result<Speed, String> {
@@ -115,6 +177,7 @@ pub fn config(args: &RunArgs) -> SimConfig {
         duration_ms: args.duration_ms,
         trace_calls: !args.quiet,
         record_wire: args.vcd.is_some(),
+        keep: args.keep(),
         ..SimConfig::default()
     }
 }
@@ -130,6 +193,17 @@ pub fn run(
     title: &str,
     world_label: &str,
 ) -> ExitCode {
+    if let Some(option) = args.needs_full_record() {
+        if args.keep() == Keep::Summary {
+            eprintln!("sim: {option} needs the full record: leave out --keep summary");
+            return ExitCode::from(2);
+        }
+        if args.duration_ms > WARN_FULL_MS {
+            eprintln!(
+                "sim: warning: {option} keeps every transaction and call in memory, about 6 MB per virtual minute of a lightly loaded bus: a run this long may need GBs"
+            );
+        }
+    }
     let sim = match world.sim(config(args)) {
         Ok(s) => s,
         Err(e) => {
@@ -137,6 +211,18 @@ pub fn run(
             return ExitCode::FAILURE;
         }
     };
+    let sim = match &args.record {
+        None => sim,
+        Some(path) => match std::fs::File::create(path) {
+            Ok(f) => robots_sim_record(sim, f),
+            Err(e) => {
+                eprintln!("sim: cannot write {}: {e}", path.display());
+                return ExitCode::FAILURE;
+            }
+        },
+    };
+    let started = std::time::Instant::now();
+    let cpu_before = cpu_seconds();
     let outcome = match robots(sim).run() {
         Ok(o) => o,
         Err(e) => {
@@ -146,6 +232,16 @@ pub fn run(
     };
     if let Err(code) = write_files(args, world, &outcome, title) {
         return code;
+    }
+    if outcome.record_errors > 0 {
+        if let Some(path) = &args.record {
+            eprintln!(
+                "sim: {} writes to {} failed",
+                outcome.record_errors,
+                path.display()
+            );
+            return ExitCode::FAILURE;
+        }
     }
     let problems = outcome.problems(world_label);
     let mut text: String = problems.iter().map(|p| format!("error: {p}\n")).collect();
@@ -159,12 +255,80 @@ pub fn run(
     } else {
         text.push_str(&timeline::summary(world, &outcome));
     }
+    if args.stats {
+        text.push_str(&stats_line(&outcome, started.elapsed(), cpu_before));
+    }
     let printed = write_out(&text);
     if problems.is_empty() {
         printed
     } else {
         ExitCode::FAILURE
     }
+}
+
+/// `sim` streaming its bus record to `file` (buffered).
+fn robots_sim_record(sim: Sim, file: std::fs::File) -> Sim {
+    sim.record_to(Box::new(io::BufWriter::new(file)))
+}
+
+/// How fast a run went and its peak memory, one line: `stats: N bus transactions in S s
+/// wall (C s CPU): T transactions per wall s (U per CPU s), V virtual s per wall s (W per CPU
+/// s); P task polls (Q per transaction); peak memory M MB (VmHWM)`. The CPU time is the process's own (/proc/self/stat), what
+/// the run costs on a core of its own when the machine is shared; `cpu_before` is its value
+/// before the run.
+pub fn stats_line(
+    outcome: &SimOutcome,
+    wall: std::time::Duration,
+    cpu_before: Option<f64>,
+) -> String {
+    let wall_s = wall.as_secs_f64().max(1e-9);
+    let cpu_s = cpu_seconds()
+        .zip(cpu_before)
+        .map(|(after, before)| (after - before).max(1e-9));
+    let virtual_s = outcome.end_ns as f64 / 1e9;
+    let txns = outcome.bus.transactions as f64;
+    let peak = peak_memory_kb().map_or_else(
+        || "unknown".to_string(),
+        |kb| format!("{:.1} MB", kb as f64 / 1024.0),
+    );
+    match cpu_s {
+        Some(cpu) => format!(
+            "stats: {} bus transactions in {wall_s:.2} s wall ({cpu:.2} s CPU): {:.0} transactions per wall s ({:.0} per CPU s), {:.0} virtual s per wall s ({:.0} per CPU s); {} task polls ({:.1} per transaction); peak memory {peak} (VmHWM)\n",
+            outcome.bus.transactions,
+            txns / wall_s,
+            txns / cpu,
+            virtual_s / wall_s,
+            virtual_s / cpu,
+            outcome.polls,
+            outcome.polls as f64 / txns.max(1.0),
+        ),
+        None => format!(
+            "stats: {} bus transactions in {wall_s:.2} s wall: {:.0} transactions per wall s, {:.0} virtual s per wall s; peak memory {peak} (VmHWM)\n",
+            outcome.bus.transactions,
+            txns / wall_s,
+            virtual_s / wall_s,
+        ),
+    }
+}
+
+/// The CPU time this process has used, user and system, in seconds (from /proc/self/stat;
+/// `None` where there is no such file). Linux counts it in ticks of 1/100 s.
+pub fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // The fields after the command's name (which may hold spaces), from field 3 on.
+    let rest = stat.rsplit_once(") ")?.1;
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
+/// The process's peak resident memory in KiB (`VmHWM` of /proc/self/status; `None` where
+/// there is no such file).
+pub fn peak_memory_kb() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    line.split_whitespace().nth(1)?.parse().ok()
 }
 
 fn write_files(
@@ -201,5 +365,90 @@ pub fn write_out(text: &str) -> ExitCode {
             eprintln!("cannot write: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn args(v: &[&str]) -> RunArgs {
+        let mut all = vec!["sim"];
+        all.extend_from_slice(v);
+        Cli::parse_from(all).run
+    }
+
+    #[test]
+    fn long_runs_keep_a_summary_unless_an_option_needs_everything() {
+        assert_eq!(args(&[]).keep(), Keep::All);
+        assert_eq!(args(&["--duration-ms", "60000"]).keep(), Keep::All);
+        assert_eq!(args(&["--duration-ms", "60001"]).keep(), Keep::Summary);
+        assert_eq!(args(&["--duration-ms", "864000000"]).keep(), Keep::Summary);
+        for option in [
+            &["--trace"][..],
+            &["--svg", "a.svg"],
+            &["--html", "a.html"],
+            &["--vcd", "a.vcd"],
+        ] {
+            let mut v = vec!["--duration-ms", "3600000"];
+            v.extend_from_slice(option);
+            assert_eq!(args(&v).keep(), Keep::All, "{option:?}");
+            assert_eq!(args(&v).needs_full_record(), Some(option[0]));
+        }
+        assert_eq!(args(&["--keep", "summary"]).keep(), Keep::Summary);
+        assert_eq!(
+            args(&["--keep", "all", "--duration-ms", "3600000"]).keep(),
+            Keep::All
+        );
+        assert!(Cli::try_parse_from(["sim", "--keep", "some"]).is_err());
+        assert!(Cli::try_parse_from(["sim", "--duration-ms", "864000001"]).is_err());
+        assert_eq!(
+            config(&args(&["--duration-ms", "70000"])).keep,
+            Keep::Summary
+        );
+    }
+
+    #[test]
+    fn record_streams_the_bus_lines_of_the_trace_to_a_file() {
+        x10_sim::isolated(|| {
+            let Some(example) = x10_sim::examples::find("fig4_4") else {
+                panic!("fig4_4")
+            };
+            let Ok(world) = example.world() else {
+                panic!("its world")
+            };
+            let path = std::env::temp_dir().join(format!("x10-record-{}.txt", std::process::id()));
+            let p = path.display().to_string();
+            let a = args(&["--duration-ms", "300", "--keep", "summary", "--record", &p]);
+            assert_eq!(
+                run(&a, &world, example.add_tasks, "t", "w.toml"),
+                ExitCode::SUCCESS
+            );
+            let record = std::fs::read_to_string(&path).unwrap_or_default();
+            let _ = std::fs::remove_file(&path);
+            // Figure 4.4's first transaction: board 9's boot event to the motherboard.
+            let first = record.lines().next().unwrap_or_default();
+            assert!(
+                first.starts_with("0.000000 INFO  db09: -> mb event boot seq 0 ok "),
+                "{first}"
+            );
+            assert!(record.lines().count() > 10);
+            // The same lines as the trace of the same run.
+            let sim = world
+                .sim(config(&args(&["--duration-ms", "300"])))
+                .map(example.add_tasks);
+            let Ok(Ok(full)) = sim.map(Sim::run) else {
+                panic!("the run")
+            };
+            let trace = full.trace.render();
+            assert!(record.lines().all(|l| trace.lines().any(|t| t == l)));
+        });
+    }
+
+    #[test]
+    fn a_summary_with_an_option_that_needs_everything_is_refused() {
+        let world = World::new();
+        let a = args(&["--keep", "summary", "--trace"]);
+        assert_eq!(run(&a, &world, |s| s, "t", "w.toml"), ExitCode::from(2));
     }
 }

@@ -20,6 +20,7 @@ EXAMPLES (robots/src, their worlds in robots/worlds)
   wall_follower  a chassis keeps the wall on its left at 300 mm along its ranger's beam
   line_follower  a chassis follows the edge of a dark floor line with one line sensor
   freezer  Fig. 4.6's alarm against a freezer model whose door opens at 2 s: it warms, the alarm sounds
+  full_bus  110 boards (0x09 to 0x76), 8 sensor ports each, every board scanned every 100 ms
 
 OUTPUT
   A summary: what each device did and when, the bus load, warnings. --trace prints instead one
@@ -27,6 +28,16 @@ OUTPUT
   change: `seconds LEVEL source: what`. The same seed gives the same output, byte for byte.
   --svg/--html draw the devices, the bus and each task's calls over time (hover for details; the
   page zooms and lists every change); --vcd writes SDA/SCL for GTKWave or Surfer.
+
+LONG RUNS
+  A run longer than a virtual minute keeps a summary, built as it goes (--keep summary): the
+  counts and the bus load of the whole run, the first 10 000 failures, warnings and output
+  changes; its memory does not grow with the run. --trace, --svg, --html and --vcd need the
+  full record (--keep all, about 6 MB per virtual minute of a lightly loaded bus): with them
+  the run keeps everything, and warns past 10 virtual minutes. --record FILE streams the
+  bus's lines of --trace to FILE as each transaction ends, in any run: the whole bus record of
+  a long one without holding it. --stats prints the speed and the peak memory; --bench runs
+  the benchmark of docs/performance.md.
 
 YOUR OWN ROBOT
   `x10 new PATH` makes a crate of your own; its `cargo sim` takes the same options.
@@ -36,6 +47,8 @@ EXAMPLES
   x10 sim bumper --html bumper.html
   x10 sim explorer --duration-ms 20000 --html explorer.html    # the arena seen from above
   x10 sim fig4_6 --clock 100k --duration-ms 4000 --trace --vcd fig4_6.vcd
+  x10 sim fig4_4 --duration-ms 36000000 --stats                # 10 virtual hours
+  x10 sim full_bus --clock 1M --duration-ms 60000
   x10 sim --report";
 
 /// Arguments of `x10 sim`.
@@ -43,8 +56,8 @@ EXAMPLES
 #[command(after_help = SIM_HELP)]
 pub struct SimArgs {
     /// Example robot: fig4_2, fig4_4, fig4_6, bumper, doorbell, explorer, wall_follower,
-    /// line_follower or freezer.
-    #[arg(required_unless_present = "report", value_parser = example)]
+    /// line_follower, freezer or full_bus.
+    #[arg(required_unless_present_any = ["report", "bench"], value_parser = example)]
     pub program: Option<&'static Example>,
     /// How to run, what to print.
     #[command(flatten)]
@@ -52,7 +65,21 @@ pub struct SimArgs {
     /// Print the latency table instead (as `x10 report`).
     #[arg(long)]
     pub report: bool,
+    /// Run the simulator's benchmark instead: fig4_4 for 10 virtual hours at 400k and
+    /// full_bus for one at 1M, each in a process of its own (`x10 sim NAME --keep summary
+    /// --stats`), printing its speed and peak memory (docs/performance.md; its figures are
+    /// from a build with `--profile sim`).
+    #[arg(long)]
+    pub bench: bool,
 }
+
+/// The benchmark's runs ([`SimArgs::bench`]): example, bus clock, virtual time (ms).
+pub const BENCH_RUNS: [(&str, &str, u64); 2] = [
+    // Figure 4.4 for 10 virtual hours: a lightly loaded bus, two tasks on two boards.
+    ("fig4_4", "400k", 36_000_000),
+    // A full bus for a virtual hour: 110 boards scanned every 100 ms at 1 MHz.
+    ("full_bus", "1M", 3_600_000),
+];
 
 /// Arguments of `x10 report`.
 #[derive(Args, Debug)]
@@ -71,6 +98,9 @@ pub fn sim_main(args: SimArgs) -> ExitCode {
     if args.report {
         return report_main(ReportArgs { samples: 20 });
     }
+    if args.bench {
+        return bench_main();
+    }
     let Some(example) = args.program else {
         eprintln!(
             "x10 sim: name an example ({}) or give --report",
@@ -86,6 +116,55 @@ pub fn sim_main(args: SimArgs) -> ExitCode {
         example.name, example.description
     );
     app::run(&args.run, &world, example.add_tasks, &title, &source)
+}
+
+/// `x10 sim --bench`: runs each of [`BENCH_RUNS`] in a process of its own (so each peak
+/// memory is its own) and prints its `stats:` line.
+fn bench_main() -> ExitCode {
+    let exe = match std::env::current_exe() {
+        Ok(e) => e,
+        Err(e) => {
+            eprintln!("x10 sim --bench: cannot find this program: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let mut text = String::new();
+    for (name, clock, ms) in BENCH_RUNS {
+        let args = [
+            "sim".to_string(),
+            name.to_string(),
+            "--clock".to_string(),
+            clock.to_string(),
+            "--duration-ms".to_string(),
+            ms.to_string(),
+            "--keep".to_string(),
+            "summary".to_string(),
+            "--stats".to_string(),
+        ];
+        let out = match std::process::Command::new(&exe).args(&args).output() {
+            Ok(o) => o,
+            Err(e) => {
+                eprintln!("x10 sim --bench: cannot run {}: {e}", exe.display());
+                return ExitCode::FAILURE;
+            }
+        };
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        let Some(stats) = stdout.lines().find(|l| l.starts_with("stats: ")) else {
+            eprintln!(
+                "x10 sim --bench: `x10 {}` printed no stats ({}): {}",
+                args.join(" "),
+                out.status,
+                String::from_utf8_lossy(&out.stderr)
+            );
+            return ExitCode::FAILURE;
+        };
+        let bus = stdout
+            .lines()
+            .find(|l| l.starts_with("bus: "))
+            .unwrap_or("bus: ?");
+        text.push_str(&format!("x10 {}\n  {bus}\n  {stats}\n", args.join(" ")));
+    }
+    app::write_out(&text)
 }
 
 /// `x10 report [--samples N]`: the latency table.

@@ -31,6 +31,11 @@ impl Address {
     /// (`assign`), never read from: several unaddressed boards may acknowledge one write
     /// together, none of them ever drives data onto the bus here.
     pub const UNADDRESSED: Address = Address(0x77);
+    /// Where an STM32 daughterboard's ROM bootloader answers while it is being updated
+    /// (ST's I2C bootloader, AN4221: the STM32C011's, as Arduino's Modulino uses it). A
+    /// motherboard never gives it out and never probes it: an empty probe there restarts the
+    /// ROM bootloader's wait (docs/boards.md, "Updating the boards").
+    pub const STM32_BOOTLOADER: u8 = 0x64;
 
     /// Checks an address a board may be given over the bus (`assign`, `set_address`): an
     /// external address other than [`Address::UNADDRESSED`].

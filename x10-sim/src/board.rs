@@ -21,6 +21,8 @@ use crate::trace::{Severity, TraceLine};
 #[derive(Clone, Default)]
 pub struct Notes {
     lines: Rc<RefCell<Vec<TraceLine>>>,
+    /// Lines kept at most (0: no cap) and lines counted but not kept.
+    bound: Rc<(Cell<usize>, Cell<u64>)>,
 }
 
 impl Notes {
@@ -29,9 +31,25 @@ impl Notes {
         Notes::default()
     }
 
-    /// Adds a line.
+    /// Adds a line (counts it only, once [`Notes::bound_to`]'s cap is reached).
     pub fn push(&self, line: TraceLine) {
-        self.lines.borrow_mut().push(line);
+        let mut lines = self.lines.borrow_mut();
+        let cap = self.bound.0.get();
+        if cap > 0 && lines.len() >= cap {
+            self.bound.1.set(self.bound.1.get() + 1);
+        } else {
+            lines.push(line);
+        }
+    }
+
+    /// Keeps at most `cap` lines (a bounded run, [`crate::sim::Keep::Summary`]).
+    pub fn bound_to(&self, cap: usize) {
+        self.bound.0.set(cap);
+    }
+
+    /// Lines counted but not kept.
+    pub fn dropped(&self) -> u64 {
+        self.bound.1.get()
     }
 
     /// Every line so far.

@@ -199,6 +199,14 @@ pub struct BusConfig {
     /// when `keep_clean_records` is false (the soak keeps every event written to the
     /// motherboard).
     pub keep_records_to: Option<u8>,
+    /// Keep the record of every transaction that failed (NACK, timeout, bus fault), clean or
+    /// not, even when `keep_clean_records` is false (a bounded run keeps its failures for
+    /// its trace and its problems).
+    pub keep_failed_records: bool,
+    /// The most records kept: past it, records are counted ([`BusStats::records_dropped`],
+    /// [`SimBus::dropped_failures`]) and dropped, so a run that fails often still keeps its
+    /// memory bounded. `usize::MAX`: no limit.
+    pub record_cap: usize,
 }
 
 impl BusConfig {
@@ -213,6 +221,8 @@ impl BusConfig {
             record_wire: true,
             keep_clean_records: true,
             keep_records_to: None,
+            keep_failed_records: false,
+            record_cap: usize::MAX,
         }
     }
 }
@@ -355,6 +365,25 @@ pub struct BusStats {
     pub recoveries: u64,
     /// Time the bus was unusable because of a stuck line, in all (ns).
     pub stuck_ns: Nanos,
+    /// Time the bus carried transactions, START to end of STOP, in all (ns): the sum of
+    /// [`BusRecord::duration_ns`] over every transaction, kept or not.
+    pub busy_ns: Nanos,
+    /// Records the bus would have kept but dropped at its [`BusConfig::record_cap`].
+    pub records_dropped: u64,
+}
+
+/// What [`SimBus::on_record`] calls with each transaction as it ends.
+pub type RecordSink = Box<dyn FnMut(&BusRecord)>;
+
+/// Failed transactions (NACK, timeout, bus fault) with no fault noted whose records were
+/// dropped at the [`BusConfig::record_cap`]: what [`crate::sim::SimOutcome::problems`] needs
+/// of them.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DroppedFailures {
+    /// Those a node answered (its address matched).
+    pub answered: u64,
+    /// Those nobody answered, by address (index: the 7-bit address).
+    pub unanswered: Vec<u64>,
 }
 
 /// Which line is stuck.
@@ -486,6 +515,13 @@ struct BusInner {
     records: Vec<BusRecord>,
     yields: Vec<Yield>,
     stats: BusStats,
+    /// Failed transactions whose records were dropped at the cap.
+    dropped: DroppedFailures,
+    /// Told of every transaction as it ends, kept or not ([`SimBus::on_record`]).
+    sink: Option<RecordSink>,
+    /// Per 7-bit address: the first node at it and how many nodes are at it (a lookup per
+    /// transaction that does not grow with the number of nodes).
+    by_addr: Vec<(Option<NodeId>, usize)>,
     /// Transactions lost by a dropped `listen` before their record was made.
     lost: Vec<u64>,
     /// The newest transaction that has ended (records of older ones are made or dropped).
@@ -525,11 +561,13 @@ impl BusInner {
             .collect();
         for (id, addr) in ids {
             self.stats.yielded += 1;
-            self.yields.push(Yield {
-                t_ns: now,
-                node,
-                addr,
-            });
+            if self.yields.len() < self.cfg.record_cap {
+                self.yields.push(Yield {
+                    t_ns: now,
+                    node,
+                    addr,
+                });
+            }
             self.finish(id, Err(BusError::ArbitrationLost), now);
         }
     }
@@ -544,11 +582,36 @@ impl BusInner {
             self.stats.lost_transfers += 1;
         }
         self.closed_txn = Some(rec.txn);
-        if self.cfg.keep_clean_records
+        self.stats.busy_ns = self.stats.busy_ns.saturating_add(rec.duration_ns());
+        if let Some(sink) = self.sink.as_mut() {
+            sink(&rec);
+        }
+        let failed = rec.outcome != Outcome::Ok;
+        if !(self.cfg.keep_clean_records
             || !rec.faults.is_empty()
             || self.cfg.keep_records_to == Some(rec.addr)
+            || (self.cfg.keep_failed_records && failed))
         {
+            return;
+        }
+        if self.records.len() < self.cfg.record_cap {
             self.records.push(rec);
+            return;
+        }
+        self.stats.records_dropped += 1;
+        if failed && rec.faults.is_empty() {
+            match rec.target {
+                Some(_) => self.dropped.answered += 1,
+                None => {
+                    let i = usize::from(rec.addr & 0x7f);
+                    if self.dropped.unanswered.len() <= i {
+                        self.dropped.unanswered.resize(i + 1, 0);
+                    }
+                    if let Some(n) = self.dropped.unanswered.get_mut(i) {
+                        *n += 1;
+                    }
+                }
+            }
         }
     }
 
@@ -591,7 +654,37 @@ impl BusInner {
     }
 
     fn node_by_addr(&self, addr: u8) -> Option<NodeId> {
-        self.nodes.iter().position(|n| n.cfg.address == Some(addr))
+        match self.by_addr.get(usize::from(addr)) {
+            Some(&(first, _)) => first,
+            None => self.nodes.iter().position(|n| n.cfg.address == Some(addr)),
+        }
+    }
+
+    /// How many nodes have target address `addr`.
+    fn nodes_at(&self, addr: u8) -> usize {
+        match self.by_addr.get(usize::from(addr)) {
+            Some(&(_, n)) => n,
+            None => self
+                .nodes
+                .iter()
+                .filter(|n| n.cfg.address == Some(addr))
+                .count(),
+        }
+    }
+
+    /// Rebuilds [`BusInner::by_addr`] (after a node was added or changed its address).
+    fn index_addresses(&mut self) {
+        self.by_addr = vec![(None, 0); 128];
+        for (i, n) in self.nodes.iter().enumerate() {
+            if let Some(e) = n
+                .cfg
+                .address
+                .and_then(|a| self.by_addr.get_mut(usize::from(a)))
+            {
+                e.0 = e.0.or(Some(i));
+                e.1 += 1;
+            }
+        }
     }
 
     fn is_deaf(&self, node: NodeId, now: Nanos) -> bool {
@@ -656,6 +749,9 @@ impl SimBus {
                 rng: Rng::new(cfg.seed ^ 0x05ee_db05),
                 records: Vec::new(),
                 yields: Vec::new(),
+                dropped: DroppedFailures::default(),
+                by_addr: vec![(None, 0); 128],
+                sink: None,
                 lost: Vec::new(),
                 stats: BusStats::default(),
                 closed_txn: None,
@@ -693,6 +789,7 @@ impl SimBus {
             receiving: None,
             discard: None,
         });
+        b.index_addresses();
         b.nodes.len() - 1
     }
 
@@ -718,6 +815,24 @@ impl SimBus {
     /// Transactions so far.
     pub fn records(&self) -> Vec<BusRecord> {
         self.inner.borrow().records.clone()
+    }
+
+    /// Calls `sink` with every transaction as it ends (its record as it is then: a lost
+    /// transfer found out later is not in it), whether the bus keeps its record or not: a
+    /// long run streams its record to a file this way.
+    pub fn on_record(&self, sink: RecordSink) {
+        self.inner.borrow_mut().sink = Some(sink);
+    }
+
+    /// Every transaction recorded, taken out of the bus (which keeps recording from none).
+    pub fn take_records(&self) -> Vec<BusRecord> {
+        std::mem::take(&mut self.inner.borrow_mut().records)
+    }
+
+    /// Failed transactions with no fault noted whose records were dropped at the
+    /// [`BusConfig::record_cap`].
+    pub fn dropped_failures(&self) -> DroppedFailures {
+        self.inner.borrow().dropped.clone()
     }
 
     /// Number of transactions recorded so far.
@@ -772,9 +887,11 @@ impl SimBus {
     /// again there). Several nodes may share an address: a write goes to every one of them
     /// (see the module docs), a read to the first.
     pub fn set_node_address(&self, node: NodeId, address: Option<u8>) {
-        if let Some(n) = self.inner.borrow_mut().nodes.get_mut(node) {
+        let mut b = self.inner.borrow_mut();
+        if let Some(n) = b.nodes.get_mut(node) {
             n.cfg.address = address;
         }
+        b.index_addresses();
     }
 
     /// How many times `node` was reset.
@@ -1041,6 +1158,8 @@ impl SimBus {
 
     #[allow(clippy::too_many_lines)]
     async fn transaction(&self) {
+        // Without a waveform, the bits' times are counted, their symbols not stored.
+        let wire_on = self.inner.borrow().cfg.record_wire;
         let t0 = self.clock.now_ns();
         // Contenders: every waiting request, in node order.
         let (t, faults, contenders, txn) = {
@@ -1267,6 +1386,7 @@ impl SimBus {
         }
         let mut cursor = first_bit_at;
         push_byte(
+            wire_on,
             &mut rec.wire,
             &mut cursor,
             (seen_addr << 1) | u8::from(plain_read),
@@ -1286,7 +1406,7 @@ impl SimBus {
             // with one address) acknowledge a plain write too and each receive it; a read
             // is answered by the first alone (on a real bus their answers would mix, bit by
             // bit, and the check refuse them).
-            let co: Vec<NodeId> = if refused || read_len.is_some() {
+            let co: Vec<NodeId> = if refused || read_len.is_some() || b.nodes_at(seen_addr) < 2 {
                 Vec::new()
             } else {
                 b.nodes
@@ -1310,11 +1430,11 @@ impl SimBus {
             self.note_fault(&mut rec, "NACK address".to_string());
         }
         let (Some(target), false) = (target, refused || injected_nack == Some(0)) else {
-            push_bit(&mut rec.wire, &mut cursor, true, t);
+            push_bit(wire_on, &mut rec.wire, &mut cursor, true, t);
             self.fail(rec, cursor, Outcome::Nack { byte: 0 }, win_id, &racing);
             return;
         };
-        push_bit(&mut rec.wire, &mut cursor, false, t);
+        push_bit(wire_on, &mut rec.wire, &mut cursor, false, t);
 
         // Stretch until the target has a listener (or went away).
         self.clock.sleep_until_ns(cursor).await;
@@ -1409,16 +1529,16 @@ impl SimBus {
             .min();
         let mut received = Vec::new();
         for (i, &byte) in write.iter().enumerate() {
-            push_byte(&mut rec.wire, &mut cursor, byte, t);
+            push_byte(wire_on, &mut rec.wire, &mut cursor, byte, t);
             if nack_at == Some(i) {
-                push_bit(&mut rec.wire, &mut cursor, true, t);
+                push_bit(wire_on, &mut rec.wire, &mut cursor, true, t);
                 break;
             }
             let m = mask.get(i).copied().unwrap_or(0);
             note_corrupt(self, &mut rec, "written", i, m);
             let seen = byte ^ m;
             received.push(seen);
-            push_bit(&mut rec.wire, &mut cursor, false, t);
+            push_bit(wire_on, &mut rec.wire, &mut cursor, false, t);
         }
         // Losers that lost on a byte that went out end now; those past a NACK see the NACK.
         let sent_bytes = nack_at.map_or(write.len(), |k| k + 1);
@@ -1478,21 +1598,21 @@ impl SimBus {
         if !plain_read {
             rec.wire.push((cursor, WireSym::RepeatedStart));
             cursor += t.repeated_start_ns();
-            push_byte(&mut rec.wire, &mut cursor, (seen_addr << 1) | 1, t);
+            push_byte(wire_on, &mut rec.wire, &mut cursor, (seen_addr << 1) | 1, t);
             if self.inner.borrow().is_deaf(target, cursor) {
                 if let Some(n) = self.inner.borrow_mut().nodes.get_mut(target) {
                     if n.receiving == Some(txn) {
                         n.receiving = None;
                     }
                 }
-                push_bit(&mut rec.wire, &mut cursor, true, t);
+                push_bit(wire_on, &mut rec.wire, &mut cursor, true, t);
                 let outcome = Outcome::Nack {
                     byte: write.len() + 1,
                 };
                 self.fail(rec, cursor, outcome, win_id, &racing);
                 return;
             }
-            push_bit(&mut rec.wire, &mut cursor, false, t);
+            push_bit(wire_on, &mut rec.wire, &mut cursor, false, t);
         }
         self.deliver(
             target,
@@ -1553,9 +1673,9 @@ impl SimBus {
             let m = mask.get(write.len() + i).copied().unwrap_or(0);
             note_corrupt(self, &mut rec, "read", i, m);
             let seen = byte ^ m;
-            push_byte(&mut rec.wire, &mut cursor, seen, t);
+            push_byte(wire_on, &mut rec.wire, &mut cursor, seen, t);
             // The master ACKs every byte but the last.
-            push_bit(&mut rec.wire, &mut cursor, i + 1 == read_len, t);
+            push_bit(wire_on, &mut rec.wire, &mut cursor, i + 1 == read_len, t);
             read.push(seen);
         }
         rec.read = read.clone();
@@ -1606,6 +1726,10 @@ struct Contender {
 /// Wired-AND arbitration over the address byte and the written bytes. Returns the winner's
 /// index and, per contender, the stream bit (0 = address MSB) where it lost.
 fn arbitrate(contenders: &[Contender]) -> (usize, Vec<Option<usize>>) {
+    if contenders.len() < 2 {
+        // Alone on the bus (the usual case): nothing to compare.
+        return (0, vec![None; contenders.len()]);
+    }
     let streams: Vec<Vec<bool>> = contenders
         .iter()
         .map(|c| {
@@ -1660,15 +1784,28 @@ fn register(wakers: &mut Vec<Waker>, w: &Waker) {
     }
 }
 
-fn push_byte(wire: &mut Vec<(Nanos, WireSym)>, cursor: &mut Nanos, byte: u8, t: Timing) {
+/// One byte's 8 bits (MSB first) from `cursor` on, stored in `wire` when `on`.
+fn push_byte(on: bool, wire: &mut Vec<(Nanos, WireSym)>, cursor: &mut Nanos, byte: u8, t: Timing) {
+    if !on {
+        *cursor += 8 * t.bit_ns;
+        return;
+    }
     for i in (0..8).rev() {
-        push_bit(wire, cursor, (byte >> i) & 1 == 1, t);
+        push_bit(on, wire, cursor, (byte >> i) & 1 == 1, t);
     }
 }
 
-/// One bit (an ACK is a 0 bit, a NACK a 1 bit).
-fn push_bit(wire: &mut Vec<(Nanos, WireSym)>, cursor: &mut Nanos, value: bool, t: Timing) {
-    wire.push((*cursor, WireSym::Bit { value }));
+/// One bit (an ACK is a 0 bit, a NACK a 1 bit) at `cursor`, stored in `wire` when `on`.
+fn push_bit(
+    on: bool,
+    wire: &mut Vec<(Nanos, WireSym)>,
+    cursor: &mut Nanos,
+    value: bool,
+    t: Timing,
+) {
+    if on {
+        wire.push((*cursor, WireSym::Bit { value }));
+    }
     *cursor += t.bit_ns;
 }
 

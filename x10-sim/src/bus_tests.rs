@@ -976,3 +976,52 @@ fn the_new_faults_are_seeded_and_leave_the_old_ones_alone() {
         assert_eq!(starts(&f_old), starts(&f_new), "seed {seed}");
     }
 }
+
+fn ten_clean_seven_nacked(cfg: BusConfig) -> (Vec<BusRecord>, BusStats, DroppedFailures) {
+    let log = RefCell::new(Vec::new());
+    let mut f = fixture_with(cfg);
+    let mb = f.bus.add_node(NodeConfig::new("mb", None));
+    let db = f.bus.add_node(NodeConfig::new("db", Some(0x09)));
+    f.ex.spawn("db", echo_target(f.bus.port(db), &log, vec![]));
+    let mut p = f.bus.port(mb);
+    f.ex.spawn("mb", async move {
+        // 10 clean writes, then 7 to an address nobody has (NACKed, no fault noted).
+        for i in 0..10u8 {
+            let _ = p.write(0x09, &[i]).await;
+        }
+        for i in 0..7u8 {
+            let _ = p.write(0x0a, &[i]).await;
+        }
+    });
+    f.ex.run_until_ns(100_000_000).unwrap();
+    let recs = f.bus.take_records();
+    assert!(f.bus.records().is_empty());
+    (recs, f.bus.stats(), f.bus.dropped_failures())
+}
+
+#[test]
+fn a_bounded_bus_keeps_failures_up_to_its_cap_and_counts_the_rest() {
+    let (all, all_stats, none) = ten_clean_seven_nacked(BusConfig::new(Speed::Fast));
+    assert_eq!(all.len(), 17);
+    assert_eq!(
+        (all_stats.records_dropped, none),
+        (0, DroppedFailures::default())
+    );
+    let busy: Nanos = all.iter().map(BusRecord::duration_ns).sum();
+    assert_eq!(all_stats.busy_ns, busy);
+
+    let mut cfg = BusConfig::new(Speed::Fast);
+    cfg.keep_clean_records = false;
+    cfg.keep_failed_records = true;
+    cfg.record_cap = 3;
+    let (recs, stats, dropped) = ten_clean_seven_nacked(cfg);
+    assert_eq!((stats.transactions, stats.nacks), (17, 7));
+    // The first 3 failures kept, the 4 others counted by address.
+    assert_eq!(recs.as_slice(), &all[10..13]);
+    assert_eq!(stats.records_dropped, 4);
+    assert_eq!(dropped.answered, 0);
+    assert_eq!(dropped.unanswered.get(0x0a), Some(&4));
+    assert_eq!(dropped.unanswered.iter().sum::<u64>(), 4);
+    // The busy time still covers every transaction.
+    assert_eq!(stats.busy_ns, busy);
+}

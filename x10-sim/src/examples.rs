@@ -4,7 +4,9 @@
 //! own crate with its own world file and `sim` command (`x10 new`,
 //! `docs/your-first-robot.md`).
 
-use x10_robots::{Bumper, Doorbell, Explorer, Fig4_2, Fig4_4, Fig4_6, LineFollower, WallFollower};
+use x10_robots::{
+    Bumper, Doorbell, Explorer, Fig4_2, Fig4_4, Fig4_6, FullBus, LineFollower, WallFollower,
+};
 
 use crate::sim::{Sim, SimConfig};
 use crate::world::{World, WorldError};
@@ -23,7 +25,7 @@ pub struct Example {
 }
 
 /// Every example.
-pub const EXAMPLES: [Example; 9] = [
+pub const EXAMPLES: [Example; 10] = [
     Example {
         name: "fig4_2",
         description: "thesis Fig. 4.2: button (SELF S2.B) or force (SELF S1) > 100 runs the motor (SELF A1) at 100 %",
@@ -77,6 +79,12 @@ pub const EXAMPLES: [Example; 9] = [
         description: "thesis Fig. 4.6's alarm against a freezer model: its door (DB 17 S2.A) opens at 2 s and the cabinet warms towards 20 °C until the alarm (DB 10 A3.A) goes on",
         add_tasks: |sim| sim.robot(Fig4_6),
         world: include_str!("../../robots/worlds/freezer.toml"),
+    },
+    Example {
+        name: "full_bus",
+        description: "a full bus: 110 daughterboards (0x09 to 0x76) with 8 sensor ports each, every one scanned once every 100 ms (the load test of the bus and the simulator)",
+        add_tasks: |sim| sim.robot(FullBus),
+        world: include_str!("../../robots/worlds/full_bus.toml"),
     },
 ];
 

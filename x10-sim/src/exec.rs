@@ -25,8 +25,8 @@ use std::collections::BTreeMap;
 use std::future::Future;
 use std::pin::Pin;
 use std::rc::Rc;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 use std::task::{Context, Poll, Wake, Waker};
 
 use x10_hal::time::{Clock, Instant};
@@ -247,7 +247,16 @@ impl Future for Sleep {
                 key
             }
         };
-        st.timers.insert(key, cx.waker().clone());
+        match st.timers.entry(key) {
+            std::collections::btree_map::Entry::Occupied(mut e) => {
+                if !e.get().will_wake(cx.waker()) {
+                    e.insert(cx.waker().clone());
+                }
+            }
+            std::collections::btree_map::Entry::Vacant(e) => {
+                e.insert(cx.waker().clone());
+            }
+        }
         Poll::Pending
     }
 }
@@ -262,17 +271,111 @@ impl Drop for Sleep {
     }
 }
 
+/// The tasks woken since they were last polled, one bit per task (by index): the executor
+/// finds the next woken task without looking at every task, so a simulation of many boards
+/// (each a task, most of them idle at any instant) costs what its woken tasks cost. The first
+/// [`FAST_TASKS`] tasks have atomic bits (a wake is one `fetch_or`); any task past them, a
+/// bit behind a lock.
+struct WakeSet {
+    fast: Box<[AtomicU64]>,
+    slow: Mutex<Vec<u64>>,
+}
+
+/// Tasks whose wakes take no lock ([`WakeSet`]).
+pub const FAST_TASKS: usize = 4096;
+
+impl Default for WakeSet {
+    fn default() -> Self {
+        WakeSet {
+            fast: (0..FAST_TASKS / 64).map(|_| AtomicU64::new(0)).collect(),
+            slow: Mutex::new(Vec::new()),
+        }
+    }
+}
+
+impl WakeSet {
+    fn mark(&self, index: usize) {
+        let bit = 1u64 << (index % 64);
+        if let Some(word) = self.fast.get(index / 64) {
+            word.fetch_or(bit, Ordering::Relaxed);
+            return;
+        }
+        if let Ok(mut words) = self.slow.lock() {
+            let w = (index - FAST_TASKS) / 64;
+            if words.len() <= w {
+                words.resize(w + 1, 0);
+            }
+            if let Some(word) = words.get_mut(w) {
+                *word |= bit;
+            }
+        }
+    }
+
+    fn is_marked(&self, index: usize) -> bool {
+        let bit = 1u64 << (index % 64);
+        match self.fast.get(index / 64) {
+            Some(word) => word.load(Ordering::Relaxed) & bit != 0,
+            None => self.slow.lock().is_ok_and(|words| {
+                words
+                    .get((index - FAST_TASKS) / 64)
+                    .is_some_and(|w| w & bit != 0)
+            }),
+        }
+    }
+
+    /// Clears and returns the lowest marked index at or above `from`, below `tasks`.
+    fn take_next(&self, from: usize, tasks: usize) -> Option<usize> {
+        let first = from / 64;
+        let fast_words = tasks.min(FAST_TASKS).div_ceil(64);
+        for w in first..fast_words {
+            let Some(word) = self.fast.get(w) else { break };
+            let mask = if w == first {
+                u64::MAX << (from % 64)
+            } else {
+                u64::MAX
+            };
+            let hits = word.load(Ordering::Relaxed) & mask;
+            if hits != 0 {
+                let bit = hits.trailing_zeros() as usize;
+                word.fetch_and(!(1u64 << bit), Ordering::Relaxed);
+                return Some(w * 64 + bit);
+            }
+        }
+        if tasks <= FAST_TASKS {
+            return None;
+        }
+        let from = from.max(FAST_TASKS) - FAST_TASKS;
+        let mut words = self.slow.lock().ok()?;
+        let first = from / 64;
+        for (w, word) in words.iter_mut().enumerate().skip(first) {
+            let mask = if w == first {
+                u64::MAX << (from % 64)
+            } else {
+                u64::MAX
+            };
+            let hits = *word & mask;
+            if hits != 0 {
+                let bit = hits.trailing_zeros() as usize;
+                *word &= !(1u64 << bit);
+                return Some(FAST_TASKS + w * 64 + bit);
+            }
+        }
+        None
+    }
+}
+
 struct TaskFlag {
-    woken: AtomicBool,
+    set: Arc<WakeSet>,
+    index: usize,
 }
 
 impl Wake for TaskFlag {
     fn wake(self: Arc<Self>) {
-        self.woken.store(true, Ordering::Relaxed);
+        self.set.mark(self.index);
     }
 
     fn wake_by_ref(self: &Arc<Self>) {
-        self.woken.store(true, Ordering::Relaxed);
+        self.set.mark(self.index);
     }
 }
 
@@ -281,7 +384,6 @@ type BoxFuture<'a> = Pin<Box<dyn Future<Output = ()> + 'a>>;
 struct Task<'a> {
     name: Rc<str>,
     future: BoxFuture<'a>,
-    flag: Arc<TaskFlag>,
     waker: Waker,
 }
 
@@ -348,6 +450,7 @@ pub struct RunStats {
 pub struct Executor<'a> {
     time: Rc<TimeCore>,
     tasks: Vec<Option<Task<'a>>>,
+    woken: Arc<WakeSet>,
     spawn_queue: Rc<RefCell<Vec<(String, BoxFuture<'a>)>>>,
     polls: Cell<u64>,
     finished: usize,
@@ -372,6 +475,7 @@ impl<'a> Executor<'a> {
         Executor {
             time: clock.core.clone(),
             tasks: Vec::new(),
+            woken: Arc::new(WakeSet::default()),
             spawn_queue: Rc::new(RefCell::new(Vec::new())),
             polls: Cell::new(0),
             finished: 0,
@@ -403,14 +507,16 @@ impl<'a> Executor<'a> {
     }
 
     fn push_task(&mut self, name: String, future: BoxFuture<'a>) -> TaskId {
-        let flag = Arc::new(TaskFlag {
-            woken: AtomicBool::new(true),
-        });
-        let waker = Waker::from(flag.clone());
+        let index = self.tasks.len();
+        let waker = Waker::from(Arc::new(TaskFlag {
+            set: self.woken.clone(),
+            index,
+        }));
+        // Polled first in the pass that comes next.
+        self.woken.mark(index);
         self.tasks.push(Some(Task {
             name: name.into(),
             future,
-            flag,
             waker,
         }));
         TaskId(self.tasks.len() - 1)
@@ -442,23 +548,24 @@ impl<'a> Executor<'a> {
         let mut polls_here = 0u64;
         loop {
             let mut progressed = self.drain_spawns();
-            for i in 0..self.tasks.len() {
-                let Some(slot) = self.tasks.get_mut(i) else {
+            // One pass in index order: a task woken during the pass is polled in it when its
+            // index is above the one being polled, in the next pass otherwise.
+            let mut from = 0;
+            while let Some(i) = self.woken.take_next(from, self.tasks.len()) {
+                from = i + 1;
+                let Some(task) = self.tasks.get_mut(i).and_then(Option::as_mut) else {
                     continue;
                 };
-                let Some(task) = slot.as_mut() else { continue };
-                if !task.flag.woken.swap(false, Ordering::Relaxed) {
-                    continue;
-                }
                 progressed = true;
                 polls_here += 1;
-                let waker = task.waker.clone();
-                let mut cx = Context::from_waker(&waker);
+                let mut cx = Context::from_waker(&task.waker);
                 let previous = CURRENT_TASK.with(|c| c.replace(Some(task.name.clone())));
                 let ready = task.future.as_mut().poll(&mut cx).is_ready();
                 CURRENT_TASK.with(|c| c.replace(previous));
                 if ready {
-                    *slot = None;
+                    if let Some(slot) = self.tasks.get_mut(i) {
+                        *slot = None;
+                    }
                     self.finished += 1;
                 }
             }
@@ -472,9 +579,9 @@ impl<'a> Executor<'a> {
                 let tasks = self
                     .tasks
                     .iter()
-                    .flatten()
-                    .filter(|t| t.flag.woken.load(Ordering::Relaxed))
-                    .map(|t| t.name.to_string())
+                    .enumerate()
+                    .filter(|(i, _)| self.woken.is_marked(*i))
+                    .filter_map(|(_, t)| t.as_ref().map(|t| t.name.to_string()))
                     .collect();
                 return Err(RunError::Livelock {
                     at: self.time.now(),
@@ -591,6 +698,29 @@ impl Rng {
 mod tests {
     use super::*;
     use std::cell::RefCell;
+
+    #[test]
+    fn tasks_past_the_lock_free_ones_are_polled_in_order_too() {
+        let n = FAST_TASKS + 70;
+        let log = RefCell::new(Vec::new());
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        for i in 0..n {
+            let (log, clock) = (&log, clock.clone());
+            ex.spawn(format!("t{i}"), async move {
+                log.borrow_mut().push(i);
+                // The last ones sleep first, so they wake first in deadline order.
+                clock.sleep_ns((n - i) as u64).await;
+                log.borrow_mut().push(i);
+            });
+        }
+        let stats = ex.run_until_ns(1_000_000).unwrap();
+        let log = log.borrow().clone();
+        assert_eq!(log.len(), 2 * n);
+        assert!(log[..n].iter().copied().eq(0..n));
+        assert!(log[n..].iter().copied().eq((0..n).rev()));
+        assert_eq!((stats.finished, stats.alive), (n, 0));
+    }
 
     #[test]
     fn sleepers_wake_in_deadline_order_and_time_jumps() {

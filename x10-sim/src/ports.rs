@@ -372,6 +372,40 @@ pub struct ActuatorLog {
     latches: Rc<RefCell<Vec<EdgeLatch>>>,
     warnings: Rc<RefCell<Vec<DeviceWarning>>>,
     blinks: Rc<RefCell<Vec<Blink>>>,
+    bound: Rc<LogBound>,
+}
+
+/// How much an [`ActuatorLog`] keeps: everything unless [`ActuatorLog::bound_to`] set a cap.
+#[derive(Debug, Default)]
+struct LogBound {
+    /// Entries kept per list (changes, safe states, latches, warnings, blinks); 0: no cap.
+    cap: std::cell::Cell<usize>,
+    /// A reader follows the changes as the run goes (the physics engine): they are all kept.
+    followed: std::cell::Cell<bool>,
+    /// Changes counted but not kept.
+    changes_dropped: std::cell::Cell<u64>,
+    /// Device warnings counted but not kept.
+    warnings_dropped: std::cell::Cell<u64>,
+    /// Safe states, latches and blinks counted but not kept.
+    others_dropped: std::cell::Cell<u64>,
+}
+
+impl LogBound {
+    /// True when a list of `len` entries is full.
+    fn full(&self, len: usize) -> bool {
+        let cap = self.cap.get();
+        cap > 0 && len >= cap
+    }
+
+    /// Pushes `item` on `list` unless it is full; counts it in `dropped` otherwise.
+    fn keep<T>(&self, list: &RefCell<Vec<T>>, item: T, dropped: &std::cell::Cell<u64>) {
+        let mut list = list.borrow_mut();
+        if self.full(list.len()) {
+            dropped.set(dropped.get() + 1);
+        } else {
+            list.push(item);
+        }
+    }
 }
 
 /// A board was asked to blink its status LED (`blink`, to find it by eye): every simulated
@@ -417,7 +451,36 @@ impl ActuatorLog {
     }
 
     fn push(&self, c: OutputChange) {
-        self.changes.borrow_mut().push(c);
+        if self.bound.followed.get() {
+            self.changes.borrow_mut().push(c);
+        } else {
+            self.bound
+                .keep(&self.changes, c, &self.bound.changes_dropped);
+        }
+    }
+
+    /// Keeps at most `cap` entries in each of its lists (changes, safe states, latches,
+    /// device warnings, blinks) and counts the others ([`ActuatorLog::dropped`]); the changes
+    /// are all kept when a reader follows them as the run goes (a world with physics, whose
+    /// engine reads them). A bounded run ([`crate::sim::Keep::Summary`]) sets it.
+    pub fn bound_to(&self, cap: usize) {
+        self.bound.cap.set(cap);
+    }
+
+    /// Marks the changes as read while the run goes (they are never dropped).
+    pub(crate) fn follow(&self) {
+        self.bound.followed.set(true);
+    }
+
+    /// Entries counted but not kept at the cap of [`ActuatorLog::bound_to`]: (output changes,
+    /// device warnings, the others).
+    pub fn dropped(&self) -> (u64, u64, u64) {
+        let b = &self.bound;
+        (
+            b.changes_dropped.get(),
+            b.warnings_dropped.get(),
+            b.others_dropped.get(),
+        )
     }
 
     /// Every time a board's firmware put an actuator port in its safe state, in time order:
@@ -764,7 +827,7 @@ impl SimPorts {
         let min_ns = min_interval_us.saturating_mul(1_000);
         if let Some(last) = last.filter(|&l| from > l && from - l < min_ns) {
             let gap_us = (from - last) / 1_000;
-            self.log.warnings.borrow_mut().push(DeviceWarning {
+            self.log.bound.keep(&self.log.warnings, DeviceWarning {
                 t_ns: from,
                 board: self.board.clone(),
                 text: format!(
@@ -773,7 +836,7 @@ impl SimPorts {
                     gap_us % 1_000,
                     min_interval_us / 1_000
                 ),
-            });
+            }, &self.log.bound.warnings_dropped);
             return None;
         }
         {
@@ -978,11 +1041,15 @@ impl Ports for SimPorts {
     /// Latches every scripted edge of the pin's input from now on (exactly: see
     /// [`Ports::take_edges`]).
     fn blink(&self, secs: u8) -> Result<(), PortError> {
-        self.log.blinks.borrow_mut().push(Blink {
-            t_ns: self.clock.now_ns(),
-            board: self.board.clone(),
-            secs,
-        });
+        self.log.bound.keep(
+            &self.log.blinks,
+            Blink {
+                t_ns: self.clock.now_ns(),
+                board: self.board.clone(),
+                secs,
+            },
+            &self.log.bound.others_dropped,
+        );
         Ok(())
     }
 
@@ -994,11 +1061,15 @@ impl Ports for SimPorts {
             Some(l) => l.1 = now,
             None => st.latched.push((pin, now)),
         }
-        self.log.latches.borrow_mut().push(EdgeLatch {
-            t_ns: now,
-            board: self.board.clone(),
-            pin,
-        });
+        self.log.bound.keep(
+            &self.log.latches,
+            EdgeLatch {
+                t_ns: now,
+                board: self.board.clone(),
+                pin,
+            },
+            &self.log.bound.others_dropped,
+        );
         Ok(())
     }
 
@@ -1046,12 +1117,16 @@ impl Ports for SimPorts {
             .get(usize::from(port.index()))
             .copied()
             .unwrap_or(SafeState::ALL_LOW);
-        self.log.safe.borrow_mut().push(SafeStateApplied {
-            t_ns: self.clock.now_ns(),
-            board: self.board.clone(),
-            port,
-            safe,
-        });
+        self.log.bound.keep(
+            &self.log.safe,
+            SafeStateApplied {
+                t_ns: self.clock.now_ns(),
+                board: self.board.clone(),
+                port,
+                safe,
+            },
+            &self.log.bound.others_dropped,
+        );
         safe
     }
 }

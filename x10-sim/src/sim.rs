@@ -29,6 +29,7 @@
 
 use std::fmt;
 use std::future::Future;
+use std::io::Write as _;
 use std::pin::Pin;
 use std::rc::Rc;
 use std::sync::Mutex;
@@ -94,6 +95,93 @@ pub struct SimConfig {
     pub plug_and_play: bool,
     /// Addresses pinned by the robot's configuration (`MbConfig::pinned`).
     pub pinned: &'static [PinnedAddress],
+    /// What the run keeps: everything (the default), or a summary built as it goes, in
+    /// memory that does not grow with the run's length.
+    pub keep: Keep,
+}
+
+/// What a run keeps ([`SimConfig::keep`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Keep {
+    /// Everything: every bus transaction ([`SimOutcome::records`], with its wire symbols
+    /// when [`SimConfig::record_wire`]), every call ([`SimOutcome::calls`]), every trace
+    /// line. Memory grows with the run: about 6 MB per virtual minute of Figure 4.4's bus
+    /// (docs/performance.md). What the trace, the timeline pages and the VCD need.
+    #[default]
+    All,
+    /// A summary built as the run goes, in memory bounded by [`KEEP_CAP`] entries per list,
+    /// whatever the run's length: every counter ([`SimOutcome::bus`] with the bus's busy
+    /// time, the boards' and the motherboard's), the number of calls and failed calls
+    /// ([`SimOutcome::kept`]); of the lists, only what goes wrong, the first [`KEEP_CAP`]
+    /// of each: failed or faulted bus transactions, failed calls, the simulator's warning
+    /// notes (resets, task ends), device warnings, and the first [`KEEP_CAP`] output
+    /// changes (all of them in a world with physics, which reads them as the run goes).
+    /// The trace holds the warnings only, [`SimOutcome::calls`] is empty, no wire symbols are
+    /// kept. What is past a cap is counted ([`Kept`]) and the summary says so.
+    Summary,
+}
+
+/// Entries a bounded run ([`Keep::Summary`]) keeps per list.
+pub const KEEP_CAP: usize = 10_000;
+
+/// What a run kept and what it only counted ([`SimConfig::keep`]).
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Kept {
+    /// The mode of the run.
+    pub keep: Keep,
+    /// Calls of robot and test tasks, and of those the failed ones (whatever was kept).
+    pub calls: (u64, u64),
+    /// Failed calls whose trace line was not kept (past the cap).
+    pub call_lines_dropped: u64,
+    /// Bus records past the cap (failed or faulted transactions), counted, not kept.
+    pub records_dropped: u64,
+    /// Of those, the failures that [`SimOutcome::problems`] counts.
+    pub dropped_failures: crate::bus::DroppedFailures,
+    /// Output changes, device warnings, and other log entries (safe states, latches,
+    /// blinks) past the cap.
+    pub log_dropped: (u64, u64, u64),
+    /// Notes (resets, task ends) past the cap.
+    pub notes_dropped: u64,
+}
+
+impl Kept {
+    /// Entries counted but not kept, in all.
+    pub fn dropped(&self) -> u64 {
+        self.call_lines_dropped
+            + self.records_dropped
+            + self.log_dropped.0
+            + self.log_dropped.1
+            + self.log_dropped.2
+            + self.notes_dropped
+    }
+
+    /// Warning lines the trace would hold past the caps (failed calls, device warnings,
+    /// notes; a failed bus transaction past the cap counts once, though its full trace may
+    /// give it more than one line).
+    pub fn warnings_dropped(&self) -> u64 {
+        self.call_lines_dropped + self.records_dropped + self.log_dropped.1 + self.notes_dropped
+    }
+
+    /// The summary's line saying what a bounded run kept (`None` for [`Keep::All`]).
+    pub fn summary_line(&self) -> Option<String> {
+        if self.keep == Keep::All {
+            return None;
+        }
+        let mut s = format!(
+            "record: a summary (a long run): the counts and the bus load cover the whole run ({} calls, {} failed); kept of the lists only the first {KEEP_CAP} of each (failed bus transactions, failed calls, warnings, output changes)",
+            self.calls.0, self.calls.1
+        );
+        if self.dropped() == 0 {
+            s.push_str(": nothing was past that");
+        } else {
+            let (changes, warnings, others) = self.log_dropped;
+            s.push_str(&format!(
+                "; counted, not kept: {} bus transactions, {} failed calls, {changes} output changes, {warnings} device warnings, {} notes, {others} other log entries",
+                self.records_dropped, self.call_lines_dropped, self.notes_dropped
+            ));
+        }
+        Some(s)
+    }
 }
 
 /// The default motherboard address (the lowest ordinary I2C address, so events sent to it
@@ -122,6 +210,7 @@ impl Default for SimConfig {
             mb_safe_defaults: true,
             plug_and_play: false,
             pinned: &[],
+            keep: Keep::All,
         }
     }
 }
@@ -262,6 +351,10 @@ struct CallTracer {
     called: Mutex<Vec<u8>>,
     /// Told of everything too ([`Sim::also_observe`]).
     also: Option<&'static dyn CallObserver>,
+    /// Keeps only failed calls' lines, at most [`KEEP_CAP`], and no spans.
+    bounded: bool,
+    /// Calls, failed calls, failed calls' lines not kept.
+    counts: Mutex<(u64, u64, u64)>,
 }
 
 impl CallObserver for CallTracer {
@@ -275,13 +368,26 @@ impl CallObserver for CallTracer {
         if let Some(also) = self.also {
             also.observe(call);
         }
-        let who = current_task().map_or_else(|| "?".to_string(), |n| n.to_string());
+        let task = current_task();
+        let who: &str = task.as_deref().unwrap_or("?");
         if who == "mb" {
             return;
         }
         if let Ok(mut called) = self.called.lock() {
             if !called.contains(&call.db.get()) {
                 called.push(call.db.get());
+            }
+        }
+        if let Ok(mut counts) = self.counts.lock() {
+            counts.0 += 1;
+            if call.result.is_err() {
+                counts.1 += 1;
+                if self.bounded && self.lines.lock().map_or(0, |l| l.len()) >= KEEP_CAP {
+                    counts.2 += 1;
+                    return;
+                }
+            } else if self.bounded {
+                return;
             }
         }
         let took = trace::micros(call.ended.since(call.started).saturating_mul(1_000));
@@ -295,9 +401,15 @@ impl CallObserver for CallTracer {
             trace::describe_op(call.op)
         );
         let end_ns = call.ended.as_micros().saturating_mul(1_000);
+        if self.bounded {
+            if let Ok(mut lines) = self.lines.lock() {
+                lines.push(TraceLine::new(end_ns, severity, who.to_string(), text));
+            }
+            return;
+        }
         if let Ok(mut spans) = self.spans.lock() {
             spans.push(CallSpan {
-                task: who.clone(),
+                task: who.to_string(),
                 start_ns: call.started.as_micros().saturating_mul(1_000),
                 end_ns,
                 text: text.clone(),
@@ -305,7 +417,7 @@ impl CallObserver for CallTracer {
             });
         }
         if let Ok(mut lines) = self.lines.lock() {
-            lines.push(TraceLine::new(end_ns, severity, who, text));
+            lines.push(TraceLine::new(end_ns, severity, who.to_string(), text));
         }
     }
 }
@@ -353,6 +465,9 @@ pub struct SimOutcome {
     /// Instants at which tasks were busy-looping when time moved on
     /// ([`crate::exec::SPIN_POLLS`]): 0 unless some task spins.
     pub spins: u64,
+    /// Task polls the executor made in all (the simulator's unit of work: each wake-up of a
+    /// runtime's task, a board's, the bus engine's or a robot's).
+    pub polls: u64,
     /// Every call of a robot or test task, in the order they ended (whether or not the trace
     /// keeps them, [`SimConfig::trace_calls`]).
     pub calls: Vec<CallSpan>,
@@ -369,6 +484,11 @@ pub struct SimOutcome {
     /// Ground truth of plug and play: for each external board, every address it started at,
     /// with the time (ns; `0x77` while unaddressed).
     pub addresses: Vec<(String, Vec<(u64, Address)>)>,
+    /// What the run kept and what it only counted ([`SimConfig::keep`]).
+    pub kept: Kept,
+    /// Lines of the streamed record ([`Sim::record_to`]) that could not be written, and 1
+    /// more if its last flush failed.
+    pub record_errors: u64,
 }
 
 impl SimOutcome {
@@ -423,7 +543,19 @@ impl SimOutcome {
                 // (reported above when the program called it).
                 None => self.bus.resets == 0 && self.board_addresses.contains(&r.addr),
             })
-            .count();
+            .count() as u64;
+        let d = &self.kept.dropped_failures;
+        let unanswered: u64 = d
+            .unanswered
+            .iter()
+            .enumerate()
+            .filter(|(a, _)| {
+                self.bus.resets == 0
+                    && u8::try_from(*a).is_ok_and(|a| self.board_addresses.contains(&a))
+            })
+            .map(|(_, n)| n)
+            .sum();
+        let failed = failed + d.answered + unanswered;
         if failed > 0 {
             let noun = if failed == 1 {
                 "transaction"
@@ -460,6 +592,7 @@ pub struct Sim {
     task_errors: TaskErrors,
     shared_addresses: bool,
     also_observe: Option<&'static dyn CallObserver>,
+    record_to: Option<Box<dyn std::io::Write>>,
 }
 
 /// The robot tasks that ended with an error: (task, error text).
@@ -487,7 +620,18 @@ impl Sim {
             task_errors: TaskErrors::default(),
             shared_addresses: false,
             also_observe: None,
+            record_to: None,
         }
+    }
+
+    /// Streams the bus's record to `out` as the run goes: the lines `--trace` prints for each
+    /// transaction (`seconds LEVEL source: what`: frames, replies, events, faults, lost
+    /// arbitrations), written as each transaction ends, whatever the run keeps
+    /// ([`SimConfig::keep`]). Write errors are counted ([`SimOutcome::record_errors`]), the
+    /// run goes on.
+    pub fn record_to(mut self, out: Box<dyn std::io::Write>) -> Sim {
+        self.record_to = Some(out);
+        self
     }
 
     /// Tells `observer` too of every call (the robot tasks' and the motherboard's own) and
@@ -741,6 +885,7 @@ impl Sim {
             task_errors,
             shared_addresses: _,
             also_observe,
+            record_to,
         } = self;
         let mut board_addresses = vec![0];
         board_addresses.extend(
@@ -755,6 +900,15 @@ impl Sim {
         bus_cfg.faults = config.faults;
         bus_cfg.stretch_timeout_ns = config.stretch_timeout_us * 1_000;
         bus_cfg.record_wire = config.record_wire;
+        let bounded = config.keep == Keep::Summary;
+        if bounded {
+            bus_cfg.record_wire = false;
+            bus_cfg.keep_clean_records = false;
+            bus_cfg.keep_failed_records = true;
+            bus_cfg.record_cap = KEEP_CAP;
+            log.bound_to(KEEP_CAP);
+            notes.bound_to(KEEP_CAP);
+        }
         let bus = SimBus::new(clock.clone(), bus_cfg);
         let mb_node = bus.add_node(
             NodeConfig::new("mb", Some(config.mb_address.get())).with_role(config.mb_role),
@@ -776,6 +930,32 @@ impl Sim {
             nodes.push((name, bus.add_node(n)));
         }
         let nodes = Rc::new(nodes);
+        let record_errors = Rc::new(std::cell::Cell::new(0u64));
+        let record_out = record_to.map(|out| Rc::new(std::cell::RefCell::new(out)));
+        if let Some(out) = record_out.clone() {
+            let mut names = vec![String::new(); nodes.len()];
+            for (name, id) in nodes.iter() {
+                if let Some(slot) = names.get_mut(*id) {
+                    *slot = name.clone();
+                }
+            }
+            let mb_address = config.mb_address.get();
+            let errors = record_errors.clone();
+            bus.on_record(Box::new(move |rec: &BusRecord| {
+                let bus_names = BusNames {
+                    names: &names,
+                    mb_address: Some(mb_address),
+                };
+                let mut lines = trace::bus_lines(rec, &bus_names);
+                lines.sort_by_key(|l| l.t_ns);
+                let mut out = out.borrow_mut();
+                for l in lines {
+                    if writeln!(out, "{l}").is_err() {
+                        errors.set(errors.get() + 1);
+                    }
+                }
+            }));
+        }
 
         let mut mb_cfg = if config.mb_safe_defaults {
             MbConfig::new(config.mb_address)
@@ -793,6 +973,8 @@ impl Sim {
             spans: Mutex::new(Vec::new()),
             called: Mutex::new(Vec::new()),
             also: also_observe,
+            bounded,
+            counts: Mutex::new((0, 0, 0)),
         }));
         let mut motherboard = Motherboard::new(mb_cfg, mb_ports).with_observer(tracer);
         if config.plug_and_play {
@@ -860,6 +1042,11 @@ impl Sim {
                 .map_err(SimError::Run)?
         };
         let end_ns = run.end_ns;
+        if let Some(out) = &record_out {
+            if out.borrow_mut().flush().is_err() {
+                record_errors.set(record_errors.get() + 1);
+            }
+        }
         // Every address a board had is on the bus (calls to them are no unknown board's).
         for b in &boards {
             for (_, a) in b.addresses.starts() {
@@ -882,7 +1069,7 @@ impl Sim {
             }
             v
         };
-        let records = bus.records();
+        let records = bus.take_records();
         let bus_names = BusNames {
             names: &names,
             mb_address: Some(config.mb_address.get()),
@@ -912,6 +1099,7 @@ impl Sim {
         );
         let calls = tracer.lines.lock().map(|mut l| std::mem::take(&mut *l));
         let mut calls = calls.unwrap_or_default();
+        let notes_dropped = notes.dropped();
         let mut notes = notes.lines();
         let task_errors = task_errors.take();
         for (task, e) in &task_errors {
@@ -923,7 +1111,22 @@ impl Sim {
                 .chain(calls)
                 .filter(|l| config.trace_calls || l.severity >= Severity::Warn),
         );
+        if bounded {
+            // Only what went wrong: the summary reads the warnings and the resets.
+            lines.retain(|l| l.severity >= Severity::Warn);
+        }
         trace.extend(lines);
+        let (calls_made, calls_failed, call_lines_dropped) =
+            tracer.counts.lock().map(|c| *c).unwrap_or_default();
+        let kept = Kept {
+            keep: config.keep,
+            calls: (calls_made, calls_failed),
+            call_lines_dropped,
+            records_dropped: bus.stats().records_dropped,
+            dropped_failures: bus.dropped_failures(),
+            log_dropped: log.dropped(),
+            notes_dropped,
+        };
         Ok(SimOutcome {
             trace,
             records,
@@ -938,6 +1141,7 @@ impl Sim {
             end_ns,
             speed: config.speed,
             spins: run.spins,
+            polls: run.polls,
             calls: tracer
                 .spans
                 .lock()
@@ -955,6 +1159,8 @@ impl Sim {
             task_errors,
             device_warnings: device_warnings.into_iter().map(|w| w.text).collect(),
             addresses,
+            kept,
+            record_errors: record_errors.get(),
         })
     }
 }

@@ -28,7 +28,7 @@ use x10_microcode::{Level, Port, PortKind};
 
 use crate::exec::Nanos;
 use crate::ports::{Change, OutputChange};
-use crate::sim::SimOutcome;
+use crate::sim::{Keep, SimOutcome};
 use crate::trace::Severity;
 use crate::world::{seconds, Device, DeviceKind, Signal, World};
 
@@ -929,7 +929,11 @@ pub fn summary(world: &World, outcome: &SimOutcome) -> String {
         let _ = writeln!(s, "{line}");
     }
     let b = &outcome.bus;
-    let busy_ns: Nanos = outcome.records.iter().map(|r| r.duration_ns()).sum();
+    let busy_ns: Nanos = match outcome.kept.keep {
+        Keep::All => outcome.records.iter().map(|r| r.duration_ns()).sum(),
+        // The records are not all kept: the bus counted its busy time as it went.
+        Keep::Summary => b.busy_ns,
+    };
     let basis_points = busy_ns
         .saturating_mul(10_000)
         .checked_div(outcome.end_ns)
@@ -954,16 +958,21 @@ pub fn summary(world: &World, outcome: &SimOutcome) -> String {
         .iter()
         .filter(|l| l.severity >= Severity::Warn)
         .collect();
-    if warnings.is_empty() {
+    // Past a bounded run's caps, warnings were counted, not kept.
+    let total = warnings.len() as u64 + outcome.kept.warnings_dropped();
+    if total == 0 {
         s.push_str("warnings and errors: none\n");
     } else {
-        let _ = writeln!(s, "warnings and errors: {}", warnings.len());
+        let _ = writeln!(s, "warnings and errors: {total}");
         for l in warnings.iter().take(SUMMARY_WARNINGS) {
             let _ = writeln!(s, "  {l}");
         }
-        if warnings.len() > SUMMARY_WARNINGS {
-            let _ = writeln!(s, "  … {} more", warnings.len() - SUMMARY_WARNINGS);
+        if total > SUMMARY_WARNINGS as u64 {
+            let _ = writeln!(s, "  … {} more", total - SUMMARY_WARNINGS as u64);
         }
+    }
+    if let Some(line) = outcome.kept.summary_line() {
+        let _ = writeln!(s, "{line}");
     }
     s
 }

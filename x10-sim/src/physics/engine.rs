@@ -182,6 +182,8 @@ fn on_chassis(p: (f64, f64, f64), at: P) -> P {
 
 impl Engine {
     pub(crate) fn new(spec: Spec, log: ActuatorLog, clock: Option<SimClock>) -> Engine {
+        // It reads the changes as the run goes: a bounded run keeps them all.
+        log.follow();
         let a = &spec.physics.arena;
         let walls: Vec<(P, P)> = a.walls.iter().map(|w| (w.from, w.to)).collect();
         let boxes: Vec<(P, P)> = a.boxes.iter().map(|b| (b.min, b.max)).collect();
