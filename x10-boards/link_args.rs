@@ -17,6 +17,23 @@ const PICO_MEMORY: &str = "MEMORY {
 }
 ";
 
+/// The Pico's bootloader, `boot-pico` (feature `pico-bootloader`, issue 25): boot2, then the bootloader up to embassy-boot's
+/// STATE sector at 0x10008000 (`x10_boards::rp_flash::layout`).
+const PICO_BOOT_MEMORY: &str = "MEMORY {
+    BOOT2 : ORIGIN = 0x10000000, LENGTH = 0x100
+    FLASH : ORIGIN = 0x10000100, LENGTH = 0x8000 - 0x100
+    RAM   : ORIGIN = 0x20000000, LENGTH = 256K
+}
+";
+
+/// db-pico under the bootloader (feature `active-slot`): the ACTIVE slot, 32 KiB from
+/// 0x10009000; no boot2 (the bootloader's is the chip's).
+const PICO_ACTIVE_MEMORY: &str = "MEMORY {
+    FLASH : ORIGIN = 0x10009000, LENGTH = 32K
+    RAM   : ORIGIN = 0x20000000, LENGTH = 256K
+}
+";
+
 /// The memory map of the STM32G431CB: 128 KiB flash, of which the last 4 KiB (two 2 KiB
 /// pages from 0x0801F000) are the address record's (`x10_boards::record`), outside the
 /// image; SRAM1 (16 KiB), SRAM2 (6 KiB) and CCM SRAM (10 KiB, aliased there) are contiguous
@@ -72,14 +89,18 @@ fn g431_memory(image: G431Image) -> String {
 ///   the search path), the C011 the one embassy-stm32's `memory-x` feature writes from the
 ///   chip's metadata. No `memory.x` may lie in the workspace root: the linker runs there and
 ///   would take it before any on the search path;
-/// * `link-rp.x` (embassy-rp: the boot2 section) for the Pico;
+/// * `link-rp.x` (embassy-rp: the boot2 section) for the Pico, but for the ACTIVE slot's image;
 /// * `defmt.x` (defmt).
 fn link_args() {
     if std::env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;
     }
     let feature = |f: &str| std::env::var_os(format!("CARGO_FEATURE_{f}")).is_some();
-    let memory = if feature("RP2040") {
+    let memory = if feature("PICO_BOOTLOADER") {
+        Some(PICO_BOOT_MEMORY.to_string())
+    } else if feature("ACTIVE_SLOT") {
+        Some(PICO_ACTIVE_MEMORY.to_string())
+    } else if feature("RP2040") {
         Some(PICO_MEMORY.to_string())
     } else if feature("STM32G431") {
         // x10-boards' `bootloader` and `daughterboard` features; x10-robots has neither.
@@ -103,7 +124,8 @@ fn link_args() {
     println!("cargo:rustc-link-arg-bins=--nmagic");
     // link.x includes memory.x, which defines the regions link-rp.x places sections in.
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
-    if std::env::var_os("CARGO_FEATURE_RP2040").is_some() {
+    // The ACTIVE slot's image has no boot2 (embassy-rp's `boot2-none`).
+    if std::env::var_os("CARGO_FEATURE_RP2040").is_some() && !feature("ACTIVE_SLOT") {
         println!("cargo:rustc-link-arg-bins=-Tlink-rp.x");
     }
     println!("cargo:rustc-link-arg-bins=-Tdefmt.x");

@@ -64,7 +64,7 @@ export class NorFlash {
     this.busyUntil = 0;
     this.selected = false;
     this.bytes = [];
-    /** Every erase, program and status write run (`{ cmd, addr }`), in order. */
+    /** Every erase, program and status write run (`{ cmd, addr, t }`, `t` in ns), in order. */
     this.ops = [];
     /** The first byte of every command the flash was selected for, in order (reads included). */
     this.commands = [];
@@ -123,7 +123,7 @@ export class NorFlash {
     const done = (ns) => {
       this.wel = false;
       this.busyUntil = this.now() + ns;
-      this.ops.push({ cmd, addr });
+      this.ops.push({ cmd, addr, t: this.now() });
     };
     switch (cmd) {
       case 0x06: this.wel = true; return;

@@ -45,6 +45,15 @@ export class Chip {
       }
       else if (s.paddr >= SRAM && s.paddr < SRAM + rp.sram.length) rp.sram.set(s.data, s.paddr - SRAM);
     }
+    // A bootloader (`options.boot`, an ELF path: boot-pico) programmed with the image: its
+    // flash segments (boot2 and the bootloader from 0x10000100, where the chip starts); the
+    // image is then one linked into a slot behind it, and its symbols (RTT) are the chip's.
+    if (options.boot && !programmed) {
+      this.bootElf = typeof options.boot === 'string' ? readElf(options.boot) : options.boot;
+      for (const s of this.bootElf.segments) {
+        if (s.paddr >= FLASH && s.paddr < FLASH + rp.flash.length) rp.flash.set(s.data, s.paddr - FLASH);
+      }
+    }
     // Stack high-water mark: paint the stack region before reset (cortex-m-rt does not touch it).
     const sym = (n) => this.elf.symbols.get(n)?.value;
     this.stackTop = sym('_stack_start') ?? SRAM + rp.sram.length;
@@ -113,6 +122,9 @@ export class Chip {
     let rd = v.getUint32(up + 16, true);
     const wr = v.getUint32(up + 12, true);
     if (!size || rd === wr) return;
+    // Before the image's start-up wrote its control block (a bootloader still running), the
+    // words there are someone else's: only a block that points into SRAM is read.
+    if (buf < 0 || size > this.rp.sram.length || buf + size > this.rp.sram.length || rd >= size || wr >= size) return;
     while (rd !== wr) {
       const b = this.rp.sram[buf + rd];
       rd = (rd + 1) % size;

@@ -11,12 +11,74 @@ const fn version_part(s: &str) -> u8 {
     }
 }
 
-/// Firmware version reported by `identify`: this crate's `CARGO_PKG_VERSION`, major.minor.patch.
-pub const FIRMWARE_VERSION: [u8; 3] = [
-    version_part(env!("CARGO_PKG_VERSION_MAJOR")),
-    version_part(env!("CARGO_PKG_VERSION_MINOR")),
-    version_part(env!("CARGO_PKG_VERSION_PATCH")),
-];
+/// Firmware version reported by `identify` and the `boot` event: this crate's
+/// `CARGO_PKG_VERSION`, major.minor.patch, unless the image was built with `X10_FW_VERSION`
+/// set (`major.minor.patch`, each 0 to 255: an update's test image built from the same source
+/// with another version, issue 25). A value that is not one is a compile error naming the
+/// variable.
+pub const FIRMWARE_VERSION: [u8; 3] = match option_env!("X10_FW_VERSION") {
+    None => [
+        version_part(env!("CARGO_PKG_VERSION_MAJOR")),
+        version_part(env!("CARGO_PKG_VERSION_MINOR")),
+        version_part(env!("CARGO_PKG_VERSION_PATCH")),
+    ],
+    Some(v) => match parse_version(v) {
+        Some(v) => v,
+        None => panic!("X10_FW_VERSION must be major.minor.patch, each 0 to 255"),
+    },
+};
+
+/// `major.minor.patch` (decimal, each 0 to 255) as three bytes; `None` for anything else.
+#[must_use]
+pub const fn parse_version(s: &str) -> Option<[u8; 3]> {
+    let mut rest = s.as_bytes();
+    let mut parts = (0u8, 0u8, 0u8);
+    let mut part = 0;
+    let mut digits = 0;
+    let mut value: u8 = 0;
+    loop {
+        let (c, next) = match rest {
+            [c, next @ ..] => (Some(*c), next),
+            [] => (None, rest),
+        };
+        match c {
+            Some(d @ b'0'..=b'9') => {
+                value = match value.checked_mul(10) {
+                    Some(v) => match v.checked_add(d - b'0') {
+                        Some(v) => v,
+                        None => return None,
+                    },
+                    None => return None,
+                };
+                digits += 1;
+            }
+            Some(b'.') | None => {
+                if digits == 0 || digits > 3 {
+                    return None;
+                }
+                match part {
+                    0 => parts.0 = value,
+                    1 => parts.1 = value,
+                    2 => parts.2 = value,
+                    _ => return None,
+                }
+                part += 1;
+                digits = 0;
+                value = 0;
+                if c.is_none() {
+                    break;
+                }
+            }
+            Some(_) => return None,
+        }
+        rest = next;
+    }
+    if part == 3 {
+        Some([parts.0, parts.1, parts.2])
+    } else {
+        None
+    }
+}
 
 /// Everything this runtime implements. `Capabilities::SERIAL` is absent: [`crate::Ports`] has
 /// no serial methods, so serial requests are answered `unsupported`.
@@ -104,5 +166,25 @@ impl TargetConfig {
             retry: RetryPolicy::DEFAULT,
             event_gap_us: 1_000,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_version;
+
+    #[test]
+    fn versions_parse_as_three_bytes() {
+        assert_eq!(parse_version("0.1.0"), Some([0, 1, 0]));
+        assert_eq!(parse_version("2.0.255"), Some([2, 0, 255]));
+        assert_eq!(parse_version("10.20.30"), Some([10, 20, 30]));
+        assert_eq!(parse_version("2.0"), None);
+        assert_eq!(parse_version("2.0.0.1"), None);
+        assert_eq!(parse_version("2.0.256"), None);
+        assert_eq!(parse_version("2..0"), None);
+        assert_eq!(parse_version(""), None);
+        assert_eq!(parse_version("v2.0.0"), None);
+        assert_eq!(parse_version("2.0.0 "), None);
+        assert_eq!(parse_version("1000.0.0"), None);
     }
 }

@@ -8,7 +8,8 @@
 //! * `Bus` and `Ports`, the board's bus adapter and ports;
 //! * `JUMPERS`, how many address-select jumpers the board has;
 //! * `KIND`, the `x10_microcode::BoardKind` the daughterboard reports;
-//! * `NAME`, the board's name in the log;
+//! * `name()`, the board's name in the log (an interned string: 2 bytes on the wire, no
+//!   length and text to send);
 //! * `Record`, `record(flash)` and `uid(&mut record)`: the address record in the chip's flash
 //!   (opened while the board is built, before its bus: the bus needs the address) and the
 //!   chip's unique ID.
@@ -31,7 +32,7 @@ use x10_boards::watchdog;
 use x10_boards::{address, BusConfig, EmbassyClock};
 use x10_microcode::Address;
 
-use crate::board::{init, record, uid, Board, Bus, Ports, Record, JUMPERS, KIND, NAME};
+use crate::board::{init, record, uid, Board, Bus, Ports, Record, JUMPERS, KIND};
 
 /// The motherboard's address, checked at build time.
 /// (A `panic!` in a `const` is a compile error naming the variable: it never runs on the board.)
@@ -128,14 +129,16 @@ async fn main(spawner: Spawner) {
     });
     let mb = MB_ADDRESS;
     info!(
-        "X10 daughterboard on a {=str} at {=u8:#04x} (jumpers {=u8}), motherboard at {=u8:#04x}",
-        NAME,
+        "X10 daughterboard on a {=istr} at {=u8:#04x} (jumpers {=u8}), motherboard at {=u8:#04x}",
+        crate::board::name(),
         own.get(),
         board.jumpers,
         mb.get()
     );
     // `Board::new` called the setup above: the record is there.
-    let mut kept = unwrap!(kept);
+    let Some(mut kept) = kept else {
+        watchdog::panicked()
+    };
     // An override always wins: `set_address` is answered `unsupported`.
     kept.overridden = BASE.is_some();
     let mut config = DbConfig::new(own, KIND);
@@ -143,5 +146,9 @@ async fn main(spawner: Spawner) {
     config.uid = uid(&mut kept);
     let db = DB.init(Daughterboard::with_record(board.ports, config, kept));
     // One task, spawned once: the pool (size 1) cannot be exhausted.
-    spawner.spawn(unwrap!(daughterboard(db, board.bus, TargetConfig::new(mb))));
+    // (A plain panic if it could: `unwrap!` would bring the error's `Format` code, 20 B.)
+    match daughterboard(db, board.bus, TargetConfig::new(mb)) {
+        Ok(task) => spawner.spawn(task),
+        Err(_) => watchdog::panicked(),
+    }
 }

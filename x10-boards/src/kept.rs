@@ -39,12 +39,33 @@ impl<F: NorFlash> AddressRecord for Kept<F> {
         if self.overridden {
             return Err(StoreError::NoRecord);
         }
-        // Nothing to write when the record already holds it (no wear).
-        if self.load() == Some(address) {
-            return Ok(());
-        }
+        // `Record::write` programs nothing when the record already holds it (no wear).
         self.record
             .write(address.get())
             .map_err(|_| StoreError::Failed)
     }
+
+    /// System 12 under the Pico's bootloader (`active-slot`): embassy-boot's DFU-detach mark
+    /// in STATE (`boot_state::enter_update`, the bytes `x10_boot::enter_update` writes), through
+    /// the flash the record owns.
+    #[cfg(feature = "active-slot")]
+    fn enter_update(&mut self) -> Result<(), StoreError> {
+        crate::boot_state::enter_update(&mut pico_state(self.record.flash()))
+            .map_err(|_| StoreError::Failed)
+    }
+
+    /// System 13 under the Pico's bootloader: embassy-boot's boot mark when the image was
+    /// swapped in (`boot_state::confirm_firmware`).
+    #[cfg(feature = "active-slot")]
+    fn confirm_firmware(&mut self) -> Result<(), StoreError> {
+        crate::boot_state::confirm_firmware(&mut pico_state(self.record.flash()))
+            .map_err(|_| StoreError::Failed)
+    }
+}
+
+/// embassy-boot's STATE partition of the Pico's layout (`rp_flash::layout`) over `flash`.
+#[cfg(feature = "active-slot")]
+fn pico_state<F: NorFlash>(flash: &mut F) -> crate::flash_window::Window<'_, F> {
+    use crate::rp_flash::layout::{STATE, STATE_LEN};
+    crate::flash_window::Window::new(flash, STATE, STATE_LEN)
 }

@@ -58,6 +58,7 @@ pub mod port_lookup;
 pub mod pulse;
 pub mod pwm;
 pub mod record;
+pub mod rp_flash;
 pub mod stm32_latch;
 
 #[cfg(feature = "time")]

@@ -168,14 +168,236 @@ macro_rules! pico_build {
 
 pico_table!(pico_build);
 
-/// The RP2040's flash driver over the Pico's 2 MiB, blocking (embassy-rp runs each erase and
-/// program from RAM through the boot ROM's functions, with interrupts off).
-pub type PicoFlash = embassy_rp::flash::Flash<
-    'static,
-    peripherals::FLASH,
-    embassy_rp::flash::Blocking,
-    { crate::record::PICO_FLASH as usize },
->;
+// ---------------------------------------------------------------------------------------
+// Flash
+// ---------------------------------------------------------------------------------------
+
+/// The RP2040's flash (the Pico's 2 MiB), blocking, our own driver: each erase, program and
+/// unique-ID read runs [`run_in_ram`], a routine in RAM that calls the boot ROM's flash
+/// functions with interrupts off, then enters XIP again through a copy of the image's boot2,
+/// the sequence of embassy-rp 0.10's `ram_helpers` (`src/flash.rs` 460-640), without its
+/// `Flash` (the page padding in one path, no core 1 pause: no image of ours starts core 1;
+/// no DMA wait: no DMA channel of ours reads flash). Its decisions (the ROM codes, bounds,
+/// the pages a write programs, the unique-ID command) are `crate::rp_flash`'s, tested on the
+/// host. Reads come from the XIP window.
+pub struct PicoFlash {
+    _flash: Peri<'static, peripherals::FLASH>,
+}
+
+/// The ROM's functions and the arguments of one flash operation, for [`run_in_ram`] (its
+/// field offsets are the routine's: `repr(C)`, one word each).
+#[repr(C)]
+struct RamRun {
+    connect: usize,
+    exit_xip: usize,
+    /// The operation: a ROM function or [`ssi_exchange`], called with `args`.
+    op: usize,
+    flush_cache: usize,
+    /// The boot2 copy's address with the Thumb bit.
+    enter_xip: usize,
+    args: [usize; 4],
+}
+
+/// Calls, in order: `connect_internal_flash`, `flash_exit_xip`, the operation with its four
+/// arguments, `flash_flush_cache` and the boot2 copy (which sets the SSI up for XIP again and
+/// returns to its caller). It runs from RAM (`.data`, copied there by cortex-m-rt): nothing
+/// in it may touch the flash while XIP is off, so it is written in assembly (no call the
+/// compiler might add, no literal pool).
+#[allow(unsafe_code)]
+#[unsafe(naked)]
+#[unsafe(link_section = ".data.ram_func")]
+unsafe extern "C" fn run_in_ram(_run: *const RamRun) {
+    core::arch::naked_asm!(
+        "push {{r4, lr}}",
+        "mov r4, r0",
+        "ldr r0, [r4, #0]",
+        "blx r0", // connect_internal_flash()
+        "ldr r0, [r4, #4]",
+        "blx r0", // flash_exit_xip()
+        "ldr r0, [r4, #8]",
+        "mov r12, r0",
+        "ldr r0, [r4, #20]",
+        "ldr r1, [r4, #24]",
+        "ldr r2, [r4, #28]",
+        "ldr r3, [r4, #32]",
+        "blx r12", // the operation
+        "ldr r0, [r4, #12]",
+        "blx r0", // flash_flush_cache()
+        "ldr r0, [r4, #16]",
+        "blx r0", // boot2: XIP again
+        "pop {{r4, pc}}",
+    );
+}
+
+/// `ssi_exchange(buf, len, ssi, ss_ctrl)`: with the flash's chip select forced low
+/// (`IO_QSPI` `GPIO_QSPI_SS_CTRL.OUTOVER`, at `ss_ctrl`), sends the `len` bytes of `buf`
+/// through the SSI at `ssi` (`DR0`, 0x60; the ROM's `flash_exit_xip` left it in transfer
+/// mode 0 with 8-bit frames, so it receives one byte for each byte sent) and puts the bytes
+/// received in their place (waiting on `SR.RFNE`, 0x28 bit 3), then releases the chip
+/// select. `len` is at most 16, the FIFOs' depth. From RAM, as [`run_in_ram`].
+#[allow(unsafe_code)]
+#[unsafe(naked)]
+#[unsafe(link_section = ".data.ram_func")]
+unsafe extern "C" fn ssi_exchange(_buf: *mut u8, _len: usize, _ssi: usize, _ss_ctrl: usize) {
+    core::arch::naked_asm!(
+        "push {{r4, r5, r6, lr}}",
+        "movs r4, #2",
+        "lsls r4, r4, #8",
+        "str r4, [r3]", // OUTOVER = low
+        "mov r5, r0",
+        "mov r6, r1",
+        "1:",
+        "ldrb r4, [r5]",
+        "str r4, [r2, #0x60]", // DR0
+        "adds r5, #1",
+        "subs r6, #1",
+        "bne 1b",
+        "mov r5, r0",
+        "mov r6, r1",
+        "2:",
+        "ldr r4, [r2, #0x28]", // SR
+        "lsls r4, r4, #28",    // RFNE (bit 3) to N
+        "bpl 2b",
+        "ldr r4, [r2, #0x60]",
+        "strb r4, [r5]",
+        "adds r5, #1",
+        "subs r6, #1",
+        "bne 2b",
+        "movs r4, #3",
+        "lsls r4, r4, #8",
+        "str r4, [r3]", // OUTOVER = high
+        "pop {{r4, r5, r6, pc}}",
+    );
+}
+
+/// The SSI (`XIP_SSI`, datasheet §4.10.13).
+const SSI_BASE: usize = 0x1800_0000;
+/// `IO_QSPI`'s `GPIO_QSPI_SS_CTRL` (datasheet §2.19.6.2).
+const QSPI_SS_CTRL: usize = 0x4001_800C;
+
+/// The boot ROM's function `code` (datasheet §2.8.3: `rom_table_lookup`, its address in the
+/// half-word at 0x18, with the function table's, the half-word at 0x14).
+#[allow(unsafe_code)]
+#[inline(never)]
+fn rom_function(code: u16) -> usize {
+    // SAFETY: the ROM is mapped at 0 and never changes; the two half-words and the lookup
+    // routine are there on every RP2040 (datasheet §2.8.3), which takes the table and the
+    // code and returns the function's address.
+    unsafe {
+        let lookup: unsafe extern "C" fn(*const u16, u32) -> usize =
+            core::mem::transmute(usize::from(core::ptr::read_volatile(0x18 as *const u16)));
+        let table = usize::from(core::ptr::read_volatile(0x14 as *const u16)) as *const u16;
+        lookup(table, u32::from(code))
+    }
+}
+
+impl PicoFlash {
+    /// The driver, owning the flash.
+    pub fn new(flash: Peri<'static, peripherals::FLASH>) -> Self {
+        PicoFlash { _flash: flash }
+    }
+
+    /// Runs `op` (a ROM function or [`ssi_exchange`]) with `args` through [`run_in_ram`],
+    /// interrupts off.
+    #[allow(unsafe_code)]
+    fn run(&mut self, op: usize, args: [usize; 4]) {
+        use crate::rp_flash as f;
+        // The image's boot2 (the first 256 bytes of flash), copied while XIP still works
+        // (uninitialised before: no zeroing to pay for).
+        let mut boot2 = core::mem::MaybeUninit::<[u32; 64]>::uninit();
+        // SAFETY: the XIP window is mapped and readable, 256 bytes from its start; `boot2`
+        // is 256 bytes of RAM.
+        unsafe {
+            core::ptr::copy_nonoverlapping(f::XIP_BASE as *const u32, boot2.as_mut_ptr().cast(), 64)
+        };
+        let run = RamRun {
+            connect: rom_function(f::CONNECT_INTERNAL_FLASH),
+            exit_xip: rom_function(f::FLASH_EXIT_XIP),
+            op,
+            flush_cache: rom_function(f::FLASH_FLUSH_CACHE),
+            enter_xip: boot2.as_ptr() as usize | 1,
+            args,
+        };
+        core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
+        // SAFETY: `&mut self` owns the flash; with interrupts off nothing else runs (core 1
+        // is never started, no DMA channel reads flash), so nothing fetches from flash while
+        // XIP is off; the routine, the boot2 copy and every buffer are in RAM.
+        cortex_m::interrupt::free(|_| unsafe { run_in_ram(&run) });
+        core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
+    }
+
+    /// The flash chip's 64-bit unique ID (command 0x4B).
+    pub fn unique_id(&mut self) -> [u8; 8] {
+        let mut buf = crate::rp_flash::UNIQUE_ID_COMMAND;
+        let exchange: unsafe extern "C" fn(*mut u8, usize, usize, usize) = ssi_exchange;
+        self.run(
+            exchange as usize,
+            [buf.as_mut_ptr() as usize, buf.len(), SSI_BASE, QSPI_SS_CTRL],
+        );
+        crate::rp_flash::unique_id(&buf)
+    }
+}
+
+impl embedded_storage::nor_flash::ErrorType for PicoFlash {
+    type Error = embedded_storage::nor_flash::NorFlashErrorKind;
+}
+
+impl embedded_storage::nor_flash::ReadNorFlash for PicoFlash {
+    const READ_SIZE: usize = 1;
+
+    #[allow(unsafe_code)]
+    #[inline(never)]
+    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Self::Error> {
+        let at = crate::rp_flash::read_address(offset, bytes.len(), crate::record::PICO_FLASH)?;
+        // SAFETY: the range lies within the XIP window of the flash (checked above).
+        let flash = unsafe { core::slice::from_raw_parts(at as *const u8, bytes.len()) };
+        bytes.copy_from_slice(flash);
+        Ok(())
+    }
+
+    fn capacity(&self) -> usize {
+        crate::record::PICO_FLASH as usize
+    }
+}
+
+impl embedded_storage::nor_flash::NorFlash for PicoFlash {
+    const WRITE_SIZE: usize = 1;
+    const ERASE_SIZE: usize = crate::rp_flash::SECTOR as usize;
+
+    fn erase(&mut self, from: u32, to: u32) -> Result<(), Self::Error> {
+        let (at, len) = crate::rp_flash::erase_range(from, to, crate::record::PICO_FLASH)?;
+        if len > 0 {
+            let erase = rom_function(crate::rp_flash::FLASH_RANGE_ERASE);
+            let block = crate::rp_flash::ERASE_BLOCK_SIZE as usize;
+            self.run(erase, [at as usize, len as usize, block, 0]);
+        }
+        Ok(())
+    }
+
+    #[allow(unsafe_code)]
+    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Self::Error> {
+        use crate::rp_flash::PAGE;
+        let program = rom_function(crate::rp_flash::FLASH_RANGE_PROGRAM);
+        for w in crate::rp_flash::pages(offset, bytes.len(), crate::record::PICO_FLASH)? {
+            // The page, 0xFF (left as it is) but for the bytes written. Filled by volatile
+            // stores: a fill LLVM sees as one brings `memset` into the image (54 B).
+            let mut page = core::mem::MaybeUninit::<[u8; PAGE as usize]>::uninit();
+            let p: *mut u8 = page.as_mut_ptr().cast();
+            for i in 0..PAGE as usize {
+                // SAFETY: `i` is within the page buffer.
+                unsafe { core::ptr::write_volatile(p.add(i), 0xFF) };
+            }
+            // SAFETY: every byte was written above.
+            let mut page = unsafe { page.assume_init() };
+            page[w.at..w.at + w.len].copy_from_slice(&bytes[w.from..w.from + w.len]);
+            self.run(
+                program,
+                [w.page as usize, page.as_ptr() as usize, PAGE as usize, 0],
+            );
+        }
+        Ok(())
+    }
+}
 
 /// The Pico's address record: the last two 4 KiB sectors of its flash
 /// ([`crate::record::PICO_RECORD_OFFSET`], outside the image's `FLASH` region).
@@ -183,24 +405,13 @@ pub type PicoFlash = embassy_rp::flash::Flash<
 /// # Errors
 /// `x10_store`'s: the flash's read errors.
 pub fn address_record(
-    flash: Peri<'static, peripherals::FLASH>,
+    flash: PicoFlash,
 ) -> Result<x10_store::Record<PicoFlash>, x10_store::StoreError> {
     x10_store::Record::new(
-        PicoFlash::new_blocking(flash),
+        flash,
         crate::record::PICO_RECORD_OFFSET,
         crate::record::RECORD_PAGES,
     )
-}
-
-/// The board's 8-byte unique ID: the unique ID of the Pico's flash chip (command 0x4B),
-/// through embassy-rp 0.10's `Flash::blocking_unique_id` (`src/flash.rs` line 235).
-///
-/// # Errors
-/// The flash driver's.
-pub fn unique_id(flash: &mut PicoFlash) -> Result<[u8; 8], x10_store::StoreError> {
-    let mut id = [0u8; 8];
-    flash.blocking_unique_id(&mut id)?;
-    Ok(id)
 }
 
 fn input(pin: Peri<'static, embassy_rp::gpio::AnyPin>) -> Flex<'static> {
@@ -1119,46 +1330,6 @@ use embassy_rp::Peripherals;
 
 #[cfg(feature = "motherboard")]
 motherboard_starter!(ports: PicoPorts, bus: PicoBus, kind: x10_microcode::BoardKind::PICO, name: "Pico");
-
-/// The Pico's address record for now: the watchdog's `SCRATCH1` register, which a software
-/// reset, a watchdog reset and a crash keep and a power cut clears (RP2040 datasheet §4.7:
-/// the watchdog block is reset only by a chip-level reset). A board given an address restarts
-/// there and keeps it until the power goes; after a power cut it announces itself again and
-/// the motherboard gives it the same address back from its directory (by its unique ID).
-/// The flash record ([`address_record`], `x10-store`) costs 2.9 KiB with embassy-rp's flash
-/// driver, more than db-pico has left (docs/boards.md, "Plug and play on the Pico").
-#[cfg(feature = "daughterboard")]
-pub struct ScratchKept {
-    /// The flash driver, for the unique ID ([`unique_id`]).
-    pub flash: PicoFlash,
-    /// The board's address is a build-time override: nothing is stored.
-    pub overridden: bool,
-}
-
-/// `SCRATCH1`: `0x5810_00AA` for address `0xAA` (the high half marks a value written here).
-#[cfg(feature = "daughterboard")]
-const SCRATCH_KEPT: u32 = 0x5810_0000;
-
-#[cfg(feature = "daughterboard")]
-impl firmware_db::AddressRecord for ScratchKept {
-    fn load(&mut self) -> Option<x10_microcode::Address> {
-        let word = pac::WATCHDOG.scratch1().read();
-        if word & 0xFFFF_FF00 != SCRATCH_KEPT {
-            return None;
-        }
-        x10_microcode::Address::new((word & 0xFF) as u8).ok()
-    }
-
-    fn store(&mut self, address: x10_microcode::Address) -> Result<(), firmware_db::StoreError> {
-        if self.overridden {
-            return Err(firmware_db::StoreError::NoRecord);
-        }
-        pac::WATCHDOG
-            .scratch1()
-            .write_value(SCRATCH_KEPT | u32::from(address.get()));
-        Ok(())
-    }
-}
 
 #[cfg(feature = "usb-link")]
 bind_interrupts!(

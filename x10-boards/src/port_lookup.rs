@@ -7,18 +7,64 @@ use x10_hal::ports::PortError;
 use x10_microcode::{PinRef, Port, PortKind};
 
 /// A pin, a PWM unit or an ADC of a board's ports (both chips): shared between the requests
-/// and a pulse-in measurement, which holds its pin while it waits for edges.
+/// and a pulse-in measurement, which holds its pin while it waits for edges. Only ever taken
+/// without waiting ([`take`]), so it is a flag and the value, not an async mutex: no waker to
+/// wake when it is let go (embassy-sync's `Mutex` cost 600 B more flash on db-pico).
 #[cfg(feature = "_chip")]
-pub type Lock<T> =
-    embassy_sync::mutex::Mutex<embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex, T>;
+pub struct Lock<T> {
+    taken: core::cell::Cell<bool>,
+    value: core::cell::UnsafeCell<T>,
+}
 
-/// A [`Lock`] taken.
+// SAFETY: the flag is tested and set in a critical section, so at most one `Guard` exists at
+// a time, on whichever context took it; the value is only reached through that guard.
 #[cfg(feature = "_chip")]
-pub type Guard<'a, T> = embassy_sync::mutex::MutexGuard<
-    'a,
-    embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex,
-    T,
->;
+#[allow(unsafe_code)]
+unsafe impl<T: Send> Sync for Lock<T> {}
+
+#[cfg(feature = "_chip")]
+impl<T> Lock<T> {
+    /// `value`, not taken.
+    pub const fn new(value: T) -> Self {
+        Lock {
+            taken: core::cell::Cell::new(false),
+            value: core::cell::UnsafeCell::new(value),
+        }
+    }
+}
+
+/// A [`Lock`] taken: the value, until dropped.
+#[cfg(feature = "_chip")]
+pub struct Guard<'a, T> {
+    lock: &'a Lock<T>,
+}
+
+#[cfg(feature = "_chip")]
+#[allow(unsafe_code)]
+impl<T> core::ops::Deref for Guard<'_, T> {
+    type Target = T;
+    fn deref(&self) -> &T {
+        // SAFETY: this guard is the only one (see `Lock`'s `Sync`).
+        unsafe { &*self.lock.value.get() }
+    }
+}
+
+#[cfg(feature = "_chip")]
+#[allow(unsafe_code)]
+impl<T> core::ops::DerefMut for Guard<'_, T> {
+    fn deref_mut(&mut self) -> &mut T {
+        // SAFETY: this guard is the only one (see `Lock`'s `Sync`).
+        unsafe { &mut *self.lock.value.get() }
+    }
+}
+
+#[cfg(feature = "_chip")]
+impl<T> Drop for Guard<'_, T> {
+    fn drop(&mut self) {
+        // Only the holder clears the flag: one byte store, no critical section needed.
+        self.lock.taken.set(false);
+    }
+}
 
 /// Takes `lock` without waiting. Only a pulse-in holds a lock across an await (its pin), so a
 /// PWM unit or the ADC is never found taken on the single-threaded executor; whatever is
@@ -26,11 +72,16 @@ pub type Guard<'a, T> = embassy_sync::mutex::MutexGuard<
 ///
 /// # Errors
 /// [`PortError::Busy`] when `lock` is held.
-// Inlined: called, it costs 40 to 56 B more flash on the DB images (issue 12).
 #[cfg(feature = "_chip")]
 #[inline(always)]
 pub fn take<T>(lock: &Lock<T>) -> Result<Guard<'_, T>, PortError> {
-    lock.try_lock().map_err(|_| PortError::Busy)
+    cortex_m::interrupt::free(|_| {
+        if lock.taken.replace(true) {
+            Err(PortError::Busy)
+        } else {
+            Ok(Guard { lock })
+        }
+    })
 }
 
 /// The sensor port `port` names.

@@ -1,7 +1,7 @@
 //! The address record's place on each chip and the chips' unique IDs: the portable half,
 //! tested on the host. The chip halves open the record with `x10_store`
 //! (`pico::address_record`, `g431::address_record`) and read the unique ID
-//! (`pico::unique_id`, `stm32::unique_id`); see `docs/boards.md` "Address record".
+//! (`pico::PicoFlash::unique_id`, `stm32::unique_id`); see `docs/boards.md` "Address record".
 //!
 //! * RP2040 (Pico, 2 MiB of QSPI flash, 4 KiB sectors): the last two sectors,
 //!   [`PICO_RECORD_OFFSET`]; the image's `FLASH` region ends before them (`link_args.rs`).

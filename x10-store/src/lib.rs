@@ -231,7 +231,7 @@ impl<F: NorFlash> Record<F> {
             return Ok(());
         }
         let seq = self.newest.map_or(0, |n| n.seq.wrapping_add(1));
-        // Until it succeeds, the next call scans again.
+        // The next call scans again.
         self.scanned = false;
         let at = match self.free {
             Some(at) => at,
@@ -251,19 +251,8 @@ impl<F: NorFlash> Record<F> {
         if back != bytes {
             return Err(StoreError::Verify);
         }
-        self.newest = Some(Newest { at, value, seq });
-        self.free = None;
-        for slot in at.slot + 1..self.slots_per_page() {
-            let next = At {
-                page: at.page,
-                slot,
-            };
-            if self.slot(next)? == [0xFF; SLOT] {
-                self.free = Some(next);
-                break;
-            }
-        }
-        self.scanned = true;
+        // Written: the next call scans again (it finds this slot the newest, and the first
+        // erased slot after it), which costs reads but no code of its own here.
         Ok(())
     }
 

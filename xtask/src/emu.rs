@@ -2,7 +2,9 @@
 //!
 //! Builds mb-pico and db-pico in release (the same cargo calls as `cargo xtask size`, one per
 //! image; db-pico with the address override `X10_DB_ADDR=9`: DB 10 is the same image with
-//! jumper 0 fitted; db-pico without it, plug and play, as `target/emu/db-pico-pnp`; db-pico also for 400 kHz and 1 MHz buses, `X10_BUS_HZ`, copied to
+//! jumper 0 fitted; db-pico without it, plug and play, as `target/emu/db-pico-pnp`; db-pico
+//! built into the bootloader's ACTIVE slot as `target/emu/db-pico-slot` and, as 2.0.0,
+//! `db-pico-slot-v2`, with `boot-pico`; db-pico also for 400 kHz and 1 MHz buses, `X10_BUS_HZ`, copied to
 //! `target/emu/db-pico-HZ`), the flash path's test image `emu/fw-flash` (its own workspace) and
 //! the host `x10` tool, installs the rig's Node packages from `emu/package-lock.json`
 //! with `npm ci` when `emu/node_modules` is missing or older than the lock file, then runs
@@ -155,9 +157,30 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
                 fast.push(format!("{hz}={}", copy.display()));
             }
         }
+        if name == "db-pico" {
+            // db-pico built into the bootloader's ACTIVE slot (plug and play), as this
+            // version and as 2.0.0 (`X10_FW_VERSION`), each copied aside, and the bootloader:
+            // the `bootloader` scenario.
+            let slot = crate::Image {
+                features: "daughterboard,active-slot",
+                ..*image
+            };
+            for (version, copy) in [(None, "db-pico-slot"), (Some("2.0.0"), "db-pico-slot-v2")] {
+                build_slot(&cargo, &slot, version)?;
+                std::fs::copy(&elf, out.join(copy)).map_err(Error::Run)?;
+            }
+            let boot = IMAGES
+                .iter()
+                .find(|i| i.bin == "boot-pico")
+                .ok_or_else(|| Error::Usage("no image boot-pico".into()))?;
+            build_at(&cargo, boot, None)?;
+        }
         build_at(&cargo, image, None)?;
         elfs.push(elf);
     }
+    let release = target_dir(&cargo)?
+        .join("thumbv6m-none-eabi")
+        .join("release");
     // The doorbell example's motherboard image: a DB event waking an MB task.
     let mb = IMAGES
         .iter()
@@ -216,6 +239,14 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
     }
     a.push("--mb-pnp".into());
     a.push(pnp_mb_elf.display().to_string());
+    for (flag, path) in [
+        ("--boot", release.join("boot-pico")),
+        ("--db-slot", out.join("db-pico-slot")),
+        ("--db-slot-v2", out.join("db-pico-slot-v2")),
+    ] {
+        a.push(flag.into());
+        a.push(path.display().to_string());
+    }
     a.extend(args.iter().cloned());
     node(&emu, &a)
 }
@@ -273,6 +304,22 @@ fn build_with(cargo: &str, image: &crate::Image, hz: Option<u32>, at_9: bool) ->
     } else {
         c.env_remove("X10_DB_ADDR");
     }
+    if c.status().map_err(Error::Run)?.success() {
+        Ok(())
+    } else {
+        Err(Error::Build(image.bin))
+    }
+}
+
+/// Builds db-pico for the bootloader's ACTIVE slot (`image`: its `active-slot` row), plug and
+/// play, for the default bus, with `X10_FW_VERSION` set to `version` (or removed).
+fn build_slot(cargo: &str, image: &crate::Image, version: Option<&str>) -> Result<(), Error> {
+    let mut c = crate::build_command(cargo, image);
+    c.env_remove("X10_BUS_HZ").env_remove("X10_DB_ADDR");
+    match version {
+        Some(v) => c.env("X10_FW_VERSION", v),
+        None => c.env_remove("X10_FW_VERSION"),
+    };
     if c.status().map_err(Error::Run)?.success() {
         Ok(())
     } else {

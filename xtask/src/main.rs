@@ -114,6 +114,19 @@ const IMAGES: &[Image] = &[
         record: PICO_RECORD,
         budget: DB_BUDGET,
     },
+    // The Pico's bootloader (issue 25, `x10_boards::rp_flash::layout`): its region is the
+    // 32 KiB before embassy-boot's STATE sector, less boot2.
+    Image {
+        bin: "boot-pico",
+        package: "x10-boards",
+        target: "thumbv6m-none-eabi",
+        features: "pico-bootloader",
+        daughterboard: false,
+        chip: None,
+        chip_flash: 2048 * 1024 - 256,
+        record: PICO_RECORD,
+        budget: BOOT_PICO_BUDGET,
+    },
     Image {
         bin: "mb-g431",
         package: "x10-robots",
@@ -170,6 +183,14 @@ const IMAGES: &[Image] = &[
         budget: DB_BUDGET,
     },
 ];
+
+/// boot-pico's budget: its link region (0x10000100 to the STATE sector at 0x10008000), and a
+/// static RAM guard (2 596 B when set: the update session and its task, embassy-rp's state,
+/// defmt-rtt's buffer).
+const BOOT_PICO_BUDGET: Budget = Budget {
+    flash: 0x8000 - 0x100,
+    ram: 3 * 1024,
+};
 
 /// The Pico's address record: its flash's last two 4 KiB sectors (`x10_boards::record`).
 const PICO_RECORD: u64 = 8 * 1024;
@@ -676,7 +697,7 @@ mod tests {
             e.to_string(),
             "unknown image `mb-uno`\n\
              usage: cargo xtask size [--no-build]\n       \
-             cargo xtask image NAME [ARGS...]   (NAME: mb-pico, db-pico, mb-g431, db-g431, boot-g431, db-c011)\n       \
+             cargo xtask image NAME [ARGS...]   (NAME: mb-pico, db-pico, boot-pico, mb-g431, db-g431, boot-g431, db-c011)\n       \
              cargo xtask emu [--list] [--check-docs | --write-docs] [SCENARIO...]"
         );
     }
@@ -839,12 +860,13 @@ mod tests {
                 ram: 6_144
             }
         );
-        assert_eq!(IMAGES.len(), 6);
+        assert_eq!(IMAGES.len(), 7);
         // The bootloader within its region of the G431's flash.
         assert_eq!(
             image("boot-g431").unwrap().budget.flash,
             u64::from(x10_boards_boot_len())
         );
+        assert_eq!(image("boot-pico").unwrap().budget.flash, 32_512);
         assert_eq!(IMAGES.iter().filter(|i| i.daughterboard).count(), 3);
         // The motherboards no larger than their budgets.
         assert_eq!(image("mb-pico").unwrap().budget.flash, MB_PICO_FLASH);

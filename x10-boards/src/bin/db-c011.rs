@@ -55,7 +55,9 @@ mod board {
     /// What the daughterboard reports as its board.
     pub const KIND: BoardKind = BoardKind::C011;
     /// The board's name in the log.
-    pub const NAME: &str = "C011";
+    pub fn name() -> defmt::Str {
+        defmt::intern!("C011")
+    }
 
     /// The record, for `assign` and `set_address` (append-only in the OTP area).
     pub fn record(flash: Peri<'static, FLASH>) -> Record {

@@ -72,7 +72,9 @@ mod board {
     /// What the daughterboard reports as its board.
     pub const KIND: BoardKind = BoardKind::G431;
     /// The board's name in the log.
-    pub const NAME: &str = "G431";
+    pub fn name() -> defmt::Str {
+        defmt::intern!("G431")
+    }
 
     /// The record, for `assign` and `set_address` (the flash driver).
     pub fn record(flash: Peri<'static, FLASH>) -> Record {

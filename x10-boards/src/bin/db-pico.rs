@@ -2,7 +2,7 @@
 //! defmt log. The image itself (task, start-up) is `../db_image.rs`, shared with the other boards.
 //!
 //! Address: given over the bus and kept in the chip's flash (plug and play, one image for
-//! every board of this chip); `X10_DB_ADDR` at build time (plus the three address-select
+//! every board of this chip, the record through our own flash driver, `pico::PicoFlash`); `X10_DB_ADDR` at build time (plus the three address-select
 //! jumpers) is an override. Events go to the motherboard at `X10_MB_ADDR` (default 0x08).
 #![no_std]
 #![no_main]
@@ -11,29 +11,35 @@
 mod board {
     use embassy_rp::peripherals::FLASH;
     use embassy_rp::Peri;
+    use x10_boards::kept;
     pub use x10_boards::pico::{init, Board, PicoBus as Bus, PicoPorts as Ports, JUMPERS};
     use x10_microcode::{BoardKind, Uid};
 
-    /// Where the board keeps the address it is given over the bus: for now the watchdog's
-    /// SCRATCH1 register, kept by resets, cleared by a power cut (`pico::ScratchKept`).
-    pub type Record = x10_boards::pico::ScratchKept;
+    /// Where the board keeps the address it is given over the bus: a record in the last two
+    /// sectors of its flash (`pico::address_record`, our own flash driver `pico::PicoFlash`).
+    pub type Record = kept::Kept<x10_boards::pico::PicoFlash>;
 
     /// What the daughterboard reports as its board.
     pub const KIND: BoardKind = BoardKind::PICO;
     /// The board's name in the log.
-    pub const NAME: &str = "Pico";
+    pub fn name() -> defmt::Str {
+        defmt::intern!("Pico")
+    }
 
-    /// The record, for `assign` and `set_address`.
+    /// The record, for `assign` and `set_address` (the flash driver).
     pub fn record(flash: Peri<'static, FLASH>) -> Record {
-        x10_boards::pico::ScratchKept {
-            flash: x10_boards::pico::PicoFlash::new_blocking(flash),
-            overridden: false,
+        // Its geometry is fixed at build time and reads within the flash cannot fail (a
+        // panic without a message: `unwrap!`'s costs 20 B more).
+        let flash = x10_boards::pico::PicoFlash::new(flash);
+        match x10_boards::pico::address_record(flash) {
+            Ok(r) => kept::Kept::new(r),
+            Err(_) => x10_boards::watchdog::panicked(),
         }
     }
 
-    /// The board's unique ID: its flash chip's (command 0x4B); zeros if it cannot be read.
+    /// The board's unique ID: its flash chip's (command 0x4B).
     pub fn uid(record: &mut Record) -> Uid {
-        Uid(x10_boards::pico::unique_id(&mut record.flash).unwrap_or([0; 8]))
+        Uid(record.record.flash().unique_id())
     }
 }
 

@@ -70,6 +70,10 @@ pub(super) fn record(word: u32) {
     pac::WATCHDOG.scratch0().write_value(word);
 }
 
+#[cfg_attr(
+    not(any(feature = "daughterboard", feature = "motherboard")),
+    allow(dead_code)
+)]
 pub(super) fn recorded() -> u32 {
     pac::WATCHDOG.scratch0().read()
 }
