@@ -143,6 +143,75 @@ pub enum Answer {
     Refused,
 }
 
+/// The motherboard's defmt log as it comes over the link (`Log` messages: rzCOBS frames,
+/// each ended by a zero byte, split anywhere), decoded with the image's table
+/// (`x10 monitor --elf IMAGE`): the decoder `probe-rs run` and `defmt-print` use.
+pub struct DefmtLog {
+    table: defmt_decoder::Table,
+    pending: Vec<u8>,
+    /// Frames that did not decode (a piece dropped by the motherboard, another image).
+    pub undecoded: usize,
+}
+
+impl std::fmt::Debug for DefmtLog {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DefmtLog")
+            .field("pending", &self.pending.len())
+            .field("undecoded", &self.undecoded)
+            .finish_non_exhaustive()
+    }
+}
+
+impl DefmtLog {
+    /// The decoder for the image `elf` (its bytes).
+    ///
+    /// # Errors
+    /// The ELF cannot be read or has no defmt table (not a defmt image).
+    pub fn from_elf(elf: &[u8]) -> Result<DefmtLog, String> {
+        match defmt_decoder::Table::parse(elf) {
+            Ok(Some(table)) => Ok(DefmtLog::from_table(table)),
+            Ok(None) => Err("the image has no defmt table (.defmt section)".into()),
+            Err(e) => Err(format!("{e}")),
+        }
+    }
+
+    /// The decoder for a table already read.
+    pub fn from_table(table: defmt_decoder::Table) -> DefmtLog {
+        DefmtLog {
+            table,
+            pending: Vec::new(),
+            undecoded: 0,
+        }
+    }
+
+    /// Takes log bytes; returns the level (`info`, `warn`...) and text of each frame they
+    /// completed.
+    pub fn feed(&mut self, bytes: &[u8]) -> Vec<(String, String)> {
+        let mut out = Vec::new();
+        for &b in bytes {
+            self.pending.push(b);
+            if b != 0 {
+                continue;
+            }
+            let frame = std::mem::take(&mut self.pending);
+            if frame.len() == 1 {
+                // A lone zero (defmt's encoder may start with one): no frame.
+                continue;
+            }
+            let mut d = self.table.new_stream_decoder();
+            d.received(&frame);
+            match d.decode() {
+                Ok(f) => out.push((
+                    f.level().map_or("print", |l| l.as_str()).to_string(),
+                    f.display_message().to_string(),
+                )),
+                Err(_) => self.undecoded += 1,
+            }
+        }
+        out
+    }
+}
+
 /// The laptop's view of one run: everything the motherboard sent, kept for the summary and
 /// the page.
 #[derive(Debug, Default)]
@@ -163,6 +232,10 @@ pub struct LinkRun {
     pub bad_frames: usize,
     /// defmt log bytes.
     pub log: Vec<u8>,
+    /// The log's decoder, when the image is known ([`LinkRun::decode_log`]).
+    pub defmt: Option<DefmtLog>,
+    /// Log lines decoded.
+    pub log_lines: usize,
     /// Answers to requests, by request id, not yet taken.
     pub answers: Vec<(u16, Answer)>,
     /// The first and last record times (µs of the motherboard's clock).
@@ -181,6 +254,12 @@ impl LinkRun {
             None => (t_us, t_us),
             Some((a, b)) => (a.min(t_us), b.max(t_us)),
         });
+    }
+
+    /// Decodes the log with `log` from now on: each line becomes a trace line (source `log`,
+    /// at the time of the last record), a warning or error one of the summary's warnings.
+    pub fn decode_log(&mut self, log: DefmtLog) {
+        self.defmt = Some(log);
     }
 
     /// Takes bytes of the stream; returns the trace lines of the messages they completed.
@@ -223,7 +302,26 @@ impl LinkRun {
             }
             ToHost::Log(bytes) => {
                 self.log.extend_from_slice(bytes);
-                Vec::new()
+                let Some(d) = self.defmt.as_mut() else {
+                    return Vec::new();
+                };
+                let t_ns = self.span_us.map_or(0, |(_, b)| b.saturating_mul(1_000));
+                let mut lines = Vec::new();
+                for (level, text) in d.feed(bytes) {
+                    let severity = match level.as_str() {
+                        "error" => Severity::Error,
+                        "warn" => Severity::Warn,
+                        "info" | "print" => Severity::Info,
+                        _ => Severity::Debug,
+                    };
+                    let line = TraceLine::new(t_ns, severity, "log", text);
+                    if severity >= Severity::Warn {
+                        self.warnings.push(line.clone());
+                    }
+                    lines.push(line);
+                }
+                self.log_lines += lines.len();
+                lines
             }
             ToHost::Call(c) => vec![self.call(c)],
             ToHost::Event(e) => {
@@ -344,6 +442,26 @@ impl LinkRun {
             d.log_bytes,
             self.bad_frames
         );
+        if !self.log.is_empty() {
+            match &self.defmt {
+                Some(d) => {
+                    let _ = writeln!(
+                        s,
+                        "log: {} bytes over the link, {} lines decoded, {} frames undecoded",
+                        self.log.len(),
+                        self.log_lines,
+                        d.undecoded
+                    );
+                }
+                None => {
+                    let _ = writeln!(
+                        s,
+                        "log: {} bytes over the link (x10 monitor --elf IMAGE decodes them)",
+                        self.log.len()
+                    );
+                }
+            }
+        }
         if self.warnings.is_empty() {
             s.push_str("warnings and errors: none\n");
         } else {
@@ -597,6 +715,12 @@ WORLD
   the robot in its hello (fig4_4 for the Figure 4.4 images). Without one, the summary lists no
   devices (the calls are still printed and counted).
 
+LOG
+  The motherboard's defmt log comes over the link too (from the laptop's hello on). With
+  --elf IMAGE (the motherboard's image, e.g. target/thumbv6m-none-eabi/release/mb-pico) each
+  log line is decoded and printed with the records (`log:`); without it the bytes are counted
+  and kept in the recording, which a later `--replay FILE --elf IMAGE` decodes.
+
 OUTPUT
   One line per call and output change as they come, in the simulator's trace words; at the end
   the summary in `cargo sim`'s words (the devices' changes, then the link's counts and the
@@ -606,7 +730,7 @@ OUTPUT
 EXAMPLES
   x10 monitor
   x10 monitor --example fig4_4 --html run.html --duration-s 10
-  x10 monitor --replay x10-monitor.x10link";
+  x10 monitor --replay x10-monitor.x10link --elf target/thumbv6m-none-eabi/release/mb-pico";
 
 /// Arguments of `x10 monitor`.
 #[derive(clap::Args, Debug)]
@@ -639,6 +763,10 @@ pub struct MonitorArgs {
     /// Print no line per record, only the summary.
     #[arg(long)]
     pub quiet: bool,
+    /// The motherboard's image (ELF): its defmt log, which comes over the link, is decoded
+    /// with it and printed with the records.
+    #[arg(long, value_name = "IMAGE")]
+    pub elf: Option<PathBuf>,
 }
 
 /// The world for the run: `--world`, `--example`, else the example the hello names.
@@ -703,6 +831,18 @@ fn print_lines(args: &MonitorArgs, lines: &[TraceLine]) {
 /// `x10 monitor`.
 pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
     let mut run = LinkRun::new();
+    if let Some(elf) = &args.elf {
+        match std::fs::read(elf)
+            .map_err(|e| e.to_string())
+            .and_then(|b| DefmtLog::from_elf(&b))
+        {
+            Ok(d) => run.decode_log(d),
+            Err(e) => {
+                eprintln!("x10 monitor: {}: {e}", elf.display());
+                return std::process::ExitCode::FAILURE;
+            }
+        }
+    }
     if let Some(file) = args.from.as_ref().or(args.replay.as_ref()) {
         let bytes = match std::fs::read(file) {
             Ok(b) => b,
@@ -916,6 +1056,103 @@ mod tests {
             [PathBuf::from("/dev/ttyACM0"), PathBuf::from("/dev/ttyACM2")]
         );
         assert!(find_ports_in(Path::new("/nonexistent/x10"), Path::new("/dev")).is_empty());
+    }
+
+    /// The defmt frame of `info!("USB link: a laptop listens (link version {=u16})", v)` at
+    /// table index `index`, as the images' logger encodes it (defmt's own encoder: rzCOBS,
+    /// ended by a zero).
+    fn log_frame(index: u16, v: u16) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut enc = defmt::Encoder::new();
+        enc.start_frame(|b| out.extend_from_slice(b));
+        enc.write(&index.to_le_bytes(), |b| out.extend_from_slice(b));
+        enc.write(&v.to_le_bytes(), |b| out.extend_from_slice(b));
+        enc.end_frame(|b| out.extend_from_slice(b));
+        out
+    }
+
+    /// A table as `defmt_decoder::Table::parse` reads it from an image: index 1 is an `info!`
+    /// with one `u16`, index 2 a `warn!`.
+    fn log_table() -> defmt_decoder::Table {
+        serde_json::from_value(serde_json::json!({
+            "timestamp": null,
+            "entries": {
+                "1": {"string": {"tag": "Info", "string": "USB link: a laptop listens (link version {=u16})"}, "raw_symbol": "a"},
+                "2": {"string": {"tag": "Warn", "string": "bus fault {=u16}"}, "raw_symbol": "b"}
+            },
+            "bitflags": {},
+            "encoding": "Rzcobs"
+        }))
+        .unwrap()
+    }
+
+    #[test]
+    fn the_log_over_the_link_is_decoded_into_trace_lines() {
+        let mut run = LinkRun::new();
+        run.decode_log(DefmtLog::from_table(log_table()));
+        let mut bytes = log_frame(1, 1);
+        let first = bytes.len();
+        bytes.extend(log_frame(2, 7));
+        // Each encoder starts with a lone zero (a delimiter), then index, value, rzCOBS, zero.
+        assert_eq!(
+            bytes,
+            [0x00, 0x01, 0x01, 0x7a, 0x00, 0x00, 0x02, 0x07, 0x7a, 0x00]
+        );
+        // A call first (the lines take the time of the last record), then the log in two
+        // `Log` messages cut inside the second frame.
+        let call = CallRec {
+            db: 0,
+            op: WireOp {
+                fn_op: 0x12,
+                port: 0x01,
+                data: &[],
+            },
+            outcome: Outcome::Ok(&[]),
+            start_us: 1_000_000,
+            end_us: 1_000_450,
+        };
+        let mut lines: Vec<String> = run
+            .push(&ToHost::Call(call))
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+        let (a, b) = bytes.split_at(first + 2);
+        for piece in [a, b] {
+            lines.extend(
+                run.push(&ToHost::Log(piece))
+                    .iter()
+                    .map(ToString::to_string),
+            );
+        }
+        assert_eq!(
+            lines,
+            [
+                "1.000450 INFO  robot: SELF io high A1.B -> ok in 450us",
+                "1.000450 INFO  log: USB link: a laptop listens (link version 1)",
+                "1.000450 WARN  log: bus fault 7",
+            ]
+        );
+        assert_eq!(run.log_lines, 2);
+        assert_eq!(run.warnings.len(), 1);
+        let world = World::new();
+        assert!(run
+            .summary(&world)
+            .contains("log: 10 bytes over the link, 2 lines decoded, 0 frames undecoded\n"));
+        // A piece the motherboard dropped: that frame is lost, the next one decodes.
+        let lost = run.push(&ToHost::Log(bytes.get(3..first).unwrap()));
+        assert!(lost.is_empty());
+        let again = run.push(&ToHost::Log(&log_frame(1, 2)));
+        assert_eq!(
+            again.iter().map(ToString::to_string).collect::<Vec<_>>(),
+            ["1.000450 INFO  log: USB link: a laptop listens (link version 2)"]
+        );
+        assert_eq!(run.defmt.as_ref().unwrap().undecoded, 1);
+        // Without the image, the bytes are only counted.
+        let mut plain = LinkRun::new();
+        assert!(plain.push(&ToHost::Log(&bytes)).is_empty());
+        assert!(plain
+            .summary(&world)
+            .contains("log: 10 bytes over the link (x10 monitor --elf IMAGE decodes them)\n"));
     }
 
     #[test]
