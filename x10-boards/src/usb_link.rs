@@ -124,7 +124,7 @@ async fn read_loop<D: Driver<'static>>(mut rx: Receiver<'static, D>, x10: X10, w
                 match reader.feed(b) {
                     Feed::Pending => {}
                     Feed::TooLong => RECORDER.bad_frame(),
-                    Feed::Frame => match reader.decode::<ToDevice>() {
+                    Feed::Frame => match reader.decode_device() {
                         Ok(req) => {
                             let hello = matches!(req, ToDevice::Hello(_));
                             serve(&RECORDER, x10, who, req).await;
