@@ -144,14 +144,19 @@ pub enum Answer {
 }
 
 /// The motherboard's defmt log as it comes over the link (`Log` messages: rzCOBS frames,
-/// each ended by a zero byte, split anywhere), decoded with the image's table
-/// (`x10 monitor --elf IMAGE`): the decoder `probe-rs run` and `defmt-print` use.
+/// each ended by a zero byte, split anywhere), decoded frame by frame with the image's table
+/// (`x10 monitor --elf IMAGE`) by `defmt-print`, the decoder of probe-rs's project (the
+/// defmt-decoder crate itself would turn on serde_json's `arbitrary_precision` for the whole
+/// workspace, which changes the JSON codec's errors).
 pub struct DefmtLog {
-    table: defmt_decoder::Table,
+    decoder: Box<LogDecoder>,
     pending: Vec<u8>,
     /// Frames that did not decode (a piece dropped by the motherboard, another image).
     pub undecoded: usize,
 }
+
+/// Whole defmt frames in, the (level, text) of each line out.
+pub type LogDecoder = dyn FnMut(&[u8]) -> Result<Vec<(String, String)>, String>;
 
 impl std::fmt::Debug for DefmtLog {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -162,32 +167,80 @@ impl std::fmt::Debug for DefmtLog {
     }
 }
 
+/// The level and text of each line `defmt-print --json` printed (its first line, the
+/// schema's version, and anything not a log line are skipped).
+pub fn defmt_print_lines(json: &str) -> Vec<(String, String)> {
+    json.lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v.get("schema_version").is_none())
+        .filter_map(|v| {
+            let text = v.get("data")?.as_str()?.to_string();
+            let level = v
+                .get("level")
+                .and_then(|l| l.as_str())
+                .unwrap_or("print")
+                .to_ascii_lowercase();
+            Some((level, text))
+        })
+        .collect()
+}
+
 impl DefmtLog {
-    /// The decoder for the image `elf` (its bytes).
+    /// Decodes with `defmt-print -e ELF --json` (`cargo install defmt-print`).
     ///
     /// # Errors
-    /// The ELF cannot be read or has no defmt table (not a defmt image).
-    pub fn from_elf(elf: &[u8]) -> Result<DefmtLog, String> {
-        match defmt_decoder::Table::parse(elf) {
-            Ok(Some(table)) => Ok(DefmtLog::from_table(table)),
-            Ok(None) => Err("the image has no defmt table (.defmt section)".into()),
-            Err(e) => Err(format!("{e}")),
-        }
+    /// `defmt-print` cannot be run.
+    pub fn with_defmt_print(elf: &Path) -> Result<DefmtLog, String> {
+        std::process::Command::new("defmt-print")
+            .arg("--version")
+            .output()
+            .map_err(|e| format!("--elf needs defmt-print (cargo install defmt-print): {e}"))?;
+        let elf = elf.to_path_buf();
+        Ok(DefmtLog::with_decoder(move |frames| {
+            let mut child = std::process::Command::new("defmt-print")
+                .arg("-e")
+                .arg(&elf)
+                .arg("--json")
+                .stdin(std::process::Stdio::piped())
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .map_err(|e| format!("defmt-print: {e}"))?;
+            if let Some(mut stdin) = child.stdin.take() {
+                stdin
+                    .write_all(frames)
+                    .map_err(|e| format!("defmt-print: {e}"))?;
+            }
+            let out = child
+                .wait_with_output()
+                .map_err(|e| format!("defmt-print: {e}"))?;
+            if !out.status.success() {
+                return Err(format!(
+                    "defmt-print: {}",
+                    String::from_utf8_lossy(&out.stderr).trim()
+                ));
+            }
+            Ok(defmt_print_lines(&String::from_utf8_lossy(&out.stdout)))
+        }))
     }
 
-    /// The decoder for a table already read.
-    pub fn from_table(table: defmt_decoder::Table) -> DefmtLog {
+    /// Decodes with `decoder`: whole frames in, one (level, text) per frame out.
+    pub fn with_decoder(
+        decoder: impl FnMut(&[u8]) -> Result<Vec<(String, String)>, String> + 'static,
+    ) -> DefmtLog {
         DefmtLog {
-            table,
+            decoder: Box::new(decoder),
             pending: Vec::new(),
             undecoded: 0,
         }
     }
 
     /// Takes log bytes; returns the level (`info`, `warn`...) and text of each frame they
-    /// completed.
+    /// completed. A frame that does not decode is counted; a decoder that cannot run counts
+    /// all of them.
     pub fn feed(&mut self, bytes: &[u8]) -> Vec<(String, String)> {
-        let mut out = Vec::new();
+        let mut frames = Vec::new();
+        let mut count: usize = 0;
         for &b in bytes {
             self.pending.push(b);
             if b != 0 {
@@ -195,20 +248,18 @@ impl DefmtLog {
             }
             let frame = std::mem::take(&mut self.pending);
             if frame.len() == 1 {
-                // A lone zero (defmt's encoder may start with one): no frame.
+                // A lone zero (defmt's encoder starts with one): no frame.
                 continue;
             }
-            let mut d = self.table.new_stream_decoder();
-            d.received(&frame);
-            match d.decode() {
-                Ok(f) => out.push((
-                    f.level().map_or("print", |l| l.as_str()).to_string(),
-                    f.display_message().to_string(),
-                )),
-                Err(_) => self.undecoded += 1,
-            }
+            frames.extend_from_slice(&frame);
+            count += 1;
         }
-        out
+        if count == 0 {
+            return Vec::new();
+        }
+        let lines = (self.decoder)(&frames).unwrap_or_default();
+        self.undecoded += count.saturating_sub(lines.len());
+        lines
     }
 }
 
@@ -832,9 +883,9 @@ fn print_lines(args: &MonitorArgs, lines: &[TraceLine]) {
 pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
     let mut run = LinkRun::new();
     if let Some(elf) = &args.elf {
-        match std::fs::read(elf)
+        match std::fs::metadata(elf)
             .map_err(|e| e.to_string())
-            .and_then(|b| DefmtLog::from_elf(&b))
+            .and_then(|_| DefmtLog::with_defmt_print(elf))
         {
             Ok(d) => run.decode_log(d),
             Err(e) => {
@@ -1071,25 +1122,56 @@ mod tests {
         out
     }
 
-    /// A table as `defmt_decoder::Table::parse` reads it from an image: index 1 is an `info!`
-    /// with one `u16`, index 2 a `warn!`.
-    fn log_table() -> defmt_decoder::Table {
-        serde_json::from_value(serde_json::json!({
-            "timestamp": null,
-            "entries": {
-                "1": {"string": {"tag": "Info", "string": "USB link: a laptop listens (link version {=u16})"}, "raw_symbol": "a"},
-                "2": {"string": {"tag": "Warn", "string": "bus fault {=u16}"}, "raw_symbol": "b"}
-            },
-            "bitflags": {},
-            "encoding": "Rzcobs"
-        }))
-        .unwrap()
+    /// A decoder standing for `defmt-print` with an image whose index 1 is
+    /// `info!("USB link: a laptop listens (link version {=u16})")` and index 2
+    /// `warn!("bus fault {=u16}")`: it knows the frames of the test by their bytes.
+    fn fake_decoder() -> DefmtLog {
+        let known: Vec<(Vec<u8>, (&str, String))> = vec![
+            (
+                log_frame(1, 1),
+                ("info", "USB link: a laptop listens (link version 1)".into()),
+            ),
+            (
+                log_frame(1, 2),
+                ("info", "USB link: a laptop listens (link version 2)".into()),
+            ),
+            (log_frame(2, 7), ("warn", "bus fault 7".into())),
+        ];
+        DefmtLog::with_decoder(move |mut frames| {
+            let mut out = Vec::new();
+            while let Some(end) = frames.iter().position(|&b| b == 0) {
+                let (frame, rest) = frames.split_at(end + 1);
+                frames = rest;
+                for (bytes, (level, text)) in &known {
+                    // Without the encoder's leading zero.
+                    if bytes[1..] == *frame {
+                        out.push((level.to_string(), text.clone()));
+                    }
+                }
+            }
+            Ok(out)
+        })
+    }
+
+    #[test]
+    fn defmt_prints_json_lines_are_read() {
+        let out = "{\"schema_version\":1}\n{\"data\":\"USB link: a laptop listens (link version 1)\",\"level\":\"INFO\",\"location\":null}\nnot json\n{\"data\":\"x\",\"level\":null}\n";
+        assert_eq!(
+            defmt_print_lines(out),
+            [
+                (
+                    "info".to_string(),
+                    "USB link: a laptop listens (link version 1)".to_string()
+                ),
+                ("print".to_string(), "x".to_string())
+            ]
+        );
     }
 
     #[test]
     fn the_log_over_the_link_is_decoded_into_trace_lines() {
         let mut run = LinkRun::new();
-        run.decode_log(DefmtLog::from_table(log_table()));
+        run.decode_log(fake_decoder());
         let mut bytes = log_frame(1, 1);
         let first = bytes.len();
         bytes.extend(log_frame(2, 7));
