@@ -77,6 +77,7 @@ impl Out<'_> {
                     CallError::Busy => (7, None),
                     CallError::Unsupported => (8, None),
                     CallError::BadAddress => (9, None),
+                    CallError::Updating => (10, None),
                 };
                 self.byte(index);
                 if let Some(s) = status {

@@ -241,11 +241,12 @@ fn to_host_of(k: u8, a: u8, n: u64, bytes: &[u8], text: &str) -> ToHost<'static>
         CallError::Busy,
         CallError::Unsupported,
         CallError::BadAddress,
+        CallError::Updating,
     ];
-    let outcome = if n % 11 == 10 {
+    let outcome = if n % 12 == 11 {
         Outcome::Ok(bytes)
     } else {
-        Outcome::Err(errors[(n % 11) as usize])
+        Outcome::Err(errors[(n % 12) as usize])
     };
     let small = (n & 0xffff) as u16;
     let mut counters = DiagCounters::new();

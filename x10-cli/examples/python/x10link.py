@@ -17,7 +17,7 @@ LINK_VERSION = 1
 TO_HOST = ["Hello", "Log", "Call", "Event", "Output", "Dropped", "Reply", "Diagnostics",
            "Boards", "Refused"]
 CALL_ERRORS = ["Nack", "Timeout", "ArbitrationLost", "Bus", "BadReply", "Status", "Invalid",
-               "Busy", "Unsupported", "BadAddress"]
+               "Busy", "Unsupported", "BadAddress", "Updating"]
 OUTPUT_VALUES = ["Level", "Duty", "FrequencyHz", "PulseWidthUs"]
 
 
