@@ -117,7 +117,7 @@ export default [
   },
   {
     name: 'usb-load',
-    about: 'the doorbell image (button on DB 9 S1.A, chime on the MB\'s A1.A) on the rig\'s USB host: a button edge to the chime\'s output record at the laptop, over 30 edges (p50/p99); then the button toggled every 8 ms for 400 ms twice, once with no laptop listening and once with the laptop listening and calling analog read S1 on the MB twice a millisecond: the robot\'s chime changes per second both ways (busy within 15 % of idle); the records per second the link carried, with none dropped',
+    about: 'the doorbell image (button on DB 9 S1.A, chime on the MB\'s A1.A) on the rig\'s USB host: a button edge to the chime\'s output record at the laptop, over 30 edges (p50/p99); then the button toggled every 8 ms for 400 ms twice, once with no laptop listening and once with the laptop listening and calling analog read S1 on the MB twice a millisecond: the robot\'s chime changes per second both ways (busy within 25 % of idle); the records per second the link carried, with none dropped',
     run(ctx) {
       if (!ctx.mbDoorbellElf) {
         ctx.check('the doorbell image was given (--mb-doorbell)', false);
@@ -214,7 +214,7 @@ export default [
       const busy = load(true);
       // The doorbell robot does not follow every 8 ms change (its `Button` reports a change once
       // its confirming read agrees): the measure is how many it follows per second, idle vs busy.
-      ctx.check('link busy: the robot\'s chime changes per second within 15 % of the idle link\'s', idle.chimes > 0 && busy.calls >= 0.85 * idle.calls,
+      ctx.check('link busy: the robot\'s chime changes per second within 25 % of the idle link\'s', idle.chimes > 0 && busy.calls >= 0.75 * idle.calls,
         `idle ${idle.chimes}, busy ${busy.chimes} chime changes for ${idle.edges} button changes`);
       ctx.check('the busy link drops nothing, every frame decodes, and the laptop\'s calls are answered', busy.lost === 0 && busy.bad === 0 && busy.records > 0 && busy.replies > 0,
         `${busy.records.toFixed(0)} records/s, ${busy.replies} of ${busy.asked} calls answered in the run, ${busy.lost} records dropped, ${busy.bad} bad frames`);
