@@ -163,6 +163,8 @@ export const LAPTOP = {
   hello: () => linkFrame([0, 1, 0, 3, 0x78, 0x31, 0x30, 0]),
   /** ToDevice::Call { id, db, op: { fn_op, port, data } } (id < 128). */
   call: (id, db, fnOp, port, data = []) => linkFrame([2, id, db, fnOp, port, data.length, ...data]),
+  /** ToDevice::Diagnostics { id } (id < 128). */
+  diagnostics: (id) => linkFrame([3, id]),
 };
 
 /** Decodes COBS (`bytes` without the final zero); null when malformed. */
@@ -214,6 +216,47 @@ export function recordTimes(received) {
         out.push({ kind: 'output', us: varint(), t: p.t });
       }
     }
+  }
+  return out;
+}
+
+/**
+ * Every link message in `received` (the host's IN packets), with the virtual time the packet
+ * that ended its frame arrived: [{ tag, body, t }] (`tag`: the `ToHost` variant,
+ * docs/usb-link.md; `body`: the postcard bytes after it). A frame that does not decode (COBS,
+ * CRC) is { tag: null }.
+ */
+export function messages(received) {
+  const out = [];
+  let frame = [];
+  for (const p of received) {
+    for (const b of p.bytes) {
+      if (b !== 0) { frame.push(b); continue; }
+      const msg = frame.length ? uncobs(frame) : null;
+      const empty = !frame.length;
+      frame = [];
+      if (empty) continue;
+      const body = msg && msg.length >= 3 ? msg.slice(0, -2) : null;
+      const c = body ? crc16(body) : -1;
+      if (!body || msg[msg.length - 2] !== (c & 0xff) || msg[msg.length - 1] !== c >> 8) {
+        out.push({ tag: null, body: [], t: p.t });
+        continue;
+      }
+      // Variants below 128: one byte.
+      out.push({ tag: body[0], body: body.slice(1), t: p.t });
+    }
+  }
+  return out;
+}
+
+/** The varints of `bytes`, in order (a `Dropped` message's five counters). */
+export function varints(bytes) {
+  const out = [];
+  let v = 0, s = 1;
+  for (const x of bytes) {
+    v += (x & 0x7f) * s;
+    s *= 128;
+    if (x < 0x80) { out.push(v); v = 0; s = 1; }
   }
   return out;
 }

@@ -117,3 +117,21 @@ test('the rig reads the records\' time stamps back from the link frames', async 
     { kind: 'output', us: 1000900, t: 9 },
   ]);
 });
+
+test('the link messages of a byte stream, each with the time its frame ended', async () => {
+  const { messages, varints, linkFrame, LAPTOP } = await import('../lib/usb.js');
+  // docs/usb-link.md's example frames: Refused { id: 10 }, then Dropped { 3, 0, 2, 0, 1 }
+  // cut across two packets, a damaged frame, and a frame of its own.
+  const refused = [0x05, 0x09, 0x0a, 0xdd, 0x06, 0x00];
+  const dropped = [0x03, 0x05, 0x03, 0x02, 0x02, 0x04, 0x01, 0x82, 0xdd, 0x00];
+  assert.deepEqual(linkFrame([5, 3, 0, 2, 0, 1]), dropped);
+  const received = [
+    { t: 10, bytes: [...refused, ...dropped.slice(0, 4)] },
+    { t: 20, bytes: [...dropped.slice(4), 0x03, 0x09, 0x0b, 0x00] },
+    { t: 30, bytes: LAPTOP.diagnostics(8) },
+  ];
+  const m = messages(received);
+  assert.deepEqual(m.map((x) => [x.tag, x.t]), [[9, 10], [5, 20], [null, 20], [3, 30]]);
+  assert.deepEqual(varints(m[1].body), [3, 0, 2, 0, 1]);
+  assert.deepEqual(LAPTOP.diagnostics(8), [0x05, 0x03, 0x08, 0x54, 0xc9, 0x00]);
+});

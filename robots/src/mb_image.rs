@@ -15,6 +15,9 @@ macro_rules! mb_image {
         use x10::{MbConfig, Robot};
         use x10_boards::start::MB_ADDRESS;
         // The panic handler comes with x10-boards (`x10_boards::watchdog`): safe outputs first.
+        // The defmt logger: with the USB link x10-boards' (`x10_boards::usb_log`: RTT and the
+        // link), without it defmt-rtt.
+        #[cfg(not(feature = "usb-link"))]
         use defmt_rtt as _;
 
         use crate::board::{init, start_motherboard};

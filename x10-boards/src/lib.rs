@@ -59,6 +59,7 @@ pub mod pulse;
 pub mod pwm;
 pub mod record;
 pub mod rp_flash;
+pub mod rtt;
 pub mod stm32_latch;
 
 #[cfg(feature = "time")]
@@ -80,6 +81,11 @@ compile_error!(
 pub mod start;
 #[cfg(feature = "usb-link")]
 pub mod usb_link;
+// The defmt global logger (RTT and the USB link): a `#[no_mangle]` control block the host
+// reads behind the target's back, and the critical section defmt's logger API hands over.
+#[cfg(feature = "usb-log")]
+#[allow(unsafe_code)]
+pub mod usb_log;
 
 #[cfg(feature = "daughterboard")]
 pub mod kept;

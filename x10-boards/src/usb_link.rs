@@ -124,8 +124,18 @@ async fn read_loop<D: Driver<'static>>(mut rx: Receiver<'static, D>, x10: X10, w
                 match reader.feed(b) {
                     Feed::Pending => {}
                     Feed::TooLong => RECORDER.bad_frame(),
-                    Feed::Frame => match reader.decode::<ToDevice>() {
-                        Ok(req) => serve(&RECORDER, x10, who, req).await,
+                    Feed::Frame => match reader.decode_device() {
+                        Ok(req) => {
+                            let hello = matches!(req, ToDevice::Hello(_));
+                            serve(&RECORDER, x10, who, req).await;
+                            if hello {
+                                // The first line a laptop gets over the link (docs/usb-link.md).
+                                defmt::info!(
+                                    "USB link: a laptop listens (link version {=u16})",
+                                    x10_link::LINK_VERSION
+                                );
+                            }
+                        }
                         Err(_) => {
                             RECORDER.bad_frame();
                             RECORDER.send(&x10_link::ToHost::Refused { id: 0 });

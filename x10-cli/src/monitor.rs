@@ -143,6 +143,126 @@ pub enum Answer {
     Refused,
 }
 
+/// The motherboard's defmt log as it comes over the link (`Log` messages: rzCOBS frames,
+/// each ended by a zero byte, split anywhere), decoded frame by frame with the image's table
+/// (`x10 monitor --elf IMAGE`) by `defmt-print`, the decoder of probe-rs's project (the
+/// defmt-decoder crate itself would turn on serde_json's `arbitrary_precision` for the whole
+/// workspace, which changes the JSON codec's errors).
+pub struct DefmtLog {
+    decoder: Box<LogDecoder>,
+    pending: Vec<u8>,
+    /// Frames that did not decode (a piece dropped by the motherboard, another image).
+    pub undecoded: usize,
+}
+
+/// Whole defmt frames in, the (level, text) of each line out.
+pub type LogDecoder = dyn FnMut(&[u8]) -> Result<Vec<(String, String)>, String>;
+
+impl std::fmt::Debug for DefmtLog {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("DefmtLog")
+            .field("pending", &self.pending.len())
+            .field("undecoded", &self.undecoded)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The level and text of each line `defmt-print --json` printed (its first line, the
+/// schema's version, and anything not a log line are skipped).
+pub fn defmt_print_lines(json: &str) -> Vec<(String, String)> {
+    json.lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|v| v.get("schema_version").is_none())
+        .filter_map(|v| {
+            let text = v.get("data")?.as_str()?.to_string();
+            let level = v
+                .get("level")
+                .and_then(|l| l.as_str())
+                .unwrap_or("print")
+                .to_ascii_lowercase();
+            Some((level, text))
+        })
+        .collect()
+}
+
+impl DefmtLog {
+    /// Decodes with `defmt-print -e ELF --json` (`cargo install defmt-print`).
+    ///
+    /// # Errors
+    /// `defmt-print` cannot be run.
+    pub fn with_defmt_print(elf: &Path) -> Result<DefmtLog, String> {
+        std::process::Command::new("defmt-print")
+            .arg("--version")
+            .output()
+            .map_err(|e| format!("--elf needs defmt-print (cargo install defmt-print): {e}"))?;
+        let elf = elf.to_path_buf();
+        Ok(DefmtLog::with_decoder(move |frames| {
+            let mut child = std::process::Command::new("defmt-print")
+                .arg("-e")
+                .arg(&elf)
+                .arg("--json")
+                .stdin(std::process::Stdio::piped())
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .map_err(|e| format!("defmt-print: {e}"))?;
+            if let Some(mut stdin) = child.stdin.take() {
+                stdin
+                    .write_all(frames)
+                    .map_err(|e| format!("defmt-print: {e}"))?;
+            }
+            let out = child
+                .wait_with_output()
+                .map_err(|e| format!("defmt-print: {e}"))?;
+            if !out.status.success() {
+                return Err(format!(
+                    "defmt-print: {}",
+                    String::from_utf8_lossy(&out.stderr).trim()
+                ));
+            }
+            Ok(defmt_print_lines(&String::from_utf8_lossy(&out.stdout)))
+        }))
+    }
+
+    /// Decodes with `decoder`: whole frames in, one (level, text) per frame out.
+    pub fn with_decoder(
+        decoder: impl FnMut(&[u8]) -> Result<Vec<(String, String)>, String> + 'static,
+    ) -> DefmtLog {
+        DefmtLog {
+            decoder: Box::new(decoder),
+            pending: Vec::new(),
+            undecoded: 0,
+        }
+    }
+
+    /// Takes log bytes; returns the level (`info`, `warn`...) and text of each frame they
+    /// completed. A frame that does not decode is counted; a decoder that cannot run counts
+    /// all of them.
+    pub fn feed(&mut self, bytes: &[u8]) -> Vec<(String, String)> {
+        let mut frames = Vec::new();
+        let mut count: usize = 0;
+        for &b in bytes {
+            self.pending.push(b);
+            if b != 0 {
+                continue;
+            }
+            let frame = std::mem::take(&mut self.pending);
+            if frame.len() == 1 {
+                // A lone zero (defmt's encoder starts with one): no frame.
+                continue;
+            }
+            frames.extend_from_slice(&frame);
+            count += 1;
+        }
+        if count == 0 {
+            return Vec::new();
+        }
+        let lines = (self.decoder)(&frames).unwrap_or_default();
+        self.undecoded += count.saturating_sub(lines.len());
+        lines
+    }
+}
+
 /// The laptop's view of one run: everything the motherboard sent, kept for the summary and
 /// the page.
 #[derive(Debug, Default)]
@@ -163,6 +283,10 @@ pub struct LinkRun {
     pub bad_frames: usize,
     /// defmt log bytes.
     pub log: Vec<u8>,
+    /// The log's decoder, when the image is known ([`LinkRun::decode_log`]).
+    pub defmt: Option<DefmtLog>,
+    /// Log lines decoded.
+    pub log_lines: usize,
     /// Answers to requests, by request id, not yet taken.
     pub answers: Vec<(u16, Answer)>,
     /// The first and last record times (µs of the motherboard's clock).
@@ -181,6 +305,12 @@ impl LinkRun {
             None => (t_us, t_us),
             Some((a, b)) => (a.min(t_us), b.max(t_us)),
         });
+    }
+
+    /// Decodes the log with `log` from now on: each line becomes a trace line (source `log`,
+    /// at the time of the last record), a warning or error one of the summary's warnings.
+    pub fn decode_log(&mut self, log: DefmtLog) {
+        self.defmt = Some(log);
     }
 
     /// Takes bytes of the stream; returns the trace lines of the messages they completed.
@@ -223,7 +353,26 @@ impl LinkRun {
             }
             ToHost::Log(bytes) => {
                 self.log.extend_from_slice(bytes);
-                Vec::new()
+                let Some(d) = self.defmt.as_mut() else {
+                    return Vec::new();
+                };
+                let t_ns = self.span_us.map_or(0, |(_, b)| b.saturating_mul(1_000));
+                let mut lines = Vec::new();
+                for (level, text) in d.feed(bytes) {
+                    let severity = match level.as_str() {
+                        "error" => Severity::Error,
+                        "warn" => Severity::Warn,
+                        "info" | "print" => Severity::Info,
+                        _ => Severity::Debug,
+                    };
+                    let line = TraceLine::new(t_ns, severity, "log", text);
+                    if severity >= Severity::Warn {
+                        self.warnings.push(line.clone());
+                    }
+                    lines.push(line);
+                }
+                self.log_lines += lines.len();
+                lines
             }
             ToHost::Call(c) => vec![self.call(c)],
             ToHost::Event(e) => {
@@ -344,6 +493,26 @@ impl LinkRun {
             d.log_bytes,
             self.bad_frames
         );
+        if !self.log.is_empty() {
+            match &self.defmt {
+                Some(d) => {
+                    let _ = writeln!(
+                        s,
+                        "log: {} bytes over the link, {} lines decoded, {} frames undecoded",
+                        self.log.len(),
+                        self.log_lines,
+                        d.undecoded
+                    );
+                }
+                None => {
+                    let _ = writeln!(
+                        s,
+                        "log: {} bytes over the link (x10 monitor --elf IMAGE decodes them)",
+                        self.log.len()
+                    );
+                }
+            }
+        }
         if self.warnings.is_empty() {
             s.push_str("warnings and errors: none\n");
         } else {
@@ -597,6 +766,12 @@ WORLD
   the robot in its hello (fig4_4 for the Figure 4.4 images). Without one, the summary lists no
   devices (the calls are still printed and counted).
 
+LOG
+  The motherboard's defmt log comes over the link too (from the laptop's hello on). With
+  --elf IMAGE (the motherboard's image, e.g. target/thumbv6m-none-eabi/release/mb-pico) each
+  log line is decoded and printed with the records (`log:`); without it the bytes are counted
+  and kept in the recording, which a later `--replay FILE --elf IMAGE` decodes.
+
 OUTPUT
   One line per call and output change as they come, in the simulator's trace words; at the end
   the summary in `cargo sim`'s words (the devices' changes, then the link's counts and the
@@ -606,7 +781,7 @@ OUTPUT
 EXAMPLES
   x10 monitor
   x10 monitor --example fig4_4 --html run.html --duration-s 10
-  x10 monitor --replay x10-monitor.x10link";
+  x10 monitor --replay x10-monitor.x10link --elf target/thumbv6m-none-eabi/release/mb-pico";
 
 /// Arguments of `x10 monitor`.
 #[derive(clap::Args, Debug)]
@@ -639,6 +814,10 @@ pub struct MonitorArgs {
     /// Print no line per record, only the summary.
     #[arg(long)]
     pub quiet: bool,
+    /// The motherboard's image (ELF): its defmt log, which comes over the link, is decoded
+    /// with it and printed with the records.
+    #[arg(long, value_name = "IMAGE")]
+    pub elf: Option<PathBuf>,
 }
 
 /// The world for the run: `--world`, `--example`, else the example the hello names.
@@ -703,6 +882,18 @@ fn print_lines(args: &MonitorArgs, lines: &[TraceLine]) {
 /// `x10 monitor`.
 pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
     let mut run = LinkRun::new();
+    if let Some(elf) = &args.elf {
+        match std::fs::metadata(elf)
+            .map_err(|e| e.to_string())
+            .and_then(|_| DefmtLog::with_defmt_print(elf))
+        {
+            Ok(d) => run.decode_log(d),
+            Err(e) => {
+                eprintln!("x10 monitor: {}: {e}", elf.display());
+                return std::process::ExitCode::FAILURE;
+            }
+        }
+    }
     if let Some(file) = args.from.as_ref().or(args.replay.as_ref()) {
         let bytes = match std::fs::read(file) {
             Ok(b) => b,
@@ -916,6 +1107,134 @@ mod tests {
             [PathBuf::from("/dev/ttyACM0"), PathBuf::from("/dev/ttyACM2")]
         );
         assert!(find_ports_in(Path::new("/nonexistent/x10"), Path::new("/dev")).is_empty());
+    }
+
+    /// The defmt frame of `info!("USB link: a laptop listens (link version {=u16})", v)` at
+    /// table index `index`, as the images' logger encodes it (defmt's own encoder: rzCOBS,
+    /// ended by a zero).
+    fn log_frame(index: u16, v: u16) -> Vec<u8> {
+        let mut out = Vec::new();
+        let mut enc = defmt::Encoder::new();
+        enc.start_frame(|b| out.extend_from_slice(b));
+        enc.write(&index.to_le_bytes(), |b| out.extend_from_slice(b));
+        enc.write(&v.to_le_bytes(), |b| out.extend_from_slice(b));
+        enc.end_frame(|b| out.extend_from_slice(b));
+        out
+    }
+
+    /// A decoder standing for `defmt-print` with an image whose index 1 is
+    /// `info!("USB link: a laptop listens (link version {=u16})")` and index 2
+    /// `warn!("bus fault {=u16}")`: it knows the frames of the test by their bytes.
+    fn fake_decoder() -> DefmtLog {
+        let known: Vec<(Vec<u8>, (&str, String))> = vec![
+            (
+                log_frame(1, 1),
+                ("info", "USB link: a laptop listens (link version 1)".into()),
+            ),
+            (
+                log_frame(1, 2),
+                ("info", "USB link: a laptop listens (link version 2)".into()),
+            ),
+            (log_frame(2, 7), ("warn", "bus fault 7".into())),
+        ];
+        DefmtLog::with_decoder(move |mut frames| {
+            let mut out = Vec::new();
+            while let Some(end) = frames.iter().position(|&b| b == 0) {
+                let (frame, rest) = frames.split_at(end + 1);
+                frames = rest;
+                for (bytes, (level, text)) in &known {
+                    // Without the encoder's leading zero.
+                    if bytes[1..] == *frame {
+                        out.push((level.to_string(), text.clone()));
+                    }
+                }
+            }
+            Ok(out)
+        })
+    }
+
+    #[test]
+    fn defmt_prints_json_lines_are_read() {
+        let out = "{\"schema_version\":1}\n{\"data\":\"USB link: a laptop listens (link version 1)\",\"level\":\"INFO\",\"location\":null}\nnot json\n{\"data\":\"x\",\"level\":null}\n";
+        assert_eq!(
+            defmt_print_lines(out),
+            [
+                (
+                    "info".to_string(),
+                    "USB link: a laptop listens (link version 1)".to_string()
+                ),
+                ("print".to_string(), "x".to_string())
+            ]
+        );
+    }
+
+    #[test]
+    fn the_log_over_the_link_is_decoded_into_trace_lines() {
+        let mut run = LinkRun::new();
+        run.decode_log(fake_decoder());
+        let mut bytes = log_frame(1, 1);
+        let first = bytes.len();
+        bytes.extend(log_frame(2, 7));
+        // Each encoder starts with a lone zero (a delimiter), then index, value, rzCOBS, zero.
+        assert_eq!(
+            bytes,
+            [0x00, 0x01, 0x01, 0x7a, 0x00, 0x00, 0x02, 0x07, 0x7a, 0x00]
+        );
+        // A call first (the lines take the time of the last record), then the log in two
+        // `Log` messages cut inside the second frame.
+        let call = CallRec {
+            db: 0,
+            op: WireOp {
+                fn_op: 0x12,
+                port: 0x01,
+                data: &[],
+            },
+            outcome: Outcome::Ok(&[]),
+            start_us: 1_000_000,
+            end_us: 1_000_450,
+        };
+        let mut lines: Vec<String> = run
+            .push(&ToHost::Call(call))
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+        let (a, b) = bytes.split_at(first + 2);
+        for piece in [a, b] {
+            lines.extend(
+                run.push(&ToHost::Log(piece))
+                    .iter()
+                    .map(ToString::to_string),
+            );
+        }
+        assert_eq!(
+            lines,
+            [
+                "1.000450 INFO  robot: SELF io high A1.B -> ok in 450us",
+                "1.000450 INFO  log: USB link: a laptop listens (link version 1)",
+                "1.000450 WARN  log: bus fault 7",
+            ]
+        );
+        assert_eq!(run.log_lines, 2);
+        assert_eq!(run.warnings.len(), 1);
+        let world = World::new();
+        assert!(run
+            .summary(&world)
+            .contains("log: 10 bytes over the link, 2 lines decoded, 0 frames undecoded\n"));
+        // A piece the motherboard dropped: that frame is lost, the next one decodes.
+        let lost = run.push(&ToHost::Log(bytes.get(3..first).unwrap()));
+        assert!(lost.is_empty());
+        let again = run.push(&ToHost::Log(&log_frame(1, 2)));
+        assert_eq!(
+            again.iter().map(ToString::to_string).collect::<Vec<_>>(),
+            ["1.000450 INFO  log: USB link: a laptop listens (link version 2)"]
+        );
+        assert_eq!(run.defmt.as_ref().unwrap().undecoded, 1);
+        // Without the image, the bytes are only counted.
+        let mut plain = LinkRun::new();
+        assert!(plain.push(&ToHost::Log(&bytes)).is_empty());
+        assert!(plain
+            .summary(&world)
+            .contains("log: 10 bytes over the link (x10 monitor --elf IMAGE decodes them)\n"));
     }
 
     #[test]

@@ -21,6 +21,8 @@
 use crc::{Crc, NoTable, CRC_16_IBM_3740};
 use serde::{Deserialize, Serialize};
 
+use crate::msg::{ToDevice, ToHost};
+
 /// The frame check.
 const CRC16: Crc<u16, NoTable> = Crc::<u16, NoTable>::new(&CRC_16_IBM_3740);
 
@@ -74,6 +76,23 @@ pub fn encode<T: Serialize>(msg: &T, out: &mut [u8]) -> Result<usize, FrameError
         Err(postcard::Error::SerializeBufferFull) => return Err(FrameError::TooLong),
         Err(_) => return Err(FrameError::Message),
     };
+    seal(&mut raw, n, out)
+}
+
+/// [`encode`] of a [`ToHost`] without serde: the same bytes (`crate::wire`), the
+/// motherboard's encoder.
+///
+/// # Errors
+/// [`FrameError::TooLong`] when the message is over [`MAX_MESSAGE`] bytes or `out` is short.
+pub fn encode_host(msg: &ToHost<'_>, out: &mut [u8]) -> Result<usize, FrameError> {
+    let mut raw = [0u8; MAX_MESSAGE + 2];
+    let n = crate::wire::write_to_host(msg, raw.get_mut(..MAX_MESSAGE).unwrap_or(&mut []))
+        .ok_or(FrameError::TooLong)?;
+    seal(&mut raw, n, out)
+}
+
+/// Appends the CRC of `raw[..n]`, COBS-encodes the lot into `out` and ends it with a zero.
+fn seal(raw: &mut [u8; MAX_MESSAGE + 2], n: usize, out: &mut [u8]) -> Result<usize, FrameError> {
     let crc = CRC16.checksum(raw.get(..n).ok_or(FrameError::TooLong)?);
     raw.get_mut(n..n + 2)
         .ok_or(FrameError::TooLong)?
@@ -200,5 +219,17 @@ impl<const N: usize> FrameReader<N> {
         let n = core::mem::take(&mut self.done);
         let frame = self.buf.get_mut(..n).ok_or(FrameError::Cobs)?;
         decode(frame)
+    }
+
+    /// [`FrameReader::decode`] of a [`ToDevice`] without serde (`crate::wire`), the
+    /// motherboard's decoder: the same messages and the same refusals.
+    ///
+    /// # Errors
+    /// As [`decode`].
+    pub fn decode_device(&mut self) -> Result<ToDevice<'_>, FrameError> {
+        let n = core::mem::take(&mut self.done);
+        let frame = self.buf.get_mut(..n).ok_or(FrameError::Cobs)?;
+        let msg = unframe(frame)?;
+        crate::wire::read_to_device(msg).ok_or(FrameError::Message)
     }
 }

@@ -21,11 +21,14 @@ mod frame;
 mod msg;
 #[cfg(feature = "mb")]
 pub mod recorder;
+mod wire;
 
 pub use frame::{
-    decode, encode, unframe, Feed, FrameError, FrameReader, MAX_FRAME, MAX_LOG_CHUNK, MAX_MESSAGE,
+    decode, encode, encode_host, unframe, Feed, FrameError, FrameReader, MAX_FRAME, MAX_LOG_CHUNK,
+    MAX_MESSAGE,
 };
 pub use msg::{
     CallError, CallRec, DiagCounters, Dropped, EventRec, Hello, Outcome, OutputRec, OutputValue,
     ToDevice, ToHost, WireOp, DIAG_NAMES, LINK_VERSION,
 };
+pub use wire::{read_to_device, write_to_host};

@@ -4,8 +4,9 @@
 
 use proptest::prelude::*;
 use x10_link::{
-    decode, encode, CallError, CallRec, DiagCounters, Dropped, EventRec, Feed, FrameError,
-    FrameReader, Hello, Outcome, OutputRec, OutputValue, ToDevice, ToHost, WireOp, MAX_FRAME,
+    decode, encode, encode_host, read_to_device, write_to_host, CallError, CallRec, DiagCounters,
+    Dropped, EventRec, Feed, FrameError, FrameReader, Hello, Outcome, OutputRec, OutputValue,
+    ToDevice, ToHost, WireOp, MAX_FRAME,
 };
 use x10_microcode::test_support::{a, s};
 use x10_microcode::{EventKind, Level, Op, Pin};
@@ -195,6 +196,124 @@ fn every_doc_row_decodes_exactly_and_encodes_back() {
     }
 }
 
+/// The motherboard's hand-written encoder and decoder (no serde) against serde's postcard.
+#[test]
+fn the_motherboards_own_codec_gives_every_doc_row_exactly() {
+    for (dir, debug, bytes) in doc_rows() {
+        let mut copy = bytes.clone();
+        if dir == "ToHost" {
+            let m: ToHost = decode(&mut copy).unwrap();
+            let mut buf = [0u8; MAX_FRAME];
+            let n = encode_host(&m, &mut buf).unwrap();
+            assert_eq!(&buf[..n], &bytes[..], "{debug}");
+        } else {
+            let mut r: FrameReader<{ MAX_FRAME }> = FrameReader::new();
+            let mut got = None;
+            for &b in &bytes {
+                if r.feed(b) == Feed::Frame {
+                    got = Some(format!("{:?}", r.decode_device().unwrap()));
+                }
+            }
+            assert_eq!(got.as_deref(), Some(debug.as_str()));
+        }
+    }
+    // Too long for the buffer: refused, as postcard refuses it.
+    let mut short = [0u8; 3];
+    assert_eq!(write_to_host(&ToHost::Log(&[1, 2, 3]), &mut short), None);
+    assert_eq!(
+        write_to_host(&ToHost::Refused { id: 10 }, &mut short),
+        Some(2)
+    );
+}
+
+/// The messages proptest draws for the codec's comparison.
+fn to_host_of(k: u8, a: u8, n: u64, bytes: &[u8], text: &str) -> ToHost<'static> {
+    let bytes: &'static [u8] = Vec::leak(bytes.to_vec());
+    let text: &'static str = String::leak(text.to_string());
+    let errors = [
+        CallError::Nack,
+        CallError::Timeout,
+        CallError::ArbitrationLost,
+        CallError::Bus,
+        CallError::BadReply,
+        CallError::Status(a),
+        CallError::Invalid,
+        CallError::Busy,
+        CallError::Unsupported,
+        CallError::BadAddress,
+        CallError::Updating,
+    ];
+    let outcome = if n % 12 == 11 {
+        Outcome::Ok(bytes)
+    } else {
+        Outcome::Err(errors[(n % 12) as usize])
+    };
+    let small = (n & 0xffff) as u16;
+    let mut counters = DiagCounters::new();
+    let mut addresses = heapless::Vec::new();
+    for (i, &b) in bytes.iter().enumerate() {
+        let _ = counters.push(u32::from(b) << (i % 25));
+        let _ = addresses.push(b);
+    }
+    match k % 10 {
+        0 => ToHost::Hello(Hello {
+            version: small,
+            address: a,
+            board: text,
+            robot: text,
+        }),
+        1 => ToHost::Log(bytes),
+        2 => ToHost::Call(CallRec {
+            db: a,
+            op: WireOp {
+                fn_op: a ^ 0x55,
+                port: a.wrapping_add(3),
+                data: bytes,
+            },
+            outcome,
+            start_us: n,
+            end_us: n.rotate_left(17),
+        }),
+        3 => ToHost::Event(EventRec {
+            db: a,
+            kind: a ^ 1,
+            port: a ^ 2,
+            seq: a ^ 3,
+            status: a ^ 4,
+            payload: bytes,
+            at_us: n,
+        }),
+        4 => ToHost::Output(OutputRec {
+            db: a,
+            port: a ^ 7,
+            value: match n % 4 {
+                0 => OutputValue::Level(a & 1 == 1),
+                1 => OutputValue::Duty(a),
+                2 => OutputValue::FrequencyHz((n >> 8) as u32),
+                _ => OutputValue::PulseWidthUs(small),
+            },
+            at_us: n >> 3,
+        }),
+        5 => ToHost::Dropped(Dropped {
+            calls: n as u32,
+            events: (n >> 7) as u32,
+            outputs: (n >> 14) as u32,
+            log_bytes: (n >> 21) as u32,
+            bad_frames: (n >> 32) as u32,
+        }),
+        6 => ToHost::Reply { id: small, outcome },
+        7 => ToHost::Diagnostics {
+            id: small,
+            counters,
+        },
+        8 => ToHost::Boards {
+            id: small,
+            addresses,
+        },
+        _ => ToHost::Refused { id: small },
+    }
+}
+
 #[test]
 fn a_reader_in_the_middle_of_a_stream_resyncs_at_the_next_zero() {
     let a = frame(&ToDevice::Diagnostics { id: 1 });
@@ -307,6 +426,55 @@ proptest! {
         let _ = decode::<ToHost>(&mut a);
         let mut b = enc;
         let _ = decode::<ToDevice>(&mut b);
+    }
+
+    #[test]
+    fn the_motherboards_encoder_writes_what_postcard_writes(k in any::<u8>(), a in any::<u8>(), n in any::<u64>(),
+        bytes in proptest::collection::vec(any::<u8>(), 0..60), text in "\\PC{0,12}") {
+        let m = to_host_of(k, a, n, &bytes, &text);
+        let mut want = [0u8; 400];
+        let mut got = [0u8; 400];
+        let w = postcard::to_slice(&m, &mut want).map(|s| s.len()).ok();
+        prop_assert_eq!(write_to_host(&m, &mut got), w);
+        let w = w.unwrap();
+        prop_assert_eq!(&got[..w], &want[..w]);
+        // And the whole frame, when it fits one.
+        let mut fa = [0u8; MAX_FRAME];
+        let mut fb = [0u8; MAX_FRAME];
+        prop_assert_eq!(encode_host(&m, &mut fa), encode(&m, &mut fb));
+        prop_assert_eq!(fa, fb);
+    }
+
+    #[test]
+    fn the_motherboards_decoder_reads_what_postcard_reads(bytes in proptest::collection::vec(any::<u8>(), 0..40),
+        v in 0u8..7, id in any::<u16>(), db in any::<u8>(), text in "\\PC{0,6}") {
+        // Random bytes behind a variant tag, and well-formed requests, some with bytes left over.
+        let mut raw = vec![v];
+        raw.extend_from_slice(&bytes);
+        let good = [
+            ToDevice::Hello(Hello { version: id, address: db, board: &text, robot: &text }),
+            ToDevice::Bye,
+            ToDevice::Call { id, db, op: WireOp { fn_op: db, port: !db, data: &bytes } },
+            ToDevice::Diagnostics { id },
+            ToDevice::ListBoards { id },
+        ];
+        let mut cases = vec![raw];
+        for m in &good {
+            let mut buf = [0u8; 200];
+            let n = postcard::to_slice(m, &mut buf).unwrap().len();
+            cases.push(buf[..n].to_vec());
+            let mut longer = buf[..n].to_vec();
+            longer.push(db);
+            cases.push(longer);
+            cases.push(buf[..n.saturating_sub(1)].to_vec());
+        }
+        for c in &cases {
+            let want = match postcard::take_from_bytes::<ToDevice>(c) {
+                Ok((m, [])) => Some(m),
+                _ => None,
+            };
+            prop_assert_eq!(read_to_device(c), want, "{:02x?}", c);
+        }
     }
 
     #[test]

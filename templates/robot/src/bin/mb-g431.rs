@@ -8,8 +8,8 @@ use embassy_executor::Spawner;
 use x10::MbConfig;
 use x10_boards::g431::{init, start_motherboard};
 use x10_boards::start::MB_ADDRESS;
-// The panic and HardFault handlers and the watchdog come with x10-boards (`x10_boards::watchdog`).
-use defmt_rtt as _;
+// The panic and HardFault handlers and the watchdog come with x10-boards (`x10_boards::watchdog`),
+// and so does the defmt logger (`x10_boards::usb_log`: RTT, and the USB link for `x10 monitor`).
 
 #[embassy_executor::main]
 async fn main(spawner: Spawner) {

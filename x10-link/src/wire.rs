@@ -1,0 +1,279 @@
+//! The motherboard's own postcard: [`ToHost`] written and [`ToDevice`] read by hand, byte
+//! for byte as postcard 1.x (serde) does (docs/usb-link.md, "Framing"), without serde's
+//! generic code in the images (issue 26's flash budget). The laptop keeps serde
+//! ([`crate::encode`], [`crate::decode`]); `tests/wire.rs` checks that both agree on every
+//! example frame and on random messages and bytes.
+
+use crate::msg::{
+    CallError, CallRec, DiagCounters, EventRec, Hello, Outcome, OutputValue, ToDevice, ToHost,
+    WireOp,
+};
+
+/// Writes postcard bytes into a buffer; remembers when it ran out of room.
+struct Out<'a> {
+    buf: &'a mut [u8],
+    n: usize,
+    full: bool,
+}
+
+impl Out<'_> {
+    fn byte(&mut self, b: u8) {
+        match self.buf.get_mut(self.n) {
+            Some(slot) => {
+                *slot = b;
+                self.n += 1;
+            }
+            None => self.full = true,
+        }
+    }
+
+    /// An unsigned integer as a varint: 7 bits a byte, least significant first.
+    fn varint(&mut self, mut v: u64) {
+        while v >= 0x80 {
+            // Truncation intended: the low 7 bits and the continuation bit.
+            self.byte((v as u8) | 0x80);
+            v >>= 7;
+        }
+        self.byte(v as u8);
+    }
+
+    /// A byte slice or string: its length, then its bytes.
+    fn bytes(&mut self, b: &[u8]) {
+        self.varint(b.len() as u64);
+        for &x in b {
+            self.byte(x);
+        }
+    }
+
+    fn hello(&mut self, h: &Hello<'_>) {
+        self.varint(u64::from(h.version));
+        self.byte(h.address);
+        self.bytes(h.board.as_bytes());
+        self.bytes(h.robot.as_bytes());
+    }
+
+    fn op(&mut self, op: &WireOp<'_>) {
+        self.byte(op.fn_op);
+        self.byte(op.port);
+        self.bytes(op.data);
+    }
+
+    fn outcome(&mut self, o: &Outcome<'_>) {
+        match o {
+            Outcome::Ok(p) => {
+                self.byte(0);
+                self.bytes(p);
+            }
+            Outcome::Err(e) => {
+                self.byte(1);
+                let (index, status) = match e {
+                    CallError::Nack => (0, None),
+                    CallError::Timeout => (1, None),
+                    CallError::ArbitrationLost => (2, None),
+                    CallError::Bus => (3, None),
+                    CallError::BadReply => (4, None),
+                    CallError::Status(s) => (5, Some(*s)),
+                    CallError::Invalid => (6, None),
+                    CallError::Busy => (7, None),
+                    CallError::Unsupported => (8, None),
+                    CallError::BadAddress => (9, None),
+                    CallError::Updating => (10, None),
+                };
+                self.byte(index);
+                if let Some(s) = status {
+                    self.byte(s);
+                }
+            }
+        }
+    }
+
+    fn call(&mut self, c: &CallRec<'_>) {
+        self.byte(c.db);
+        self.op(&c.op);
+        self.outcome(&c.outcome);
+        self.varint(c.start_us);
+        self.varint(c.end_us);
+    }
+
+    fn event(&mut self, e: &EventRec<'_>) {
+        for b in [e.db, e.kind, e.port, e.seq, e.status] {
+            self.byte(b);
+        }
+        self.bytes(e.payload);
+        self.varint(e.at_us);
+    }
+
+    fn counters(&mut self, c: &DiagCounters) {
+        self.varint(c.len() as u64);
+        for &v in c {
+            self.varint(u64::from(v));
+        }
+    }
+}
+
+/// Writes `msg`'s postcard bytes into `out`; returns their length, or `None` when `out` is
+/// too short.
+pub fn write_to_host(msg: &ToHost<'_>, out: &mut [u8]) -> Option<usize> {
+    let mut o = Out {
+        buf: out,
+        n: 0,
+        full: false,
+    };
+    match msg {
+        ToHost::Hello(h) => {
+            o.byte(0);
+            o.hello(h);
+        }
+        ToHost::Log(b) => {
+            o.byte(1);
+            o.bytes(b);
+        }
+        ToHost::Call(c) => {
+            o.byte(2);
+            o.call(c);
+        }
+        ToHost::Event(e) => {
+            o.byte(3);
+            o.event(e);
+        }
+        ToHost::Output(r) => {
+            o.byte(4);
+            o.byte(r.db);
+            o.byte(r.port);
+            match r.value {
+                OutputValue::Level(h) => {
+                    o.byte(0);
+                    o.byte(u8::from(h));
+                }
+                OutputValue::Duty(d) => {
+                    o.byte(1);
+                    o.byte(d);
+                }
+                OutputValue::FrequencyHz(hz) => {
+                    o.byte(2);
+                    o.varint(u64::from(hz));
+                }
+                OutputValue::PulseWidthUs(us) => {
+                    o.byte(3);
+                    o.varint(u64::from(us));
+                }
+            }
+            o.varint(r.at_us);
+        }
+        ToHost::Dropped(d) => {
+            o.byte(5);
+            for v in [d.calls, d.events, d.outputs, d.log_bytes, d.bad_frames] {
+                o.varint(u64::from(v));
+            }
+        }
+        ToHost::Reply { id, outcome } => {
+            o.byte(6);
+            o.varint(u64::from(*id));
+            o.outcome(outcome);
+        }
+        ToHost::Diagnostics { id, counters } => {
+            o.byte(7);
+            o.varint(u64::from(*id));
+            o.counters(counters);
+        }
+        ToHost::Boards { id, addresses } => {
+            o.byte(8);
+            o.varint(u64::from(*id));
+            o.bytes(addresses);
+        }
+        ToHost::Refused { id } => {
+            o.byte(9);
+            o.varint(u64::from(*id));
+        }
+    }
+    if o.full {
+        None
+    } else {
+        Some(o.n)
+    }
+}
+
+/// Reads postcard bytes.
+struct In<'a> {
+    rest: &'a [u8],
+}
+
+impl<'a> In<'a> {
+    fn byte(&mut self) -> Option<u8> {
+        let (&b, rest) = self.rest.split_first()?;
+        self.rest = rest;
+        Some(b)
+    }
+
+    /// A varint of at most `max` bytes whose value is at most `limit` (postcard refuses a
+    /// longer one, and a last byte that would overflow the type).
+    fn varint(&mut self, max: u32, limit: u64) -> Option<u64> {
+        let mut v: u64 = 0;
+        for i in 0..max {
+            let b = self.byte()?;
+            // The last byte may hold only the bits the type has left.
+            if i + 1 == max && u64::from(b) > limit >> (7 * i) {
+                return None;
+            }
+            v |= u64::from(b & 0x7f) << (7 * i);
+            if b & 0x80 == 0 {
+                return (v <= limit).then_some(v);
+            }
+        }
+        None
+    }
+
+    fn u16(&mut self) -> Option<u16> {
+        self.varint(3, u64::from(u16::MAX))
+            .and_then(|v| u16::try_from(v).ok())
+    }
+
+    /// A length (`usize`, 32 bits on the boards: 5 bytes at most).
+    fn len(&mut self) -> Option<usize> {
+        let max = if usize::BITS == 64 { 10 } else { 5 };
+        self.varint(max, usize::MAX as u64)
+            .and_then(|v| usize::try_from(v).ok())
+    }
+
+    fn bytes(&mut self) -> Option<&'a [u8]> {
+        let n = self.len()?;
+        if n > self.rest.len() {
+            return None;
+        }
+        let (b, rest) = self.rest.split_at(n);
+        self.rest = rest;
+        Some(b)
+    }
+
+    fn str(&mut self) -> Option<&'a str> {
+        core::str::from_utf8(self.bytes()?).ok()
+    }
+}
+
+/// Reads a [`ToDevice`] from its postcard bytes, as postcard would: `None` for an unknown
+/// variant, a truncated or overlong field, bad UTF-8 or bytes left over.
+pub fn read_to_device(bytes: &[u8]) -> Option<ToDevice<'_>> {
+    let mut i = In { rest: bytes };
+    let msg = match i.varint(5, u64::from(u32::MAX))? {
+        0 => ToDevice::Hello(Hello {
+            version: i.u16()?,
+            address: i.byte()?,
+            board: i.str()?,
+            robot: i.str()?,
+        }),
+        1 => ToDevice::Bye,
+        2 => ToDevice::Call {
+            id: i.u16()?,
+            db: i.byte()?,
+            op: WireOp {
+                fn_op: i.byte()?,
+                port: i.byte()?,
+                data: i.bytes()?,
+            },
+        },
+        3 => ToDevice::Diagnostics { id: i.u16()? },
+        4 => ToDevice::ListBoards { id: i.u16()? },
+        _ => return None,
+    };
+    i.rest.is_empty().then_some(msg)
+}
