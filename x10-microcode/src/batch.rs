@@ -58,7 +58,7 @@ impl<'a> Batch<'a> {
                 return Err(Error::NestedBatch);
             }
             let op = Op::parse(fn_op, port, data)?;
-            if op.is_deferred() || op.moves_board() {
+            if op.is_deferred() || op.moves_board() || op.is_together() {
                 return Err(Error::BadArgument);
             }
             reply += RESULT_HEADER + op.reply_capacity();
@@ -95,6 +95,15 @@ impl<'a> Batch<'a> {
         self.iter()
             .map(|op| RESULT_HEADER + op.reply_capacity())
             .sum()
+    }
+}
+
+impl<'a> BatchItems<'a> {
+    /// The items of `bytes` that were checked as a [`Batch`] before (a board's held
+    /// `stage`), parsed again one by one without checking the whole first: a malformed item
+    /// ends the iteration.
+    pub const fn of_checked(bytes: &'a [u8]) -> BatchItems<'a> {
+        BatchItems { rest: bytes }
     }
 }
 
@@ -139,7 +148,7 @@ impl<'b> BatchWriter<'b> {
         if matches!(op, Op::Batch(_)) {
             return Err(Error::NestedBatch);
         }
-        if op.is_deferred() || op.moves_board() {
+        if op.is_deferred() || op.moves_board() || op.is_together() {
             return Err(Error::BadArgument);
         }
         op.validate()?;

@@ -410,7 +410,9 @@ fn discovery_time_of_8_and_109_unaddressed_boards() {
             o.bus.arbitration_lost,
         );
         assert_eq!(finals.len(), n);
-        assert!(finals.iter().all(|a| (0x09..=0x76).contains(a) && *a != 0x64));
+        assert!(finals
+            .iter()
+            .all(|a| (0x09..=0x76).contains(a) && *a != 0x64));
         assert_eq!(o.mb.boards_found, n as u32);
         assert_eq!(o.mb.collisions, 0);
     }
