@@ -831,11 +831,8 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             }
             // A `sample` reads what a `scan` does, its values packed in 12 bits (one above:
             // `unsupported`, the MB scans that board instead).
+            #[cfg(feature = "together")]
             Op::Scan | Op::Sample => match self.read_sensors() {
-                // Without `together` a board answers `sample` `unsupported`.
-                _ if matches!(op, Op::Sample) && !cfg!(feature = "together") => {
-                    Done::status(Status::Unsupported)
-                }
                 Ok(r) => {
                     let mut buf = [0u8; MAX_PAYLOAD];
                     let n = if matches!(op, Op::Sample) {
@@ -850,12 +847,23 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 }
                 Err(s) => Done::status(s),
             },
+            #[cfg(not(feature = "together"))]
+            Op::Scan => match self.read_sensors() {
+                Ok(r) => {
+                    let mut buf = [0u8; MAX_PAYLOAD];
+                    match r.emit(&mut buf) {
+                        Ok(len) => Done::value(buf.get(..len).unwrap_or(&[])),
+                        Err(_) => Done::status(Status::BadLength),
+                    }
+                }
+                Err(s) => Done::status(s),
+            },
             #[cfg(feature = "together")]
             Op::Stage(b) => self.stage(seq, b),
             #[cfg(feature = "together")]
             Op::Apply => self.apply(seq),
             #[cfg(not(feature = "together"))]
-            Op::Stage(_) | Op::Apply => Done::status(Status::Unsupported),
+            Op::Sample | Op::Stage(_) | Op::Apply => Done::status(Status::Unsupported),
         }
     }
 

@@ -333,6 +333,7 @@ async fn serve<M: RawMutex, P: Ports, R: AddressRecord, B: MultiMaster>(
         Ok(Incoming::Write(n)) => (Some(n), false),
         // An empty write before the read (a controller that cannot read without one): a
         // plain read, which must not replace the reply held (a sweep's sample).
+        #[cfg(feature = "together")]
         Ok(Incoming::WriteRead(0)) => (None, true),
         Ok(Incoming::WriteRead(n)) => (Some(n), true),
         Ok(Incoming::Read) => (None, true),
