@@ -44,6 +44,12 @@ impl<'a> Batch<'a> {
     /// [`Error::NestedBatch`], [`Error::BadArgument`] for a deferred item, [`Error::TooLong`]
     /// when the results would not fit one reply, or the item's own parse error.
     pub fn new_checked(bytes: &'a [u8]) -> Result<Batch<'a>> {
+        Self::checked(bytes, false)
+    }
+
+    /// As [`Batch::new_checked`]; with `stage`, every item must be an output a `stage` may
+    /// hold ([`Op::is_stageable`], [`Error::BadArgument`] otherwise), checked in the same pass.
+    pub(crate) fn checked(bytes: &'a [u8], stage: bool) -> Result<Batch<'a>> {
         if bytes.is_empty() {
             return Err(Error::BadLength);
         }
@@ -58,7 +64,11 @@ impl<'a> Batch<'a> {
                 return Err(Error::NestedBatch);
             }
             let op = Op::parse(fn_op, port, data)?;
-            if op.is_deferred() || op.moves_board() || op.is_together() {
+            if op.is_deferred()
+                || op.moves_board()
+                || op.is_together()
+                || (stage && !op.is_stageable())
+            {
                 return Err(Error::BadArgument);
             }
             reply += RESULT_HEADER + op.reply_capacity();

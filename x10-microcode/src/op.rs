@@ -434,14 +434,12 @@ impl<'a> Op<'a> {
                     return Err(unknown);
                 }
                 no_port(port)?;
-                let b = Batch::new_checked(data)?;
-                if f == Function::Batch {
-                    Ok(Op::Batch(b))
-                } else if b.iter().all(|op| op.is_stageable()) {
-                    Ok(Op::Stage(b))
+                let b = Batch::checked(data, f == Function::Stage)?;
+                Ok(if f == Function::Batch {
+                    Op::Batch(b)
                 } else {
-                    Err(Error::BadArgument)
-                }
+                    Op::Stage(b)
+                })
             }
             Function::Scan => {
                 if operand != Operand::SCAN {
