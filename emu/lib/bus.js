@@ -161,7 +161,17 @@ export class Bus {
     c.part = { dir: c.read ? 'r' : 'w', addr: c.addr, bytes: [], ack: true, t: this.now() };
     c.rec.parts.push(c.part);
     this.at(9 * m.sclPeriodNs, () => {
-      const t = this.nodes.find((n) => n !== m && n.targetEnabled && (n.slaveAddress & 0x7f) === c.addr);
+      // A write to 0x00 is a general call: every target with IC_ACK_GENERAL_CALL set takes
+      // it (the first is `target`, the others `also`); a read from 0x00 is NACKed.
+      const general = c.addr === 0 && !c.read;
+      const takers = general
+        ? this.nodes.filter((n) => n !== m && n.targetEnabled && n.ackGeneralCall)
+        : [];
+      c.also = takers.slice(1);
+      for (const o of c.also) { o.slvActive = true; o.firstByte = true; }
+      const t = general
+        ? takers[0]
+        : this.nodes.find((n) => n !== m && n.targetEnabled && (n.slaveAddress & 0x7f) === c.addr);
       if (!t) {
         c.part.ack = false;
         m.abortTx(1 << 0); // ABRT_7B_ADDR_NOACK
@@ -224,6 +234,9 @@ export class Bus {
     const byte = c.cmd & 0xff;
     if (t && !t.slvDataNackOnly) {
       if (!t.targetReceive(byte)) { t.stall = 'rx'; return; } // SCL held low
+      // The other targets of a general call receive the same byte (a full RX FIFO there
+      // drops it: not modelled further, each holds 16 bytes and a general call is 5).
+      for (const o of c.also ?? []) o.targetReceive(byte);
       c.part.bytes.push(byte);
       c.inFlight = false;
       m.checkInterrupts();
@@ -277,7 +290,7 @@ export class Bus {
       m.raise(1 << 9); // STOP_DET
       for (const n of this.nodes) {
         if (n === m || !n.enabled) continue;
-        const addressed = n === c.addressedOnce;
+        const addressed = n === c.addressedOnce || (c.also ?? []).includes(n);
         if (addressed) n.slvActive = false;
         // Another master's STOP: a target sees it unless STOP_DET_IFADDRESSED; a controller
         // unless STOP_DET_IF_MASTER_ACTIVE (IC_CON bit 10, reset value 0: it does).

@@ -22,6 +22,8 @@ export class VirtualMb {
     // Target at the MB address, as embassy-rp sets one up.
     this.w(this.tgt, SAR, options.address ?? 0x08);
     this.w(this.tgt, CON, (1 << 8) | (1 << 9) | (2 << 1) | (1 << 7));
+    // Its own general calls are not events (IC_ACK_GENERAL_CALL resets to 1).
+    this.w(this.tgt, 0x98, 0);
     this.w(this.tgt, ENABLE, 1);
     this.events = []; // { t, bytes }
     this.rx = [];

@@ -72,3 +72,30 @@ test('a controller reset mid-transfer leaves without a STOP; its target stays ac
   assert.notEqual(rd(t, R.STATUS) & 0x40, 0, 'SLV_ACTIVITY stays set');
   assert.equal(rd(t, R.RAW) & INTR.STOP_DET, 0);
 });
+
+test('a general call (a write to 0x00) reaches every target that acknowledges general calls, and no other', () => {
+  const c = clock();
+  const bus = new Bus(c);
+  const m = chip(), t9 = chip(), t10 = chip(), t11 = chip();
+  for (const [n, x] of [['m', m], ['t9', t9], ['t10', t10], ['t11', t11]]) bus.attach(x.i2c[0], n);
+  controller(m, 0x00);
+  target(t9, 0x09);
+  target(t10, 0x0a);
+  target(t11, 0x0b);
+  wr(t11, R.ACK_GENERAL_CALL, 0);
+  wr(m, R.DATA_CMD, 0x81);
+  wr(m, R.DATA_CMD, 0x00 | (1 << 9));
+  c.run(1e6);
+  const [tr] = bus.transfers;
+  assert.equal(tr.parts[0].addr, 0);
+  assert.equal(tr.parts[0].ack, true);
+  assert.deepEqual(tr.parts[0].bytes, [0x81, 0x00]);
+  for (const t of [t9, t10]) {
+    assert.equal(rd(t, R.RXFLR), 2);
+    // The first byte is flagged FIRST_DATA_BYTE (bit 11), as after an addressed write.
+    assert.equal(rd(t, R.DATA_CMD), 0x81 | (1 << 11));
+    assert.equal(rd(t, R.DATA_CMD) & 0xff, 0x00);
+  }
+  assert.equal(rd(t11, R.RXFLR), 0);
+  assert.equal(rd(m, R.ABRT_SRC), 0);
+});

@@ -6,6 +6,8 @@ use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::RawMutex;
 use heapless::Vec;
 use x10_hal::time::{Clock, Instant};
+#[cfg(feature = "together")]
+use x10_microcode::sweep::STAGE_TIMEOUT_MS;
 use x10_microcode::{EventConfig, EventKind, Pin, PinRef, Port, Status};
 
 use crate::daughterboard::{bump, port_status, Daughterboard, MAX_EVENT_PINS};
@@ -88,6 +90,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         }
     }
 
+    #[cfg(not(feature = "together"))]
     async fn failsafe_loop<C: Clock>(&self, clock: &C) -> ! {
         let mut last = clock.now();
         let mut tripped = false;
@@ -113,7 +116,59 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         }
     }
 
+    /// The failsafe, and the timeout of staged outputs: what a `stage` holds is dropped
+    /// [`STAGE_TIMEOUT_MS`] after it (each `stage` is heard: the time starts then) unless an
+    /// `apply` took it.
+    #[cfg(feature = "together")]
+    async fn failsafe_loop<C: Clock>(&self, clock: &C) -> ! {
+        let mut last = clock.now();
+        let mut tripped = false;
+        // Far in the future while nothing is staged.
+        let mut stage_until = Instant(u64::MAX);
+        loop {
+            if self.with(|s| core::mem::take(&mut s.stage_fresh)) {
+                stage_until = clock.now().plus_ms(u64::from(STAGE_TIMEOUT_MS));
+            }
+            let timeout_ms = self.failsafe_timeout_ms();
+            let failsafe_at = if timeout_ms == 0 || tripped {
+                Instant(u64::MAX)
+            } else {
+                last.plus_ms(u64::from(timeout_ms))
+            };
+            let deadline = if stage_until < failsafe_at {
+                stage_until
+            } else {
+                failsafe_at
+            };
+            let woke = if deadline == Instant(u64::MAX) {
+                self.heard.wait().await;
+                Either::First(())
+            } else {
+                select(self.heard.wait(), clock.sleep_until(deadline)).await
+            };
+            match woke {
+                Either::First(()) => {
+                    last = clock.now();
+                    tripped = false;
+                }
+                Either::Second(()) => {
+                    if clock.now() >= stage_until {
+                        stage_until = Instant(u64::MAX);
+                        self.drop_stage(true);
+                    }
+                    if clock.now() >= failsafe_at {
+                        tripped = true;
+                        self.trip(timeout_ms).await;
+                    }
+                }
+            }
+        }
+    }
+
     async fn trip(&self, timeout_ms: u16) {
+        // Staged outputs never move an actuator the failsafe stopped.
+        #[cfg(feature = "together")]
+        self.drop_stage(false);
         self.apply_safe_state().await;
         self.with(|s| bump(&mut s.diag.failsafe_trips));
         self.push_event(

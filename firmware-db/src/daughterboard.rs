@@ -9,9 +9,9 @@ use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use heapless::Vec;
 use x10_microcode::{
-    pec, Address, Batch, BatchResults, BootInfo, Capabilities, Diagnostics, Edge, EventConfig,
-    EventKind, Identity, Op, PinRef, Port, PortKind, Reply, RequestFrame, ScanResult, Status,
-    MAX_PAYLOAD, MAX_REPLY_LEN, PROTOCOL_VERSION,
+    pec, sweep, Address, Batch, BatchResults, BootInfo, Capabilities, Diagnostics, Edge,
+    EventConfig, EventKind, Identity, Op, PinRef, Port, PortKind, Reply, RequestFrame, ScanResult,
+    Status, MAX_PAYLOAD, MAX_REPLY_LEN, PROTOCOL_VERSION,
 };
 
 use crate::config::DbConfig;
@@ -166,6 +166,14 @@ pub(crate) struct State {
     pub(crate) pulse_pins: Vec<PinRef, DEFERRED_QUEUE_LEN>,
     /// The address the board keeps now and moves to once its answer has gone out.
     moving: Option<Address>,
+    /// Outputs held by a `stage` (its batch items) until an `apply`, and its sequence number.
+    #[cfg(feature = "together")]
+    staged: Vec<u8, { x10_microcode::MAX_REQUEST_DATA }>,
+    #[cfg(feature = "together")]
+    stage_seq: u8,
+    /// A `stage` came since the background work last looked: its timeout starts.
+    #[cfg(feature = "together")]
+    pub(crate) stage_fresh: bool,
 }
 
 /// What the header of a request says, as far as it could be read.
@@ -257,6 +265,12 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 watch_generation: 0,
                 pulse_pins: Vec::new(),
                 moving: None,
+                #[cfg(feature = "together")]
+                staged: Vec::new(),
+                #[cfg(feature = "together")]
+                stage_seq: 0,
+                #[cfg(feature = "together")]
+                stage_fresh: false,
             })),
             events: Channel::new(),
             jobs: Channel::new(),
@@ -406,21 +420,27 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     pub fn handle_write(&self, bytes: &[u8], read_follows: bool) {
         // An unaddressed board checks every frame (nothing reaches 0x77 without its check).
         let pec_on = self.pec_enabled() || self.is_unaddressed();
-        let (head, done) = self.execute_frame(bytes, pec_on);
+        let broadcast = is_broadcast(bytes) && !self.config.address.is_internal();
+        if broadcast && self.is_unaddressed() {
+            return;
+        }
+        let (head, done) = self.execute_frame(bytes, pec_on, broadcast);
         self.with(|s| count_status(&mut s.diag, done.status));
         if self.is_unaddressed() {
             // Nothing is read at 0x77 and nothing is reported from there but `announce`.
         } else if head.expects_reply || read_follows {
             // In the PEC mode the board has now: the reply to a `set_pec` the board applied
             // is sent in the new mode, so that a motherboard reading it back knows the
-            // switch happened (with PEC on: a reply with a valid PEC byte).
-            let check = match (self.pec_enabled(), head.crc16_reply) {
+            // switch happened (with PEC on: a reply with a valid PEC byte). The reply to a
+            // general call (`sample`, `apply`, held for a plain read) always has its check.
+            let check = match (self.pec_enabled() || broadcast, head.crc16_reply) {
                 (false, _) => Check::None,
                 (true, false) => Check::ByLength,
                 (true, true) => Check::Crc16,
             };
             self.store_reply(head.seq, done.status, &done.value, check);
-        } else if !matches!(done.status, Status::Ok | Status::Pending) {
+        } else if !matches!(done.status, Status::Ok | Status::Pending) && !broadcast {
+            // A general call is answered by no event (every board would send one).
             self.push_event(
                 EventKind::Rejected,
                 PinRef::from_byte(head.port),
@@ -623,15 +643,21 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     }
 
     /// Validates and executes one frame.
-    fn execute_frame(&self, bytes: &[u8], pec_on: bool) -> (Head, Done) {
+    fn execute_frame(&self, bytes: &[u8], pec_on: bool, broadcast: bool) -> (Head, Done) {
         let mut head = Head {
             seq: bytes.get(3).copied().unwrap_or(0),
             port: bytes.get(2).copied().unwrap_or(0),
             expects_reply: false,
             crc16_reply: false,
         };
-        let body = if pec_on {
-            match pec::strip(self.config.address.addr_byte(false), bytes) {
+        let body = if pec_on || broadcast {
+            // A general call always carries its check, over the address byte 0x00.
+            let addr = if broadcast {
+                sweep::GENERAL_CALL
+            } else {
+                self.config.address.addr_byte(false)
+            };
+            match pec::strip(addr, bytes) {
                 Ok(b) => b,
                 // `who_is_there` is taken without its check too: the motherboard's start-up
                 // sweep cannot know the board's PEC setting, and it changes nothing.
@@ -645,10 +671,14 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             Ok(f) => f,
             Err(e) => return (head, Done::status(e.status())),
         };
-        if frame.db() != self.config.address.get() {
+        if frame.db() != self.config.address.get() && !broadcast {
             return (head, Done::status(Status::WrongAddress));
         }
         let op = match Op::parse(frame.fn_op(), frame.port_byte(), frame.data()) {
+            // Only `sample` and `apply` are written to every board at once.
+            Ok(op) if broadcast && !matches!(op, Op::Sample | Op::Apply) => {
+                return (head, Done::status(Status::BadArgument))
+            }
             Ok(op) => op,
             Err(e) => return (head, Done::status(e.status())),
         };
@@ -683,7 +713,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             Op::SetPec(true) => Some(Capabilities::PEC),
             Op::SetFailsafe { .. } => Some(Capabilities::FAILSAFE),
             Op::Batch(_) => Some(Capabilities::BATCH),
-            Op::Scan => Some(Capabilities::SCAN),
+            Op::Scan | Op::Sample => Some(Capabilities::SCAN),
             Op::PwmFrequency(..) => Some(Capabilities::PWM_FREQUENCY),
             Op::PwmPulseWidth(..) => Some(Capabilities::PWM_PULSE_WIDTH),
             _ => None,
@@ -799,7 +829,92 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 );
                 Done::ok()
             }
-            Op::Scan => self.scan(),
+            // A `sample` reads what a `scan` does, its values packed in 12 bits (one above:
+            // `unsupported`, the MB scans that board instead).
+            #[cfg(feature = "together")]
+            Op::Scan | Op::Sample => match self.read_sensors() {
+                Ok(r) => {
+                    let mut buf = [0u8; MAX_PAYLOAD];
+                    let n = if matches!(op, Op::Sample) {
+                        sweep::pack(&r, &mut buf)
+                    } else {
+                        r.emit(&mut buf)
+                    };
+                    match n {
+                        Ok(len) => Done::value(buf.get(..len).unwrap_or(&[])),
+                        Err(_) => Done::status(Status::Unsupported),
+                    }
+                }
+                Err(s) => Done::status(s),
+            },
+            #[cfg(not(feature = "together"))]
+            Op::Scan => match self.read_sensors() {
+                Ok(r) => {
+                    let mut buf = [0u8; MAX_PAYLOAD];
+                    match r.emit(&mut buf) {
+                        Ok(len) => Done::value(buf.get(..len).unwrap_or(&[])),
+                        Err(_) => Done::status(Status::BadLength),
+                    }
+                }
+                Err(s) => Done::status(s),
+            },
+            #[cfg(feature = "together")]
+            Op::Stage(b) => self.stage(seq, b),
+            #[cfg(feature = "together")]
+            Op::Apply => self.apply(seq),
+            #[cfg(not(feature = "together"))]
+            Op::Sample | Op::Stage(_) | Op::Apply => Done::status(Status::Unsupported),
+        }
+    }
+
+    /// `stage`: held (replacing what was held) until `apply` or the timeout; nothing is
+    /// executed. Its items were parsed (outputs only); each is checked as it is executed.
+    #[cfg(feature = "together")]
+    fn stage(&self, seq: u8, b: Batch<'_>) -> Done {
+        self.with(|s| {
+            s.staged.clear();
+            let _ = s.staged.extend_from_slice(b.as_bytes());
+            s.stage_seq = seq;
+            s.stage_fresh = true;
+        });
+        Done::ok()
+    }
+
+    /// `apply`: executes what is held, item by item; the first refusal is the status (held
+    /// for the MB's plain read). With nothing held it does nothing (`ok`).
+    #[cfg(feature = "together")]
+    fn apply(&self, seq: u8) -> Done {
+        let held = self.with(|s| core::mem::take(&mut s.staged));
+        let mut status = Status::Ok;
+        for op in x10_microcode::BatchItems::of_checked(&held) {
+            let s = self.execute_op(seq, &op).status;
+            if status.is_ok() {
+                status = s;
+            }
+        }
+        Done::status(status)
+    }
+
+    /// Drops held outputs no `apply` took (see [`sweep::STAGE_TIMEOUT_MS`]): counted as a
+    /// `timeout` and reported in a `rejected` event with the `stage`'s sequence number.
+    #[cfg(feature = "together")]
+    pub(crate) fn drop_stage(&self, report: bool) {
+        let seq = self.with(|s| {
+            if s.staged.is_empty() {
+                return None;
+            }
+            s.staged.clear();
+            Some(s.stage_seq)
+        });
+        if let (Some(seq), true) = (seq, report) {
+            self.with(|s| count_status(&mut s.diag, Status::Timeout));
+            self.push_event(
+                EventKind::Rejected,
+                PinRef::from_byte(0),
+                Some(seq),
+                Status::Timeout,
+                &[],
+            );
         }
     }
 
@@ -867,7 +982,8 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         Done::status(status)
     }
 
-    fn scan(&self) -> Done {
+    /// Every sensor port's levels and analog value (what `scan` and `sample` report).
+    fn read_sensors(&self) -> Result<ScanResult, Status> {
         let n = self.ports.sensor_ports().min(ScanResult::MAX_PORTS as u8);
         let mut r = ScanResult {
             ports: n,
@@ -875,7 +991,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         };
         for i in 0..n {
             let Ok(port) = Port::sensor(i + 1) else {
-                return Done::status(Status::PortOutOfRange);
+                return Err(Status::PortOutOfRange);
             };
             for (bit, pin) in [(0, x10_microcode::Pin::A), (1, x10_microcode::Pin::B)] {
                 match self.ports.digital_read(port.pin(pin)) {
@@ -884,7 +1000,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                             r.digital |= 1 << (2 * u32::from(i) + bit);
                         }
                     }
-                    Err(e) => return Done::status(port_status(e)),
+                    Err(e) => return Err(port_status(e)),
                 }
             }
             match self.ports.analog_read(port) {
@@ -893,15 +1009,17 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                         *slot = v;
                     }
                 }
-                Err(e) => return Done::status(port_status(e)),
+                Err(e) => return Err(port_status(e)),
             }
         }
-        let mut buf = [0u8; MAX_PAYLOAD];
-        match r.emit(&mut buf) {
-            Ok(len) => Done::value(buf.get(..len).unwrap_or(&[])),
-            Err(_) => Done::status(Status::BadLength),
-        }
+        Ok(r)
     }
+}
+
+/// A frame written to the general call address: byte 1 (the DB address) is 0, which no board
+/// on the bus has (only the motherboard's internal board, which is never on the bus).
+fn is_broadcast(bytes: &[u8]) -> bool {
+    cfg!(feature = "together") && bytes.get(1) == Some(&0)
 }
 
 fn count_dropped(s: &mut State) {

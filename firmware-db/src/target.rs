@@ -331,6 +331,10 @@ async fn serve<M: RawMutex, P: Ports, R: AddressRecord, B: MultiMaster>(
     // One await of each (each await point of an async fn costs code and state: issue 12).
     let (write, read) = match incoming {
         Ok(Incoming::Write(n)) => (Some(n), false),
+        // An empty write before the read (a controller that cannot read without one): a
+        // plain read, which must not replace the reply held (a sweep's sample).
+        #[cfg(feature = "together")]
+        Ok(Incoming::WriteRead(0)) => (None, true),
         Ok(Incoming::WriteRead(n)) => (Some(n), true),
         Ok(Incoming::Read) => (None, true),
         Err(BusError::Overrun) => {

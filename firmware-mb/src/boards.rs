@@ -95,6 +95,14 @@ impl Boards {
         payload.first() == Some(&sensors.min(8))
     }
 
+    /// `board`'s sensor ports (up to 8 are scanned), when its port counts are known.
+    pub(crate) fn sensor_ports(&self, board: Address) -> Option<u8> {
+        let i = board_index(board);
+        self.ports_known
+            .contains(i)
+            .then(|| (self.ports.get(i).copied().unwrap_or(0) >> 4).min(8))
+    }
+
     /// True when `board`'s port counts are known.
     pub(crate) fn ports_known(&self, board: Address) -> bool {
         self.ports_known.contains(board_index(board))
@@ -128,7 +136,7 @@ impl Boards {
             None => Ok(()),
         };
         match op {
-            Op::Batch(b) => b.iter().try_for_each(|item| check(&item)),
+            Op::Batch(b) | Op::Stage(b) => b.iter().try_for_each(|item| check(&item)),
             _ => check(op),
         }
     }

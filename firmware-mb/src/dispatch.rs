@@ -11,11 +11,12 @@ use x10_devices::LinkError;
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
 use x10_hal::retry::Backoff;
 use x10_hal::time::Instant;
-use x10_microcode::{Address, Op, Request, Status, MAX_FRAME_LEN, REPLY_HEADER_LEN};
+use x10_microcode::sweep::GENERAL_CALL;
+use x10_microcode::{pec, Address, Op, Request, Status, MAX_FRAME_LEN, REPLY_HEADER_LEN};
 
 use crate::boards::{pec_change, REMEMBERED_ENABLES};
 use crate::diag::bump;
-use crate::jobs::Job;
+use crate::jobs::{Job, JobKind};
 use crate::keepalive::{KeepaliveOp, Next};
 use crate::mb_core::{now, sleep_until, MbCore};
 use crate::transfer::{link_error, request_op, Outcome};
@@ -295,6 +296,11 @@ impl MbCore {
             ^ u32::from(meta.seq);
         let mut backoff = Backoff::new(self.config.retry, seed);
         let mut read = [0u8; MAX_FRAME_LEN];
+        if meta.kind != JobKind::Request {
+            self.dispatch_raw(bus, job, &mut backoff, &mut read, rx)
+                .await;
+            return;
+        }
         let addr = meta.db.get();
         let switches_pec_on = request_op(&job.frame).and_then(|op| pec_change(&op)) == Some(true);
         loop {
@@ -344,6 +350,59 @@ impl MbCore {
         }
     }
 
+    /// A general call (its frame with its check over the address byte 0x00, to every board)
+    /// or a plain read of a board (`meta.read` bytes, no write first), retried as requests
+    /// are; no board is prepared for it (that would take a sample held for the read). A NACK
+    /// of a plain read marks the board gone; of a general call, it means no board took it.
+    async fn dispatch_raw<B: MultiMaster>(
+        &self,
+        bus: &mut B,
+        job: &Job,
+        backoff: &mut Backoff,
+        read: &mut [u8],
+        rx: &mut [u8],
+    ) {
+        let meta = &job.meta;
+        let general = meta.kind == JobKind::GeneralCall;
+        let addr = if general { GENERAL_CALL } else { meta.db.get() };
+        let mut frame = job.frame.clone();
+        if general {
+            let n = frame.len();
+            let _ = frame.resize(n + 1, 0);
+            if pec::append(GENERAL_CALL, &mut frame, n).is_err() {
+                self.finish_transfer(job, true, Err(BusError::Overrun));
+                return;
+            }
+        }
+        loop {
+            match self.attempt(bus, addr, &frame, meta.read, read).await {
+                Ok(bytes) => {
+                    self.finish_transfer(job, true, Ok(bytes));
+                    return;
+                }
+                // A general call nobody acknowledges: no board takes them (built without
+                // `together`); not retried, the caller reads each board on its own.
+                Err(BusError::Nack) if general => {
+                    self.finish_transfer(job, true, Err(BusError::Nack));
+                    return;
+                }
+                Err(e) => {
+                    if !self.after_failure(bus, e, backoff, addr, rx).await {
+                        if e == BusError::Nack && !general {
+                            self.board_gone(meta.db);
+                        }
+                        self.finish_transfer(job, true, Err(e));
+                        return;
+                    }
+                }
+            }
+            if !self.is_queued(meta.ticket) {
+                self.with(|t| bump(&mut t.diag.abandoned));
+                return;
+            }
+        }
+    }
+
     /// One transaction: `frame` written to `addr`, then `read_len` bytes read after a
     /// repeated START (`None`: a single write). The bytes read, if any.
     async fn attempt<'r, B: MultiMaster>(
@@ -356,6 +415,10 @@ impl MbCore {
     ) -> Result<Option<&'r [u8]>, BusError> {
         match read_len {
             Some(n) => match read.get_mut(..n) {
+                Some(buf) if frame.is_empty() => {
+                    bus.read(addr, buf).await?;
+                    Ok(Some(buf))
+                }
                 Some(buf) => {
                     bus.write_read(addr, frame, buf).await?;
                     Ok(Some(buf))

@@ -9,6 +9,7 @@ use crate::diag::MbDiagnostics;
 use crate::directory::{BoardQuery, KnownBoard};
 use crate::mb_core::MbCore;
 use crate::mb_core::{now, sleep_until};
+use crate::together::{NotTogether, SweepResult, SweepSummary, Together};
 
 /// How often [`X10::wait_for_board`] looks (5 ms).
 pub const WAIT_FOR_BOARD_POLL_US: u64 = 5_000;
@@ -134,6 +135,40 @@ impl X10 {
     /// As [`X10::call`]; `LinkError::Status(unsupported)` from a board without one.
     pub async fn blink(&self, db: Address, secs: u8) -> Result<(), LinkError> {
         self.core.call(db, Op::Blink(secs)).await.map(|_| ())
+    }
+
+    /// Every sensor port of every board in `boards`, read from one moment: one `sample` to
+    /// every board at once (the I2C general call), then one short read per board; a board
+    /// that missed it is read with a `scan` of its own, one that is gone gets its error, and
+    /// no board's error fails another's. See [`MbCore::sweep`].
+    ///
+    /// ```ignore
+    /// let mut values = [Ok(ScanResult::default()); 3];
+    /// x10.sweep(&[LEFT, RIGHT, HEAD], &mut values).await;
+    /// ```
+    pub async fn sweep(&self, boards: &[Address], out: &mut [SweepResult]) -> SweepSummary {
+        self.core.sweep(boards, out).await
+    }
+
+    /// Outputs on several boards that change at once: set them in `set`, then they are
+    /// applied together (one `apply` written to every board at once). See
+    /// [`MbCore::together`].
+    ///
+    /// ```ignore
+    /// x10.together(|t| {
+    ///     t.set(LEFT, Op::PwmDuty(motor_a, 200))?;
+    ///     t.set(RIGHT, Op::PwmDuty(motor_a, 200))
+    /// })
+    /// .await?;
+    /// ```
+    ///
+    /// # Errors
+    /// The first board that did not apply with the others ([`NotTogether`]).
+    pub async fn together(
+        &self,
+        set: impl FnOnce(&mut Together) -> Result<(), LinkError>,
+    ) -> Result<(), NotTogether> {
+        self.core.together(set).await
     }
 
     /// The motherboard's counters.

@@ -16,10 +16,24 @@ use crate::requests::{Ticket, MAX_PENDING};
 /// slot never waits for room in the queue ([`MAX_PENDING`]).
 pub const REQUEST_QUEUE_LEN: usize = MAX_PENDING;
 
+/// What kind of transfer a job is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum JobKind {
+    /// A request to its board, prepared first, read back as its operation says.
+    Request,
+    /// The frame written to the general call address (0x00) with its check over `0x00`
+    /// (`sample`, `apply`); no board is prepared for it.
+    GeneralCall,
+    /// A plain read (no write first) of `read` bytes from the board, handed back raw (a sweep
+    /// frame, an `apply`'s status).
+    PlainRead,
+}
+
 /// What the dispatcher needs to know about a request besides its bytes.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct JobMeta {
     pub(crate) ticket: Ticket,
+    pub(crate) kind: JobKind,
     pub(crate) db: Address,
     pub(crate) seq: u8,
     /// Payload bytes to read after a repeated START, besides the reply header and the PEC
@@ -56,6 +70,7 @@ impl Job {
                     index: usize::MAX,
                     generation: 0,
                 },
+                kind: JobKind::Request,
                 db,
                 seq,
                 read,
@@ -140,6 +155,7 @@ mod tests {
                     index,
                     generation: 1,
                 },
+                kind: JobKind::Request,
                 db: Address::new(board).unwrap(),
                 seq: 0,
                 read: None,

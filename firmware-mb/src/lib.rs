@@ -56,6 +56,7 @@ mod table;
 mod mb_core;
 // 6. On the core: what a finished transfer means, where events go.
 mod routing;
+mod together;
 mod transfer;
 // 7. The dispatcher (transfers, events) and the programs' handle (calls, events).
 mod dispatch;
@@ -74,4 +75,5 @@ pub use mb_core::MbCore;
 pub use motherboard::Motherboard;
 pub use observe::{CallObserver, CallRecord};
 pub use requests::{MAX_PENDING, RECENT_LEN};
+pub use together::{NotTogether, SweepResult, SweepSummary, Together, MAX_TOGETHER};
 pub use waiters::{MAX_EVENT_WAITERS, UNCLAIMED_EVENTS};

@@ -304,6 +304,7 @@ impl MbCore {
         frame.truncate(len);
         let meta = JobMeta {
             ticket,
+            kind: crate::jobs::JobKind::Request,
             db,
             seq,
             // A set_pec or set_failsafe is read back too: it takes effect on the
@@ -376,7 +377,11 @@ impl MbCore {
     ///
     /// # Errors
     /// [`LinkError::Busy`] when none was free by `deadline` (counted once in `busy`).
-    async fn claim_slot(&self, db: Address, deadline: Instant) -> Result<(Ticket, u8), LinkError> {
+    pub(crate) async fn claim_slot(
+        &self,
+        db: Address,
+        deadline: Instant,
+    ) -> Result<(Ticket, u8), LinkError> {
         // Counted in `slot_waiting` while it waits (and uncounted if its caller goes away).
         let mut waiting = SlotWait {
             mb: self,
@@ -429,6 +434,11 @@ impl MbCore {
                 Either::Second(()) => {}
             }
         }
+    }
+
+    /// Wakes the dispatcher for a job just queued.
+    pub(crate) fn job_ready_signal(&self) {
+        self.job_ready.signal(());
     }
 
     /// The oldest queued job; waits for one. Cancel-safe: a job is taken out only when this

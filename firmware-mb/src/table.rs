@@ -100,6 +100,7 @@ mod tests {
             .unwrap();
         let meta = crate::jobs::JobMeta {
             ticket,
+            kind: crate::jobs::JobKind::Request,
             db: addr(board),
             seq,
             read: Some(0),

@@ -54,6 +54,17 @@ impl MbCore {
         let replied = matches!(r, Ok(Some(_)));
         // The board saw a transaction: that keeps its failsafe alive (recorded below).
         let acked = r.is_ok();
+        if meta.kind != crate::jobs::JobKind::Request {
+            // A general call or a plain read: the bytes go back raw, their caller checks them.
+            let raw = match r {
+                Ok(bytes) => {
+                    Payload::from_slice(bytes.unwrap_or(&[])).map_err(|_| LinkError::BadReply)
+                }
+                Err(e) => Err(link_error(e)),
+            };
+            self.end_job(meta, Outcome::Complete(raw), acked, replied);
+            return;
+        }
         let outcome = match r {
             Ok(None) => Outcome::Complete(Ok(Payload::new())),
             Ok(Some(read)) => match request_op(&job.frame) {

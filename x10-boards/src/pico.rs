@@ -573,7 +573,9 @@ impl PicoBus {
         let (i2c, scl, sda) = self.parts();
         let mut cfg = i2c_slave::Config::default();
         cfg.addr = u16::from(self.config.own_address);
-        cfg.general_call = false;
+        // With `together`, general calls (a sweep's `sample`, an `apply`) reach the listener
+        // as writes: IC_ACK_GENERAL_CALL (embassy-rp `i2c_slave.rs` 150-153; docs/boards.md).
+        cfg.general_call = cfg!(feature = "together");
         let hold = self.sda_hold;
         self.target.get_or_insert_with(|| {
             let t = i2c_slave::I2cSlave::new(i2c, scl, sda, Irqs, cfg);
@@ -900,6 +902,16 @@ impl MultiMaster for PicoBus {
             c.write_read_async(addr, bytes.iter().copied(), read),
         )
         .await;
+        self.finish(r).await
+    }
+
+    async fn read(&mut self, addr: u8, read: &mut [u8]) -> Result<(), BusError> {
+        if read.is_empty() {
+            return Err(BusError::Bus);
+        }
+        let timeout = self.timeout();
+        let c = self.controller()?;
+        let r = with_timeout(timeout, c.read_async(addr, read)).await;
         self.finish(r).await
     }
 

@@ -133,7 +133,13 @@ macro_rules! stm32_build {
                     (p.$sda.port(), p.$sda.pin()),
                 ];
                 let i2c = I2c::new(p.$i2c, p.$scl, p.$sda, p.$tx, p.$rx, Irqs, cfg)
-                    .into_slave_multimaster(SlaveAddrConfig::basic(bus.own_address));
+                    .into_slave_multimaster(SlaveAddrConfig {
+                        // With `together` a daughterboard takes general calls (`sample`,
+                        // `apply`): CR1.GCEN (embassy-stm32 `i2c/v2.rs` 1554, RM0440
+                        // §37.4.8); they reach its listener as writes (ADDCODE 0).
+                        general_call: cfg!(feature = "together"),
+                        ..SlaveAddrConfig::basic(bus.own_address)
+                    });
                 let sensors = [ $( SensorPort {
                     gpio: [(p.$sa.port(), p.$sa.pin()), (p.$sb.port(), p.$sb.pin())],
                     pins: [Lock::new(input(p.$sa.into())), Lock::new(input(p.$sb.into()))],

@@ -171,6 +171,9 @@ const OPS: &[OpInfo] = ops! {
     update commit            0x72 Board []                  true;
     update status            0x73 Board []                  true;
     update leave             0x74 Board []                  true;
+    sweep  sample            0x80 Board []                  true;
+    sweep  apply             0x81 Board []                  true;
+    stage  stage             0x90 Board [items]             false;
 };
 
 fn op_info(function: &str, operation: &str) -> Option<&'static OpInfo> {
@@ -199,7 +202,7 @@ impl Answers {
     fn crc16_reply(&self) -> bool {
         matches!(
             self.name.as_str(),
-            "scan.scan" | "serial.read" | "batch.batch"
+            "scan.scan" | "serial.read" | "batch.batch" | "sweep.sample"
         )
     }
 
@@ -714,9 +717,12 @@ fn data_from_fields(o: Input<'_>, info: &OpInfo, pin: Option<PinRef>) -> Result<
         }
         ("serial", "read") => Op::SerialRead(pin.port, need(f.count, "count", &what)?),
         ("serial", "config") => Op::SerialConfig(pin.port, need(f.baud, "baud", &what)?),
-        ("batch", "batch") => {
+        ("batch", "batch") | ("stage", "stage") => {
             let items = f.items.and(o.get("items")).ok_or_else(|| {
-                CodecError::new("`items` (an array of operations) is required for batch")
+                CodecError::new(format!(
+                    "`items` (an array of operations) is required for {}",
+                    info.function
+                ))
             })?;
             return batch_data(items);
         }

@@ -82,6 +82,18 @@ pub trait MultiMaster {
     async fn write_read(&mut self, addr: u8, bytes: &[u8], read: &mut [u8])
         -> Result<(), BusError>;
 
+    /// Reads `read.len()` bytes from `addr` with nothing written first (START, address+R,
+    /// bytes, STOP): how a motherboard collects what a general call left on each board
+    /// (a sweep). The default is [`MultiMaster::write_read`] with no bytes written, for ports
+    /// whose controller sends an empty write phase then a repeated START (10 bit times more);
+    /// a daughterboard takes both forms alike.
+    ///
+    /// # Errors
+    /// As [`MultiMaster::write`].
+    async fn read(&mut self, addr: u8, read: &mut [u8]) -> Result<(), BusError> {
+        self.write_read(addr, &[], read).await
+    }
+
     /// Waits until a controller has addressed this node at its own address (address matched;
     /// the port holds the transaction, SCL stretched or bytes queued in its receive FIFO, until
     /// [`MultiMaster::listen`] takes it). Returns at once when such a transaction is already

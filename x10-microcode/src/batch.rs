@@ -44,6 +44,12 @@ impl<'a> Batch<'a> {
     /// [`Error::NestedBatch`], [`Error::BadArgument`] for a deferred item, [`Error::TooLong`]
     /// when the results would not fit one reply, or the item's own parse error.
     pub fn new_checked(bytes: &'a [u8]) -> Result<Batch<'a>> {
+        Self::checked(bytes, false)
+    }
+
+    /// As [`Batch::new_checked`]; with `stage`, every item must be an output a `stage` may
+    /// hold ([`Op::is_stageable`], [`Error::BadArgument`] otherwise), checked in the same pass.
+    pub(crate) fn checked(bytes: &'a [u8], stage: bool) -> Result<Batch<'a>> {
         if bytes.is_empty() {
             return Err(Error::BadLength);
         }
@@ -58,7 +64,11 @@ impl<'a> Batch<'a> {
                 return Err(Error::NestedBatch);
             }
             let op = Op::parse(fn_op, port, data)?;
-            if op.is_deferred() || op.moves_board() {
+            if op.is_deferred()
+                || op.moves_board()
+                || op.is_together()
+                || (stage && !op.is_stageable())
+            {
                 return Err(Error::BadArgument);
             }
             reply += RESULT_HEADER + op.reply_capacity();
@@ -95,6 +105,15 @@ impl<'a> Batch<'a> {
         self.iter()
             .map(|op| RESULT_HEADER + op.reply_capacity())
             .sum()
+    }
+}
+
+impl<'a> BatchItems<'a> {
+    /// The items of `bytes` that were checked as a [`Batch`] before (a board's held
+    /// `stage`), parsed again one by one without checking the whole first: a malformed item
+    /// ends the iteration.
+    pub const fn of_checked(bytes: &'a [u8]) -> BatchItems<'a> {
+        BatchItems { rest: bytes }
     }
 }
 
@@ -139,7 +158,7 @@ impl<'b> BatchWriter<'b> {
         if matches!(op, Op::Batch(_)) {
             return Err(Error::NestedBatch);
         }
-        if op.is_deferred() || op.moves_board() {
+        if op.is_deferred() || op.moves_board() || op.is_together() {
             return Err(Error::BadArgument);
         }
         op.validate()?;

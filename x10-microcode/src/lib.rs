@@ -53,6 +53,7 @@ mod request;
 #[cfg(feature = "serde")]
 mod serde_repr;
 mod status;
+pub mod sweep;
 mod system;
 #[cfg(feature = "test-support")]
 #[doc(hidden)]

@@ -29,6 +29,11 @@ pub enum Function {
     Scan,
     /// 0x7, new: the frames a board's bootloader answers during a firmware update.
     Update,
+    /// 0x8, new: requests to every board at once, written to the I2C general call address
+    /// (`sample` for a sweep, `apply` for staged outputs).
+    Sweep,
+    /// 0x9, new: outputs held by the board until an `apply`.
+    Stage,
     /// Any other code.
     Unknown(u8),
 }
@@ -45,6 +50,8 @@ impl Function {
             5 => Function::Batch,
             6 => Function::Scan,
             7 => Function::Update,
+            8 => Function::Sweep,
+            9 => Function::Stage,
             x => Function::Unknown(x),
         }
     }
@@ -60,6 +67,8 @@ impl Function {
             Function::Batch => 5,
             Function::Scan => 6,
             Function::Update => 7,
+            Function::Sweep => 8,
+            Function::Stage => 9,
             Function::Unknown(x) => x,
         }
     }
@@ -75,6 +84,8 @@ impl Function {
             Function::Batch => "batch",
             Function::Scan => "scan",
             Function::Update => "update",
+            Function::Sweep => "sweep",
+            Function::Stage => "stage",
             Function::Unknown(_) => "unknown",
         }
     }
@@ -113,6 +124,9 @@ impl Operand {
     pub const SERIAL_CONFIG: u8 = 2;
     pub const BATCH: u8 = 0;
     pub const SCAN: u8 = 0;
+    pub const SWEEP_SAMPLE: u8 = 0;
+    pub const SWEEP_APPLY: u8 = 1;
+    pub const STAGE: u8 = 0;
 }
 
 /// One operation on a daughterboard.
@@ -201,6 +215,18 @@ pub enum Op<'a> {
     Batch(Batch<'a>),
     /// SCAN 0: every sensor port at once; reply with a [`crate::ScanResult`].
     Scan,
+    /// SWEEP 0, written to the general call address (byte 1 = 0), always with its check:
+    /// every board samples its sensor ports at once and holds the reply (levels and values
+    /// packed, [`crate::sweep::pack`], always with a CRC-16) for the motherboard's plain read.
+    Sample,
+    /// SWEEP 1, written to the general call address (or to one board), always with its
+    /// check: every board applies what it holds staged, at once, and holds its status reply
+    /// for a plain read (`ok` with nothing staged: nothing done).
+    Apply,
+    /// STAGE 0: outputs (batch items: io low/high, pwm duty, frequency, pulse width),
+    /// checked now and held until an [`Op::Apply`] (or dropped after
+    /// [`crate::sweep::STAGE_TIMEOUT_MS`]). No reply.
+    Stage(Batch<'a>),
 }
 
 fn u16_le(data: &[u8]) -> Result<u16> {
@@ -402,12 +428,18 @@ impl<'a> Op<'a> {
                 port_only(port)?;
                 Ok(op)
             }
-            Function::Batch => {
+            // One path for both (one call of `Batch::new_checked`: smaller images).
+            f @ (Function::Batch | Function::Stage) => {
                 if operand != Operand::BATCH {
                     return Err(unknown);
                 }
                 no_port(port)?;
-                Ok(Op::Batch(Batch::new_checked(data)?))
+                let b = Batch::checked(data, f == Function::Stage)?;
+                Ok(if f == Function::Batch {
+                    Op::Batch(b)
+                } else {
+                    Op::Stage(b)
+                })
             }
             Function::Scan => {
                 if operand != Operand::SCAN {
@@ -418,6 +450,17 @@ impl<'a> Op<'a> {
                 Ok(Op::Scan)
             }
             Function::Update => crate::UpdateFrame::parse(operand, port, data).map(Op::Update),
+            Function::Sweep => {
+                let op = match operand {
+                    Operand::SWEEP_SAMPLE => Op::Sample,
+                    Operand::SWEEP_APPLY => Op::Apply,
+                    _ => return Err(unknown),
+                };
+                no_data(data)?;
+                no_port(port)?;
+                Ok(op)
+            }
+
             Function::Unknown(f) => Err(Error::UnknownFunction(f)),
         }
     }
@@ -446,6 +489,8 @@ impl<'a> Op<'a> {
             Op::Batch(_) => Function::Batch,
             Op::Scan => Function::Scan,
             Op::Update(_) => Function::Update,
+            Op::Sample | Op::Apply => Function::Sweep,
+            Op::Stage(_) => Function::Stage,
         }
     }
 
@@ -486,6 +531,9 @@ impl<'a> Op<'a> {
             Op::SerialConfig(..) => Operand::SERIAL_CONFIG,
             Op::Batch(_) => Operand::BATCH,
             Op::Scan => Operand::SCAN,
+            Op::Sample => Operand::SWEEP_SAMPLE,
+            Op::Apply => Operand::SWEEP_APPLY,
+            Op::Stage(_) => Operand::STAGE,
         }
     }
 
@@ -523,7 +571,10 @@ impl<'a> Op<'a> {
             | Op::ConfirmFirmware
             | Op::Update(_)
             | Op::Batch(_)
-            | Op::Scan => None,
+            | Op::Scan
+            | Op::Sample
+            | Op::Apply
+            | Op::Stage(_) => None,
         }
     }
 
@@ -570,6 +621,9 @@ impl<'a> Op<'a> {
             Op::SerialConfig(..) => "config",
             Op::Batch(_) => "batch",
             Op::Scan => "scan",
+            Op::Sample => "sample",
+            Op::Apply => "apply",
+            Op::Stage(_) => "stage",
         }
     }
 
@@ -587,7 +641,9 @@ impl<'a> Op<'a> {
             | Op::WhoIsThere
             | Op::EnterUpdate
             | Op::ConfirmFirmware
-            | Op::Scan => 0,
+            | Op::Scan
+            | Op::Sample
+            | Op::Apply => 0,
             Op::SetPec(_)
             | Op::SetAddress(_)
             | Op::Blink(_)
@@ -605,7 +661,7 @@ impl<'a> Op<'a> {
             Op::SerialConfig(..) => 4,
             Op::EventEnable(..) => EventConfig::LEN,
             Op::SerialWrite(_, data) => data.len(),
-            Op::Batch(b) => b.as_bytes().len(),
+            Op::Batch(b) | Op::Stage(b) => b.as_bytes().len(),
             Op::Update(u) => u.data().len(),
         }
     }
@@ -638,7 +694,7 @@ impl<'a> Op<'a> {
             Op::SerialConfig(_, baud) => copy_into(buf, &baud.to_le_bytes()),
             Op::EventEnable(_, cfg) => copy_into(buf, &cfg.to_bytes()),
             Op::SerialWrite(_, data) => copy_into(buf, data),
-            Op::Batch(b) => copy_into(buf, b.as_bytes()),
+            Op::Batch(b) | Op::Stage(b) => copy_into(buf, b.as_bytes()),
             Op::Update(u) => copy_into(buf, u.data()),
             // The operations without data: those whose `data_len` is 0 (which of them carry
             // data is `data_len`'s to say; tests/vectors.rs `request_emit` checks that the two
@@ -680,6 +736,8 @@ impl<'a> Op<'a> {
                 | Op::EnterUpdate
                 | Op::ConfirmFirmware
                 | Op::Update(_)
+                | Op::Sample
+                | Op::Apply
         )
     }
 
@@ -694,6 +752,7 @@ impl<'a> Op<'a> {
             Op::ReadDiagnostics => crate::Diagnostics::LEN,
             Op::SerialRead(_, n) => *n as usize,
             Op::Scan => crate::ScanResult::MAX_LEN,
+            Op::Sample => crate::sweep::MAX_PAYLOAD_LEN,
             Op::Batch(b) => b.reply_capacity(),
             Op::Update(u) => u.reply_len(),
             _ => 0,
@@ -714,6 +773,21 @@ impl<'a> Op<'a> {
                 | Op::EnterUpdate
                 | Op::ConfirmFirmware
                 | Op::Update(_)
+        )
+    }
+
+    /// True for the operations of boards that act together (`sample`, `apply`, `stage`):
+    /// never in a batch (`bad_argument`).
+    pub const fn is_together(&self) -> bool {
+        matches!(self, Op::Sample | Op::Apply | Op::Stage(_))
+    }
+
+    /// True for the outputs a `stage` may hold: io low/high, pwm duty, frequency and pulse
+    /// width.
+    pub const fn is_stageable(&self) -> bool {
+        matches!(
+            self,
+            Op::DigitalWrite(..) | Op::PwmDuty(..) | Op::PwmFrequency(..) | Op::PwmPulseWidth(..)
         )
     }
 
@@ -746,6 +820,13 @@ impl<'a> Op<'a> {
             Op::Batch(b) => ReplyLen::Batch {
                 max: b.reply_capacity().min(MAX_PAYLOAD) as u8,
             },
+            // The levels (2) and 0 to 8 values packed in 12 bits: its length follows from
+            // the board's sensor ports (`sweep::payload_len`).
+            Op::Sample => ReplyLen::Range {
+                min: 2,
+                max: crate::sweep::MAX_PAYLOAD_LEN as u8,
+                step: 1,
+            },
             // `pending` (empty) comes first; the width follows in the deferred reply.
             Op::PulseIn { .. } => ReplyLen::Exact(0),
             Op::Update(u) => ReplyLen::Exact(u.reply_len() as u8),
@@ -766,7 +847,9 @@ impl<'a> Op<'a> {
             | Op::PwmFrequency(..)
             | Op::PwmPulseWidth(..)
             | Op::SerialWrite(..)
-            | Op::SerialConfig(..) => ReplyLen::Exact(0),
+            | Op::SerialConfig(..)
+            | Op::Apply
+            | Op::Stage(_) => ReplyLen::Exact(0),
         }
     }
 

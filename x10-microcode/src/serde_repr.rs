@@ -262,7 +262,7 @@ fn op_entries<M: SerializeMap>(m: &mut M, op: &Op<'_>) -> Result<(), M::Error> {
         Op::PwmPulseWidth(_, us) => m.serialize_entry("us", &us),
         Op::SerialRead(_, count) => m.serialize_entry("count", &count),
         Op::SerialConfig(_, baud) => m.serialize_entry("baud", &baud),
-        Op::Batch(b) => m.serialize_entry("items", &Items(b)),
+        Op::Batch(b) | Op::Stage(b) => m.serialize_entry("items", &Items(b)),
         Op::Update(f) => match f.op() {
             crate::UpdateOp::Begin(info) => {
                 m.serialize_entry("image_len", &info.len)?;
@@ -287,7 +287,9 @@ fn op_entries<M: SerializeMap>(m: &mut M, op: &Op<'_>) -> Result<(), M::Error> {
         | Op::AnalogRead(_)
         | Op::SerialWrite(..)
         | Op::WhoIsThere
-        | Op::Scan => Ok(()),
+        | Op::Scan
+        | Op::Sample
+        | Op::Apply => Ok(()),
     }
 }
 

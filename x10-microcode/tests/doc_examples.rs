@@ -204,7 +204,7 @@ fn op_fields(m: &mut Flat, prefix: &str, op: &Op<'_>) {
             put(m, p("offset"), Val::Int(offset.into()));
             put(m, p("bytes"), list(data));
         }
-        Op::Batch(b) => {
+        Op::Batch(b) | Op::Stage(b) => {
             for (i, item) in b.iter().enumerate() {
                 op_fields(m, &format!("{prefix}items.{i}."), &item);
             }
@@ -510,7 +510,7 @@ fn every_example_frame_decodes_to_what_the_document_says() {
     }
     // Every operation and every event kind has an example; every kind has examples with PEC
     // and refused examples.
-    assert_eq!(ops.len(), 33, "operations with an example: {ops:?}");
+    assert_eq!(ops.len(), 36, "operations with an example: {ops:?}");
     assert_eq!(
         event_kinds.len(),
         9,

@@ -263,7 +263,8 @@ impl DbBoard {
     /// The bus node for this board.
     pub fn node_config(&self) -> NodeConfig {
         let mut n = NodeConfig::new(self.name.clone(), Some(self.start_address().get()))
-            .with_role(self.role);
+            .with_role(self.role)
+            .with_general_call();
         n.resettable = self.resettable;
         n
     }

@@ -24,6 +24,9 @@
 //!   leaves SCL stretched). The bytes still play out on the wire, the node never sees them;
 //!   each loss is counted in [`BusStats::lost_transfers`] and noted in the transaction's
 //!   record (`faults`: "lost: listen dropped"), so a runtime that races `listen` shows in tests.
+//! * **General call**: a write to address 0x00 is acknowledged and received by every node
+//!   configured to take general calls ([`NodeConfig::with_general_call`]: the daughterboards)
+//!   that is not deaf at that moment; a read from 0x00 is NACKed.
 //! * **Stretching**: an addressed target that has no `listen` waiting holds SCL low until one is,
 //!   and a target asked for a read holds SCL low until it calls `respond`; past the configured
 //!   stretch timeout the controller gets [`BusError::Timeout`]. While a node is stretched
@@ -81,6 +84,9 @@ pub struct NodeConfig {
     pub role: Role,
     /// True when the fault injector may reset this node.
     pub resettable: bool,
+    /// True when the node's target also acknowledges and receives writes to the general
+    /// call address (0x00), as daughterboards do (a sweep's `sample`, an `apply`).
+    pub general_call: bool,
 }
 
 impl NodeConfig {
@@ -91,7 +97,14 @@ impl NodeConfig {
             address,
             role: Role::DualRole,
             resettable: false,
+            general_call: false,
         }
+    }
+
+    /// This node, whose target takes general calls too.
+    pub fn with_general_call(mut self) -> NodeConfig {
+        self.general_call = true;
+        self
     }
 
     /// This node with role handling `role`.
@@ -495,6 +508,13 @@ struct Node {
 }
 
 impl Node {
+    /// True when a transaction to `addr` is for this node: its own address, or the general
+    /// call when it takes those.
+    fn listens_at(&self, addr: u8) -> bool {
+        self.cfg.address == Some(addr)
+            || (addr == 0 && self.cfg.general_call && self.cfg.address.is_some())
+    }
+
     fn wake(&mut self) {
         for w in self.waiters.drain(..) {
             w.wake();
@@ -1397,7 +1417,18 @@ impl SimBus {
         self.clock.sleep_until_ns(cursor).await;
         let (target, refused, co_targets) = {
             let b = self.inner.borrow();
-            let target = b.node_by_addr(seen_addr);
+            // A general call (a write to 0x00) is taken by every node that listens to it and
+            // is not deaf now: the first is the target, the others receive it alongside.
+            let general = seen_addr == 0 && read_len.is_none();
+            let target = if general {
+                (0..b.nodes.len()).find(|&i| {
+                    i != win_node
+                        && b.nodes.get(i).is_some_and(|n| n.listens_at(0))
+                        && !b.is_deaf(i, cursor)
+                })
+            } else {
+                b.node_by_addr(seen_addr)
+            };
             let refused = match target {
                 None => true,
                 Some(n) => n == win_node || b.is_deaf(n, cursor),
@@ -1406,21 +1437,22 @@ impl SimBus {
             // with one address) acknowledge a plain write too and each receive it; a read
             // is answered by the first alone (on a real bus their answers would mix, bit by
             // bit, and the check refuse them).
-            let co: Vec<NodeId> = if refused || read_len.is_some() || b.nodes_at(seen_addr) < 2 {
-                Vec::new()
-            } else {
-                b.nodes
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, n)| {
-                        Some(*i) != target
-                            && *i != win_node
-                            && n.cfg.address == Some(seen_addr)
-                            && !b.is_deaf(*i, cursor)
-                    })
-                    .map(|(i, _)| i)
-                    .collect()
-            };
+            let co: Vec<NodeId> =
+                if refused || read_len.is_some() || (!general && b.nodes_at(seen_addr) < 2) {
+                    Vec::new()
+                } else {
+                    b.nodes
+                        .iter()
+                        .enumerate()
+                        .filter(|(i, n)| {
+                            Some(*i) != target
+                                && *i != win_node
+                                && n.listens_at(seen_addr)
+                                && !b.is_deaf(*i, cursor)
+                        })
+                        .map(|(i, _)| i)
+                        .collect()
+                };
             (target, refused, co)
         };
         rec.target = target;

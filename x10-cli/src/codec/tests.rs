@@ -79,8 +79,10 @@ fn op_table_agrees_with_the_protocol_crate() {
         x10_microcode::UpdateOp::Commit.to_op(&mut b3),
         x10_microcode::UpdateOp::Status.to_op(&mut b4),
         x10_microcode::UpdateOp::Leave.to_op(&mut b5),
+        Op::Sample,
+        Op::Apply,
     ];
-    assert_eq!(ops.len() + 1, OPS.len()); // + batch, checked below
+    assert_eq!(ops.len() + 2, OPS.len()); // + batch and stage, checked below
     for op in ops {
         let info = op_info_of(&op).unwrap();
         assert_eq!(info.fn_op, op.fn_op_byte(), "{}", info.operation);
@@ -110,6 +112,9 @@ fn op_table_agrees_with_the_protocol_crate() {
     }
     let batch = op_info("batch", "batch").unwrap();
     assert_eq!(batch.fn_op, 0x50);
+    let stage = op_info("stage", "stage").unwrap();
+    assert_eq!(stage.fn_op, 0x90);
+    assert!(!stage.reply);
 }
 
 #[test]
