@@ -11,15 +11,16 @@ use core::task::Poll;
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
+use embassy_sync::once_lock::OnceLock;
 use embassy_sync::signal::Signal;
 use heapless::Vec;
 use x10_devices::{LinkError, PinEvent};
 use x10_hal::time::Instant;
-use x10_microcode::{Address, Op, Payload, Request, MAX_FRAME_LEN};
+use x10_microcode::{Address, Op, Payload, Request, Status, MAX_FRAME_LEN};
 
 use crate::boards::{failsafe_change, pec_change};
 use crate::config::MbConfig;
-use crate::diag::{bump, MbDiagnostics};
+use crate::diag::{bump, count_outcome, MbDiagnostics};
 use crate::jobs::{Job, JobMeta};
 use crate::observe::{CallObserver, CallRecord};
 use crate::requests::{Ended, SlotState, Ticket, MAX_PENDING};
@@ -38,6 +39,37 @@ pub(crate) fn now() -> Instant {
 /// Sleeps until `at` (embassy-time).
 pub(crate) async fn sleep_until(at: Instant) {
     embassy_time::Timer::at(embassy_time::Instant::from_micros(at.as_micros())).await
+}
+
+/// The internal daughterboard as the calling task runs it (the direct path of
+/// [`MbCore::call`]): a [`crate::Motherboard`] whose ports are `Sync` is one
+/// ([`crate::Motherboard::serve_internal_directly`] hands it to its core).
+pub trait InternalBoard: Sync {
+    /// Executes `op` on the internal daughterboard now, in the calling task, under the lock
+    /// that keeps its calls from overlapping (`firmware_db::Daughterboard::execute`): its
+    /// status, its value in `value`. `None`: it cannot be run from here; the request then
+    /// goes to the internal worker's queue, as a pulse-in does.
+    fn execute(&self, op: &Op<'_>, value: &mut Payload) -> Option<Status>;
+}
+
+/// True for the operations a call to the internal daughterboard runs in the calling task
+/// when its core has an [`InternalBoard`]: those whose outcome the motherboard only hands
+/// back (ports, ping, heartbeat, scan). The others change the motherboard's view of the
+/// board once confirmed (PEC, failsafe, event enables, identity, address), are deferred
+/// (pulse-in) or carry borrowed data (batch, serial): they take the internal worker's queue.
+fn runs_directly(op: &Op<'_>) -> bool {
+    matches!(
+        op,
+        Op::DigitalWrite(..)
+            | Op::DigitalRead(_)
+            | Op::PwmDuty(..)
+            | Op::AnalogRead(_)
+            | Op::PwmFrequency(..)
+            | Op::PwmPulseWidth(..)
+            | Op::Ping
+            | Op::Heartbeat
+            | Op::Scan
+    )
 }
 
 /// What robot tasks, the dispatcher and the keepalive share: configuration, the pending
@@ -61,6 +93,8 @@ pub struct MbCore {
     /// Per waiter slot: the pin event, for the waiting task.
     pub(crate) waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
     pub(crate) observer: Option<&'static dyn CallObserver>,
+    /// The internal daughterboard for the direct path, once given ([`InternalBoard`]).
+    direct: OnceLock<&'static dyn InternalBoard>,
 }
 
 /// A caller counted among those waiting for a slot: uncounted when it gets one, gives up or
@@ -144,7 +178,14 @@ impl MbCore {
             done: [const { Signal::new() }; MAX_PENDING],
             waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
             observer: None,
+            direct: OnceLock::new(),
         }
+    }
+
+    /// Lets calls to the internal daughterboard run `board` in the calling task (see
+    /// [`InternalBoard`]); once. False if the core has one already.
+    pub fn set_internal_board(&self, board: &'static dyn InternalBoard) -> bool {
+        self.direct.init(board).is_ok()
     }
 
     /// Runs `f` on the table, under the lock.
@@ -270,6 +311,16 @@ impl MbCore {
             self.with(|t| bump(&mut t.diag.status_errors));
             return Err(LinkError::Status(x10_microcode::Status::PortOutOfRange));
         }
+        if db.is_internal() && runs_directly(&op) {
+            if let Some(&board) = self.direct.try_get() {
+                // Other tasks run first: a loop of such calls cannot starve them.
+                embassy_futures::yield_now().await;
+                let mut value = Payload::new();
+                if let Some(status) = board.execute(&op, &mut value) {
+                    return self.direct_outcome(&op, status, value);
+                }
+            }
+        }
         let t_now = now();
         let deadline = t_now.plus_us(timeout_us);
         // A free slot at once (the usual case) without the waiting machinery.
@@ -351,6 +402,42 @@ impl MbCore {
             }
             Either::Second(()) => guard.expire(),
         }
+    }
+
+    /// The outcome of an operation the internal daughterboard executed in the calling task,
+    /// checked and counted as the internal worker checks and counts its reply
+    /// ([`MbCore::interpret`]): the value must fit the operation (a level is 0 or 1, a scan
+    /// reports the ports the board has), a refusal is its status. The board heard a
+    /// transaction: a failsafe kept alive on it is due again later.
+    fn direct_outcome(
+        &self,
+        op: &Op<'_>,
+        status: Status,
+        value: Payload,
+    ) -> Result<Payload, LinkError> {
+        let db = Address::INTERNAL;
+        // What the outcome is, decided and counted under the lock without moving the value
+        // in and out of it (each move of a payload is a 32-byte copy).
+        let outcome = self.with(|t| {
+            if t.boards.keepalive.tracks(db) {
+                t.boards.keepalive.sent(db, now());
+            }
+            let outcome = match (status, op.check_reply(status, &value)) {
+                (_, Err(_)) | (Status::Pending, _) => Err(LinkError::BadReply),
+                // A scan must report the ports the board has.
+                (Status::Ok, Ok(()))
+                    if matches!(op, Op::Scan) && !t.boards.scan_fits(db, &value) =>
+                {
+                    Err(LinkError::BadReply)
+                }
+                (Status::Ok, Ok(())) => Ok(()),
+                (s, Ok(())) => Err(LinkError::Status(s)),
+            };
+            bump(&mut t.diag.requests);
+            count_outcome(&mut t.diag, &outcome);
+            outcome
+        });
+        outcome.map(|()| value)
     }
 
     /// Claims a slot and a sequence number for a request to `db`, under the lock: counted in
