@@ -6,6 +6,7 @@
 //! means is [`crate::transfer`]'s, where events go [`crate::routing`]'s.
 
 use core::cell::RefCell;
+use core::future::Future;
 use core::task::Poll;
 
 use embassy_futures::select::{select, Either};
@@ -228,8 +229,14 @@ impl MbCore {
     ///
     /// # Errors
     /// As [`MbCore::call_with_timeout`].
-    pub async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
-        self.call_with_timeout(db, op, self.timeout_us(&op)).await
+    pub fn call<'a>(
+        &'a self,
+        db: Address,
+        op: Op<'a>,
+    ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
+        // Not an `async fn` of its own: the future is `call_with`'s, one state machine less
+        // to copy the operation and the result through (issue 27).
+        self.call_with(db, op, None)
     }
 
     /// Sends `op` to board `db` (0: the internal daughterboard, without the bus) and waits at
@@ -264,38 +271,72 @@ impl MbCore {
     /// [`LinkError::ArbitrationLost`] (after every retry), [`LinkError::Bus`],
     /// [`LinkError::BadReply`] (unparsable, wrong PEC or wrong sequence number),
     /// [`LinkError::Status`] (the board refused it).
-    pub async fn call_with_timeout(
+    pub fn call_with_timeout<'a>(
+        &'a self,
+        db: Address,
+        op: Op<'a>,
+        timeout_us: u64,
+    ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
+        self.call_with(db, op, Some(timeout_us))
+    }
+
+    /// [`MbCore::call_with_timeout`], `None`: the default timeout ([`MbCore::timeout_us`]),
+    /// worked out only for a call that can wait. A call to the internal daughterboard that
+    /// the direct path runs ([`InternalBoard`]) is checked as any call, yields once, and is
+    /// executed by the calling task; the others go through the pending table and a queue.
+    pub(crate) async fn call_with(
         &self,
         db: Address,
         op: Op<'_>,
-        timeout_us: u64,
+        timeout_us: Option<u64>,
     ) -> Result<Payload, LinkError> {
-        let Some(observer) = self.observer else {
-            return self.call_inner(db, op, timeout_us).await;
+        let started = self.observer.map(|_| now());
+        let result = 'call: {
+            if let Some(board) = self.direct_board(db, &op) {
+                if let Err(e) = self.check(db, &op) {
+                    break 'call Err(e);
+                }
+                // Other tasks run first: a loop of such calls cannot starve them.
+                embassy_futures::yield_now().await;
+                let mut value = Payload::new();
+                if let Some(status) = board.execute(&op, &mut value) {
+                    break 'call self.direct_outcome(&op, status, value);
+                }
+            }
+            let timeout_us = timeout_us.unwrap_or_else(|| self.timeout_us(&op));
+            self.call_inner(db, op, timeout_us).await
         };
-        let started = now();
-        let result = self.call_inner(db, op, timeout_us).await;
-        observer.observe(&CallRecord {
-            db,
-            op: &op,
-            result: &result,
-            started,
-            ended: now(),
-        });
+        if let (Some(observer), Some(started)) = (self.observer, started) {
+            observer.observe(&CallRecord {
+                db,
+                op: &op,
+                result: &result,
+                started,
+                ended: now(),
+            });
+        }
         result
     }
 
-    async fn call_inner(
-        &self,
-        db: Address,
-        op: Op<'_>,
-        timeout_us: u64,
-    ) -> Result<Payload, LinkError> {
-        if self.with(|t| t.updating == Some(db)) && !crate::update::is_update_op(&op) {
-            return Err(LinkError::Updating);
+    /// The internal daughterboard, when the direct path runs `op` to `db` (see
+    /// [`runs_directly`]).
+    fn direct_board(&self, db: Address, op: &Op<'_>) -> Option<&'static dyn InternalBoard> {
+        if db.is_internal() && runs_directly(op) {
+            self.direct.try_get().copied()
+        } else {
+            None
         }
+    }
+
+    /// What is checked before anything is sent: the operation encodes, PEC stays on with the
+    /// safe defaults, `db` is not the motherboard's own address, the board has the port.
+    ///
+    /// # Errors
+    /// As [`MbCore::call_with_timeout`]: `Invalid`, `Updating` (the board is being updated
+    /// and `op` is not one of the update's), or `Status(port_out_of_range)` (counted).
+    fn check(&self, db: Address, op: &Op<'_>) -> Result<(), LinkError> {
         op.validate()?;
-        if self.config.pec && !db.is_internal() && pec_change(&op) == Some(false) {
+        if self.config.pec && !db.is_internal() && pec_change(op) == Some(false) {
             // PEC stays on with the safe defaults (MbConfig::pec).
             return Err(LinkError::Invalid(x10_microcode::Error::BadArgument));
         }
@@ -304,23 +345,36 @@ impl MbCore {
                 db.get(),
             )));
         }
-        // A port the board does not have (as its boot event or identify reply said): refused
-        // here, as the board would refuse it, so that an output to it never returns `Ok`.
-        if let Err(port) = self.with(|t| t.boards.check_ports(db, &op)) {
-            warn!("board {} has no port {}", db.get(), port.number());
-            self.with(|t| bump(&mut t.diag.status_errors));
-            return Err(LinkError::Status(x10_microcode::Status::PortOutOfRange));
-        }
-        if db.is_internal() && runs_directly(&op) {
-            if let Some(&board) = self.direct.try_get() {
-                // Other tasks run first: a loop of such calls cannot starve them.
-                embassy_futures::yield_now().await;
-                let mut value = Payload::new();
-                if let Some(status) = board.execute(&op, &mut value) {
-                    return self.direct_outcome(&op, status, value);
-                }
+        // A board being updated takes only the update's own operations. A port the board
+        // does not have (as its boot event or identify reply said): refused here, as the
+        // board would refuse it, so that an output to it never returns `Ok`.
+        let refused = self.with(|t| {
+            if t.updating == Some(db) && !crate::update::is_update_op(op) {
+                return Err(None);
+            }
+            let r = t.boards.check_ports(db, op);
+            if r.is_err() {
+                bump(&mut t.diag.status_errors);
+            }
+            r.map_err(Some)
+        });
+        match refused {
+            Ok(()) => Ok(()),
+            Err(None) => Err(LinkError::Updating),
+            Err(Some(port)) => {
+                warn!("board {} has no port {}", db.get(), port.number());
+                Err(LinkError::Status(x10_microcode::Status::PortOutOfRange))
             }
         }
+    }
+
+    async fn call_inner(
+        &self,
+        db: Address,
+        op: Op<'_>,
+        timeout_us: u64,
+    ) -> Result<Payload, LinkError> {
+        self.check(db, &op)?;
         let t_now = now();
         let deadline = t_now.plus_us(timeout_us);
         // A free slot at once (the usual case) without the waiting machinery.
@@ -416,13 +470,21 @@ impl MbCore {
         value: Payload,
     ) -> Result<Payload, LinkError> {
         let db = Address::INTERNAL;
+        // An operation that answers no value (an output, a heartbeat) answered without one
+        // fits, whatever its status: what `check_reply` says of it, without the look at its
+        // reply length (x10-microcode's tests/reply_len.rs holds the two together).
+        let fits = if value.is_empty() && !op.expects_reply() {
+            Ok(())
+        } else {
+            op.check_reply(status, &value)
+        };
         // What the outcome is, decided and counted under the lock without moving the value
         // in and out of it (each move of a payload is a 32-byte copy).
         let outcome = self.with(|t| {
             if t.boards.keepalive.tracks(db) {
                 t.boards.keepalive.sent(db, now());
             }
-            let outcome = match (status, op.check_reply(status, &value)) {
+            let outcome = match (status, fits) {
                 (_, Err(_)) | (Status::Pending, _) => Err(LinkError::BadReply),
                 // A scan must report the ports the board has.
                 (Status::Ok, Ok(()))

@@ -138,10 +138,7 @@ fn calls() -> Vec<(Op<'static>, Result<Vec<u8>, LinkError>)> {
         (Op::Ping, Ok(vec![])),
         (Op::Heartbeat, Ok(vec![])),
         // Two sensor ports: levels A high, B low; analog 0x0123 and 0x0124.
-        (
-            Op::Scan,
-            Ok(vec![2, 0b0101, 0, 0x23, 0x01, 0x24, 0x01]),
-        ),
+        (Op::Scan, Ok(vec![2, 0b0101, 0, 0x23, 0x01, 0x24, 0x01])),
         // The port's own error is the board's status.
         (
             Op::DigitalWrite(a(2).pin(Pin::B), Level::Low),
@@ -157,7 +154,10 @@ fn calls() -> Vec<(Op<'static>, Result<Vec<u8>, LinkError>)> {
             Op::PwmDuty(s(1).pin(Pin::A), 1),
             Err(LinkError::Invalid(x10_microcode::Error::WrongPortKind)),
         ),
-        (Op::PwmFrequency(a(1), 0), Err(LinkError::Invalid(x10_microcode::Error::BadArgument))),
+        (
+            Op::PwmFrequency(a(1), 0),
+            Err(LinkError::Invalid(x10_microcode::Error::BadArgument)),
+        ),
     ]
 }
 
