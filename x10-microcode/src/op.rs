@@ -658,20 +658,22 @@ impl<'a> Op<'a> {
         // the Cortex-M0, about as much as the motherboard's whole direct call to its own
         // ports, issue 27). `tests/vectors.rs` holds the two ways to the same answers for
         // every port byte.
-        let port = self.port_byte();
         match *self {
-            Op::Ping | Op::Heartbeat | Op::Scan => return no_port(port),
+            // No port byte: 0, which `parse` wants of them.
+            Op::Ping | Op::Heartbeat | Op::Scan => return Ok(()),
             Op::DigitalRead(_) | Op::DigitalWrite(..) => return Ok(()),
-            Op::PwmDuty(..) | Op::PwmPulseWidth(..) => {
-                return require_kind(PinRef::from_byte(port).port, PortKind::Actuator)
+            Op::PwmDuty(pin, _) | Op::PwmPulseWidth(pin, _) => {
+                return require_kind(PinRef::from_byte(pin.to_byte()).port, PortKind::Actuator)
             }
-            Op::PwmFrequency(_, hz) => {
+            Op::PwmFrequency(port, hz) => {
                 if hz == 0 {
                     return Err(Error::BadArgument);
                 }
-                return require_kind(port_only(port)?, PortKind::Actuator);
+                return require_kind(port_only(PinRef::from(port).to_byte())?, PortKind::Actuator);
             }
-            Op::AnalogRead(_) => return require_kind(port_only(port)?, PortKind::Sensor),
+            Op::AnalogRead(port) => {
+                return require_kind(port_only(PinRef::from(port).to_byte())?, PortKind::Sensor)
+            }
             _ => {}
         }
         self.validate_encoded()
