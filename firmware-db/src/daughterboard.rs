@@ -402,31 +402,20 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         let pec_on = self.pec_enabled() || self.is_unaddressed();
         let mut value = Value::new();
         let (head, status) = self.execute_frame(bytes, pec_on, &mut value);
-        let unaddressed = self.is_unaddressed();
-        // Counted, and the reply encoded where `take_reply` copies it from, under one lock.
-        let rejected = self.with(|s| {
-            count_status(&mut s.diag, status);
-            if unaddressed {
-                // Nothing is read at 0x77 and nothing is reported from there but `announce`.
-                false
-            } else if head.expects_reply || read_follows {
-                // In the PEC mode the board has now: the reply to a `set_pec` the board
-                // applied is sent in the new mode, so that a motherboard reading it back
-                // knows the switch happened (with PEC on: a reply with a valid PEC byte).
-                let check = match (s.pec, head.crc16_reply) {
-                    (false, _) => Check::None,
-                    (true, false) => Check::ByLength,
-                    (true, true) => Check::Crc16,
-                };
-                let len = self.encode_reply(&mut s.reply, head.seq, status, &value, check);
-                // At most REPLY_BUF_LEN (34) bytes.
-                s.reply_len = Some(len as u8);
-                false
-            } else {
-                !matches!(status, Status::Ok | Status::Pending)
-            }
-        });
-        if rejected {
+        self.with(|s| count_status(&mut s.diag, status));
+        if self.is_unaddressed() {
+            // Nothing is read at 0x77 and nothing is reported from there but `announce`.
+        } else if head.expects_reply || read_follows {
+            // In the PEC mode the board has now: the reply to a `set_pec` the board applied
+            // is sent in the new mode, so that a motherboard reading it back knows the
+            // switch happened (with PEC on: a reply with a valid PEC byte).
+            let check = match (self.pec_enabled(), head.crc16_reply) {
+                (false, _) => Check::None,
+                (true, false) => Check::ByLength,
+                (true, true) => Check::Crc16,
+            };
+            self.store_reply(head.seq, status, &value, check);
+        } else if !matches!(status, Status::Ok | Status::Pending) {
             self.push_event(
                 EventKind::Rejected,
                 PinRef::from_byte(head.port),
@@ -463,7 +452,14 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 _ => self.execute_op(seq, op, value),
             }
         };
-        self.with(|s| count_status(&mut s.diag, status));
+        self.with(|s| {
+            // The usual outcome without `count_status`'s look-up (which the bus path shares).
+            if status == Status::Ok {
+                bump(&mut s.diag.frames_ok);
+            } else {
+                count_status(&mut s.diag, status);
+            }
+        });
         self.heard.signal(());
         status
     }
@@ -475,12 +471,9 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         // The held reply is copied out under the lock, straight from where it was encoded.
         let taken = self.with(|s| {
             let len = usize::from(s.reply_len.take()?);
-            // Byte by byte: a reply is 3 to 34 bytes, mostly 4 or 5 (see `set_value`).
-            let src = s.reply.get(..len).unwrap_or(&[]);
-            let mut n = 0;
-            for (d, &b) in buf.iter_mut().zip(src) {
-                *d = b;
-                n += 1;
+            let n = len.min(buf.len());
+            if let (Some(dst), Some(src)) = (buf.get_mut(..n), s.reply.get(..n)) {
+                dst.copy_from_slice(src);
             }
             Some(n)
         });
@@ -587,6 +580,15 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 Check::Crc16 => pec::append16(addr, buf, n),
             })
             .unwrap_or(0)
+    }
+
+    /// Encodes the reply to hold in place, where [`Daughterboard::take_reply`] copies it from.
+    fn store_reply(&self, seq: u8, status: Status, value: &[u8], check: Check) {
+        self.with(|s| {
+            let len = self.encode_reply(&mut s.reply, seq, status, value, check);
+            // At most REPLY_BUF_LEN (34) bytes.
+            s.reply_len = Some(len as u8);
+        });
     }
 
     /// Puts an event into the queue. `seq: None` numbers it with the board's event counter.
