@@ -334,7 +334,6 @@ impl MbCore {
     /// # Errors
     /// As [`MbCore::call_with_timeout`]: `Invalid`, `Updating` (the board is being updated
     /// and `op` is not one of the update's), or `Status(port_out_of_range)` (counted).
-    #[inline(always)]
     fn check(&self, db: Address, op: &Op<'_>) -> Result<(), LinkError> {
         op.validate()?;
         if self.config.pec && !db.is_internal() && pec_change(op) == Some(false) {

@@ -196,11 +196,14 @@ const DB_BUDGET: Budget = Budget {
 /// collisions: mb-pico 77 004 B, mb-g431 69 472 B when set, budgets about 3 KiB above), and for
 /// issue 26 (the USB link: embassy-usb's CDC-ACM device, x10-link's frames, recorder and
 /// request server, about +25 KiB on each: mb-pico 101 328 B, mb-g431 94 884 B when set with
-/// the plug-and-play images; budgets about 0.8 KiB above): see docs/boards.md "Sizes" and "The USB link". The MB
+/// the plug-and-play images; budgets about 0.8 KiB above), and for issue 27 (calls to the
+/// internal board run in the calling task beside the worker's path that the other operations
+/// keep: mb-pico 102 396 B against main's 102 060 B after issue 25; budget 0.5 KiB above;
+/// mb-g431 95 692 B fits its budget): see docs/boards.md "Sizes" and "The USB link". The MB
 /// chips have 2 MiB (Pico) and 128 KiB (G431) of flash: these are regression guards, not
 /// limits of the chips. CI fails when an image grows past its budget; lower them as the
 /// images shrink.
-const MB_PICO_FLASH: u64 = 102_144;
+const MB_PICO_FLASH: u64 = 102_912;
 /// See [`MB_PICO_FLASH`].
 const MB_G431_FLASH: u64 = 95_744;
 /// The motherboard images' static RAM budget (the Pico has 264 KiB, the G431 32 KiB): see
