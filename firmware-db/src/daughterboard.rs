@@ -35,42 +35,32 @@ pub const REPLY_BUF_LEN: usize = MAX_REPLY_LEN + 1;
 /// The value of a request (reply payload).
 type Value = Vec<u8, MAX_PAYLOAD>;
 
-/// Status and value of one executed request or batch item.
-struct Done {
-    status: Status,
-    value: Value,
+// An executed request (or batch item) is its status, and its value written into the
+// caller's `Value` (empty unless `ok`): a status is returned in a register, where a status
+// and a value returned together were copied at each level (about 275 instructions per copy
+// on the Cortex-M0, issue 27).
+
+/// Puts `bytes` into `value`: `ok`, or `bad_length` (`value` left empty) if they do not fit.
+/// Byte by byte: a value is 1 to 28 bytes, mostly 1 or 2, where a `memcpy` call costs more
+/// than the copy.
+#[inline(never)]
+fn set_value(value: &mut Value, bytes: &[u8]) -> Status {
+    value.clear();
+    if bytes.len() > MAX_PAYLOAD {
+        return Status::BadLength;
+    }
+    for &b in bytes {
+        // Never full: checked above.
+        let _ = value.push(b);
+    }
+    Status::Ok
 }
 
-impl Done {
-    #[inline(never)]
-    fn status(status: Status) -> Done {
-        Done {
-            status,
-            value: Value::new(),
-        }
-    }
-
-    fn ok() -> Done {
-        Done::status(Status::Ok)
-    }
-
-    #[inline(never)]
-    fn value(bytes: &[u8]) -> Done {
-        let mut value = Value::new();
-        match value.extend_from_slice(bytes) {
-            Ok(()) => Done {
-                status: Status::Ok,
-                value,
-            },
-            Err(_) => Done::status(Status::BadLength),
-        }
-    }
-
-    fn from_port<T>(r: Result<T, PortError>, encode: impl FnOnce(T) -> Done) -> Done {
-        match r {
-            Ok(v) => encode(v),
-            Err(e) => Done::status(port_status(e)),
-        }
+/// The status of a port setting: `ok`, or its error's.
+fn port_done(r: Result<(), PortError>) -> Status {
+    match r {
+        Ok(()) => Status::Ok,
+        Err(e) => port_status(e),
     }
 }
 
@@ -152,7 +142,10 @@ pub(crate) struct PulseJob {
 pub(crate) struct State {
     pub(crate) pec: bool,
     pub(crate) diag: Diagnostics,
-    reply: Option<Vec<u8, REPLY_BUF_LEN>>,
+    /// The reply held for the next read: its bytes in `reply`, its length here (`None`: no
+    /// reply held).
+    reply_len: Option<u8>,
+    reply: [u8; REPLY_BUF_LEN],
     pub(crate) failsafe_ms: u16,
     event_seq: u8,
     /// Events dropped since the last overflow event went into the queue.
@@ -256,7 +249,8 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             state: Mutex::new(RefCell::new(State {
                 pec: false,
                 diag: Diagnostics::default(),
-                reply: None,
+                reply_len: None,
+                reply: [0; REPLY_BUF_LEN],
                 failsafe_ms: config.failsafe_timeout_ms,
                 event_seq: 0,
                 overflow_pending: 0,
@@ -360,7 +354,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// ([`Daughterboard::moved`]) takes effect once no reply is held any more (the reply to
     /// `set_address` has been read).
     pub fn served(&self) {
-        if let Some(a) = self.with(|s| s.moving.filter(|_| s.reply.is_none())) {
+        if let Some(a) = self.with(|s| s.moving.filter(|_| s.reply_len.is_none())) {
             self.moved.signal(a);
         }
     }
@@ -424,8 +418,9 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         if broadcast && self.is_unaddressed() {
             return;
         }
-        let (head, done) = self.execute_frame(bytes, pec_on, broadcast);
-        self.with(|s| count_status(&mut s.diag, done.status));
+        let mut value = Value::new();
+        let (head, status) = self.execute_frame(bytes, pec_on, broadcast, &mut value);
+        self.with(|s| count_status(&mut s.diag, status));
         if self.is_unaddressed() {
             // Nothing is read at 0x77 and nothing is reported from there but `announce`.
         } else if head.expects_reply || read_follows {
@@ -438,41 +433,88 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 (true, false) => Check::ByLength,
                 (true, true) => Check::Crc16,
             };
-            self.store_reply(head.seq, done.status, &done.value, check);
-        } else if !matches!(done.status, Status::Ok | Status::Pending) && !broadcast {
+            self.store_reply(head.seq, status, &value, check);
+        } else if !matches!(status, Status::Ok | Status::Pending) && !broadcast {
             // A general call is answered by no event (every board would send one).
             self.push_event(
                 EventKind::Rejected,
                 PinRef::from_byte(head.port),
                 Some(head.seq),
-                done.status,
+                status,
                 &[],
             );
         }
         self.heard.signal(());
     }
 
+    /// Executes `op`, an operation already parsed and addressed to this board, in the
+    /// caller, and returns its status and value: what [`Daughterboard::handle_write`] does
+    /// for a request with that operation, without the frame (no parsing, no PEC, no reply
+    /// held, no `rejected` event: the caller has the status). The same checks (capability,
+    /// port range, the port's own errors), counted in the diagnostics as a frame is, and the
+    /// failsafe fed, as by any transaction addressed to the board.
+    ///
+    /// The motherboard runs its internal daughterboard this way (its direct path). `seq` is
+    /// the number a deferred operation's later reply carries (a pulse-in answers `pending`
+    /// and measures in [`Daughterboard::run_background`]); a batch is executed item by item
+    /// as from the bus. A board without an address takes nothing but `assign` over the bus:
+    /// here it refuses everything (`bad_argument`). Calls must not overlap with each other
+    /// or with `handle_write` (the motherboard holds a lock around the internal board).
+    ///
+    /// The value goes into `value` (emptied first; it stays empty unless the status is `ok`).
+    pub fn execute(&self, seq: u8, op: &Op<'_>, value: &mut x10_microcode::Payload) -> Status {
+        value.clear();
+        let status = if self.is_unaddressed() {
+            Status::BadArgument
+        } else {
+            match *op {
+                Op::Batch(b) => self.execute_batch(seq, b, value),
+                _ => self.execute_op(seq, op, value),
+            }
+        };
+        self.with(|s| {
+            // The usual outcome without `count_status`'s look-up (which the bus path shares).
+            if status == Status::Ok {
+                bump(&mut s.diag.frames_ok);
+            } else {
+                count_status(&mut s.diag, status);
+            }
+        });
+        self.heard.signal(());
+        status
+    }
+
     /// Answers a read: copies the held reply into `buf` (as much as fits) and returns its
     /// length. With no reply held the answer is status `no_request` with sequence number 0
     /// (counted in `no_request_reads`). The reply is given once.
     pub fn take_reply(&self, buf: &mut [u8]) -> usize {
-        let stored = self.with(|s| s.reply.take());
-        let frame = match stored {
-            Some(f) => f,
+        // The held reply is copied out under the lock, straight from where it was encoded.
+        let taken = self.with(|s| {
+            let len = usize::from(s.reply_len.take()?);
+            let n = len.min(buf.len());
+            if let (Some(dst), Some(src)) = (buf.get_mut(..n), s.reply.get(..n)) {
+                dst.copy_from_slice(src);
+            }
+            Some(n)
+        });
+        let n = match taken {
+            Some(n) => n,
             None => {
                 let pec_on = self.with(|s| {
                     bump(&mut s.diag.no_request_reads);
                     s.pec
                 });
                 let check = if pec_on { Check::ByLength } else { Check::None };
-                self.encode_reply(0, Status::NoRequest, &[], check)
+                let mut frame = [0u8; REPLY_BUF_LEN];
+                let len = self.encode_reply(&mut frame, 0, Status::NoRequest, &[], check);
+                let n = len.min(buf.len());
+                if let (Some(dst), Some(src)) = (buf.get_mut(..n), frame.get(..n)) {
+                    dst.copy_from_slice(src);
+                }
+                n
             }
         };
         self.heard.signal(());
-        let n = frame.len().min(buf.len());
-        if let (Some(dst), Some(src)) = (buf.get_mut(..n), frame.get(..n)) {
-            dst.copy_from_slice(src);
-        }
         n
     }
 
@@ -532,14 +574,15 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         r.unwrap_or(0)
     }
 
+    /// Encodes a reply into `buf` (room for [`REPLY_BUF_LEN`] bytes); returns its length.
     fn encode_reply(
         &self,
+        buf: &mut [u8; REPLY_BUF_LEN],
         seq: u8,
         status: Status,
         value: &[u8],
         check: Check,
-    ) -> Vec<u8, REPLY_BUF_LEN> {
-        let mut buf = [0u8; REPLY_BUF_LEN];
+    ) -> usize {
         let reply = Reply {
             seq,
             status,
@@ -549,22 +592,23 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         // room for the longest reply and its check, so neither step fails; if one did, the
         // answer would be empty (padding, which the MB refuses).
         let addr = self.config.address.addr_byte(true);
-        let len = reply
-            .emit(&mut buf)
+        reply
+            .emit(buf)
             .and_then(|n| match check {
                 Check::None => Ok(n),
-                Check::ByLength => pec::append(addr, &mut buf, n),
-                Check::Crc16 => pec::append16(addr, &mut buf, n),
+                Check::ByLength => pec::append(addr, buf, n),
+                Check::Crc16 => pec::append16(addr, buf, n),
             })
-            .unwrap_or(0);
-        let mut out = Vec::new();
-        let _ = out.extend_from_slice(buf.get(..len).unwrap_or(&[]));
-        out
+            .unwrap_or(0)
     }
 
+    /// Encodes the reply to hold in place, where [`Daughterboard::take_reply`] copies it from.
     fn store_reply(&self, seq: u8, status: Status, value: &[u8], check: Check) {
-        let frame = self.encode_reply(seq, status, value, check);
-        self.with(|s| s.reply = Some(frame));
+        self.with(|s| {
+            let len = self.encode_reply(&mut s.reply, seq, status, value, check);
+            // At most REPLY_BUF_LEN (34) bytes.
+            s.reply_len = Some(len as u8);
+        });
     }
 
     /// Puts an event into the queue. `seq: None` numbers it with the board's event counter.
@@ -643,7 +687,13 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     }
 
     /// Validates and executes one frame.
-    fn execute_frame(&self, bytes: &[u8], pec_on: bool, broadcast: bool) -> (Head, Done) {
+    fn execute_frame(
+        &self,
+        bytes: &[u8],
+        pec_on: bool,
+        broadcast: bool,
+        value: &mut Value,
+    ) -> (Head, Status) {
         let mut head = Head {
             seq: bytes.get(3).copied().unwrap_or(0),
             port: bytes.get(2).copied().unwrap_or(0),
@@ -662,25 +712,25 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 // `who_is_there` is taken without its check too: the motherboard's start-up
                 // sweep cannot know the board's PEC setting, and it changes nothing.
                 Err(_) if !self.is_unaddressed() && matches!(bytes, [0x0b, _, 0, _]) => bytes,
-                Err(e) => return (head, Done::status(e.status())),
+                Err(e) => return (head, e.status()),
             }
         } else {
             bytes
         };
         let frame = match RequestFrame::new_checked(body) {
             Ok(f) => f,
-            Err(e) => return (head, Done::status(e.status())),
+            Err(e) => return (head, e.status()),
         };
         if frame.db() != self.config.address.get() && !broadcast {
-            return (head, Done::status(Status::WrongAddress));
+            return (head, Status::WrongAddress);
         }
         let op = match Op::parse(frame.fn_op(), frame.port_byte(), frame.data()) {
             // Only `sample` and `apply` are written to every board at once.
             Ok(op) if broadcast && !matches!(op, Op::Sample | Op::Apply) => {
-                return (head, Done::status(Status::BadArgument))
+                return (head, Status::BadArgument)
             }
             Ok(op) => op,
-            Err(e) => return (head, Done::status(e.status())),
+            Err(e) => return (head, e.status()),
         };
         if self.is_unaddressed() {
             // Only `assign`, and only with this board's ID: everything else is dropped (an
@@ -690,15 +740,15 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 Op::Assign { .. } => Status::Ok,
                 _ => Status::BadArgument,
             };
-            return (head, Done::status(status));
+            return (head, status);
         }
         head.expects_reply = op.expects_reply();
         head.crc16_reply = !op.reply_len().is_exact();
-        let done = match op {
-            Op::Batch(b) => self.execute_batch(head.seq, b),
-            op => self.execute_op(head.seq, &op),
+        let status = match op {
+            Op::Batch(b) => self.execute_batch(head.seq, b, value),
+            op => self.execute_op(head.seq, &op, value),
         };
-        (head, done)
+        (head, status)
     }
 
     fn has(&self, bits: u16) -> bool {
@@ -733,92 +783,89 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         }
     }
 
-    fn execute_batch(&self, seq: u8, batch: Batch<'_>) -> Done {
+    fn execute_batch(&self, seq: u8, batch: Batch<'_>, value: &mut Value) -> Status {
         if !self.has(Capabilities::BATCH) {
-            return Done::status(Status::Unsupported);
+            return Status::Unsupported;
         }
         let mut buf = [0u8; MAX_PAYLOAD];
         let mut used = 0usize;
+        let mut item = Value::new();
         for op in batch.iter() {
-            let item = self.execute_op(seq, &op);
-            if !item.status.is_ok() {
-                self.with(|s| count_status(&mut s.diag, item.status));
+            item.clear();
+            let status = self.execute_op(seq, &op, &mut item);
+            if !status.is_ok() {
+                self.with(|s| count_status(&mut s.diag, status));
             }
             let Some(rest) = buf.get_mut(used..) else {
-                return Done::status(Status::BadArgument);
+                return Status::BadArgument;
             };
-            match BatchResults::emit(rest, item.status, &item.value) {
+            match BatchResults::emit(rest, status, &item) {
                 Ok(n) => used += n,
                 // `Batch::new_checked` made sure every result fits one reply.
-                Err(_) => return Done::status(Status::BadArgument),
+                Err(_) => return Status::BadArgument,
             }
         }
-        Done::value(buf.get(..used).unwrap_or(&[]))
+        set_value(value, buf.get(..used).unwrap_or(&[]))
     }
 
-    /// Executes one operation (a request's, or one item of a batch).
-    fn execute_op(&self, seq: u8, op: &Op<'_>) -> Done {
+    /// Executes one operation (a request's, or one item of a batch): its status; its value
+    /// in `value` (left empty unless `ok`).
+    fn execute_op(&self, seq: u8, op: &Op<'_>, value: &mut Value) -> Status {
         if let Some(bits) = Self::required_capability(op) {
             if !self.has(bits) {
-                return Done::status(Status::Unsupported);
+                return Status::Unsupported;
             }
         }
         if let Some(pin) = op.pin_ref() {
             if let Err(s) = self.check_port(pin.port) {
-                return Done::status(s);
+                return s;
             }
         }
         let p = &self.ports;
         match *op {
-            Op::Ping | Op::Heartbeat => Done::ok(),
-            Op::Identify => Done::value(&self.identity().to_bytes()),
+            Op::Ping | Op::Heartbeat => Status::Ok,
+            Op::Identify => set_value(value, &self.identity().to_bytes()),
             Op::SetFailsafe { timeout_ms } => {
                 self.with(|s| s.failsafe_ms = timeout_ms);
-                Done::ok()
+                Status::Ok
             }
             Op::EventEnable(pin, cfg) => self.enable_events(pin, cfg),
-            Op::ReadDiagnostics => Done::value(&self.diagnostics().to_bytes()),
+            Op::ReadDiagnostics => set_value(value, &self.diagnostics().to_bytes()),
             Op::ClearDiagnostics => {
                 self.with(|s| s.diag = Diagnostics::default());
-                Done::ok()
+                Status::Ok
             }
             Op::SetPec(on) => {
                 self.with(|s| s.pec = on);
-                Done::ok()
+                Status::Ok
             }
-            Op::DigitalRead(pin) => {
-                Done::from_port(p.digital_read(pin), |l| Done::value(&[l.is_high() as u8]))
-            }
-            Op::DigitalWrite(pin, level) => {
-                Done::from_port(p.digital_write(pin, level), |_| Done::ok())
-            }
+            Op::DigitalRead(pin) => match p.digital_read(pin) {
+                Ok(l) => set_value(value, &[l.is_high() as u8]),
+                Err(e) => port_status(e),
+            },
+            Op::DigitalWrite(pin, level) => port_done(p.digital_write(pin, level)),
             Op::PulseIn {
                 pin,
                 edge,
                 timeout_ms,
             } => self.start_pulse(seq, pin, edge, timeout_ms),
-            Op::PwmDuty(pin, duty) => Done::from_port(p.pwm_duty(pin, duty), |_| Done::ok()),
-            Op::PwmFrequency(port, hz) => {
-                Done::from_port(p.pwm_frequency(port, hz), |_| Done::ok())
-            }
-            Op::PwmPulseWidth(pin, us) => {
-                Done::from_port(p.pwm_pulse_width(pin, us), |_| Done::ok())
-            }
-            Op::AnalogRead(port) => {
-                Done::from_port(p.analog_read(port), |v| Done::value(&v.to_le_bytes()))
-            }
-            Op::SerialWrite(..) | Op::SerialRead(..) | Op::SerialConfig(..) => {
-                Done::status(Status::Unsupported)
-            }
+            Op::PwmDuty(pin, duty) => port_done(p.pwm_duty(pin, duty)),
+            Op::PwmFrequency(port, hz) => port_done(p.pwm_frequency(port, hz)),
+            Op::PwmPulseWidth(pin, us) => port_done(p.pwm_pulse_width(pin, us)),
+            Op::AnalogRead(port) => match p.analog_read(port) {
+                Ok(v) => set_value(value, &v.to_le_bytes()),
+                Err(e) => port_status(e),
+            },
+            Op::SerialWrite(..) | Op::SerialRead(..) | Op::SerialConfig(..) => Status::Unsupported,
             // A batch cannot hold a batch (the parser refuses it). An `assign` reaches only
             // unaddressed boards (`execute_frame`): a board with an address ignores it.
-            Op::Batch(_) | Op::Assign { .. } => Done::status(Status::BadArgument),
-            Op::SetAddress(a) => Done::status(self.keep_address(a)),
-            Op::EnterUpdate => Done::status(self.firmware(true)),
-            Op::ConfirmFirmware => Done::status(self.firmware(false)),
+            Op::Batch(_) | Op::Assign { .. } => Status::BadArgument,
+            Op::SetAddress(a) => self.keep_address(a),
+            Op::EnterUpdate => self.firmware(true),
+            Op::ConfirmFirmware => self.firmware(false),
             // Function 7 is the bootloader's.
-            Op::Update(_) => Done::status(Status::Unsupported),
-            Op::Blink(secs) => Done::from_port(p.blink(secs), |_| Done::ok()),
+            Op::Update(_) => Status::Unsupported,
+            Op::Blink(secs) => port_done(p.blink(secs)),
             Op::WhoIsThere => {
                 self.push_event(
                     EventKind::Announce,
@@ -827,7 +874,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                     Status::Ok,
                     &self.boot_info(),
                 );
-                Done::ok()
+                Status::Ok
             }
             // A `sample` reads what a `scan` does, its values packed in 12 bits (one above:
             // `unsupported`, the MB scans that board instead).
@@ -841,58 +888,59 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                         r.emit(&mut buf)
                     };
                     match n {
-                        Ok(len) => Done::value(buf.get(..len).unwrap_or(&[])),
-                        Err(_) => Done::status(Status::Unsupported),
+                        Ok(len) => set_value(value, buf.get(..len).unwrap_or(&[])),
+                        Err(_) => Status::Unsupported,
                     }
                 }
-                Err(s) => Done::status(s),
+                Err(s) => s,
             },
             #[cfg(not(feature = "together"))]
             Op::Scan => match self.read_sensors() {
                 Ok(r) => {
                     let mut buf = [0u8; MAX_PAYLOAD];
                     match r.emit(&mut buf) {
-                        Ok(len) => Done::value(buf.get(..len).unwrap_or(&[])),
-                        Err(_) => Done::status(Status::BadLength),
+                        Ok(len) => set_value(value, buf.get(..len).unwrap_or(&[])),
+                        Err(_) => Status::BadLength,
                     }
                 }
-                Err(s) => Done::status(s),
+                Err(s) => s,
             },
             #[cfg(feature = "together")]
             Op::Stage(b) => self.stage(seq, b),
             #[cfg(feature = "together")]
             Op::Apply => self.apply(seq),
             #[cfg(not(feature = "together"))]
-            Op::Sample | Op::Stage(_) | Op::Apply => Done::status(Status::Unsupported),
+            Op::Sample | Op::Stage(_) | Op::Apply => Status::Unsupported,
         }
     }
 
     /// `stage`: held (replacing what was held) until `apply` or the timeout; nothing is
     /// executed. Its items were parsed (outputs only); each is checked as it is executed.
     #[cfg(feature = "together")]
-    fn stage(&self, seq: u8, b: Batch<'_>) -> Done {
+    fn stage(&self, seq: u8, b: Batch<'_>) -> Status {
         self.with(|s| {
             s.staged.clear();
             let _ = s.staged.extend_from_slice(b.as_bytes());
             s.stage_seq = seq;
             s.stage_fresh = true;
         });
-        Done::ok()
+        Status::Ok
     }
 
     /// `apply`: executes what is held, item by item; the first refusal is the status (held
     /// for the MB's plain read). With nothing held it does nothing (`ok`).
     #[cfg(feature = "together")]
-    fn apply(&self, seq: u8) -> Done {
+    fn apply(&self, seq: u8) -> Status {
         let held = self.with(|s| core::mem::take(&mut s.staged));
         let mut status = Status::Ok;
+        let mut item = Value::new();
         for op in x10_microcode::BatchItems::of_checked(&held) {
-            let s = self.execute_op(seq, &op).status;
+            let s = self.execute_op(seq, &op, &mut item);
             if status.is_ok() {
                 status = s;
             }
         }
-        Done::status(status)
+        status
     }
 
     /// Drops held outputs no `apply` took (see [`sweep::STAGE_TIMEOUT_MS`]): counted as a
@@ -918,9 +966,9 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         }
     }
 
-    fn enable_events(&self, pin: PinRef, cfg: EventConfig) -> Done {
+    fn enable_events(&self, pin: PinRef, cfg: EventConfig) -> Status {
         if cfg.analog_window && pin.port.kind() != PortKind::Sensor {
-            return Done::status(Status::WrongPortKind);
+            return Status::WrongPortKind;
         }
         let off = !(cfg.rising || cfg.falling || cfg.analog_window);
         // Edges are latched from now on where the port can (counted from zero again at each
@@ -958,10 +1006,10 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             }
         });
         self.wake.signal(());
-        Done::status(status)
+        status
     }
 
-    fn start_pulse(&self, seq: u8, pin: PinRef, edge: Edge, timeout_ms: Option<u16>) -> Done {
+    fn start_pulse(&self, seq: u8, pin: PinRef, edge: Edge, timeout_ms: Option<u16>) -> Status {
         let job = PulseJob {
             accepted: None,
             seq,
@@ -969,7 +1017,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             edge,
             timeout_ms: timeout_ms.unwrap_or(self.config.default_pulse_timeout_ms),
         };
-        let status = self.with(|s| {
+        self.with(|s| {
             if s.pulse_pins.contains(&pin) || s.pulse_pins.push(pin).is_err() {
                 return Status::Busy;
             }
@@ -978,8 +1026,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 return Status::Busy;
             }
             Status::Pending
-        });
-        Done::status(status)
+        })
     }
 
     /// Every sensor port's levels and analog value (what `scan` and `sample` report).

@@ -1,6 +1,8 @@
 //! Counters of the motherboard runtime: [`MbDiagnostics`], kept with the bookkeeping under
 //! the motherboard's lock and counted by every part of it.
 
+use x10_devices::LinkError;
+
 /// What the motherboard runtime counted since start (each saturating at `u32::MAX`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -155,4 +157,20 @@ impl MbDiagnostics {
 /// Adds one, stopping at the maximum.
 pub(crate) fn bump(c: &mut u32) {
     *c = c.saturating_add(1);
+}
+
+/// Counts how a request ended: `completed`, or the counter of its error.
+pub(crate) fn count_outcome<T>(d: &mut MbDiagnostics, result: &Result<T, LinkError>) {
+    match result {
+        Ok(_) => bump(&mut d.completed),
+        Err(LinkError::Timeout) => bump(&mut d.timeouts),
+        Err(LinkError::Nack) => bump(&mut d.nacks),
+        Err(LinkError::ArbitrationLost) => bump(&mut d.arbitration_failures),
+        Err(LinkError::Bus) => bump(&mut d.bus_errors),
+        Err(LinkError::BadReply) => bump(&mut d.bad_replies),
+        Err(LinkError::Status(_)) => bump(&mut d.status_errors),
+        Err(
+            LinkError::Invalid(_) | LinkError::Busy | LinkError::Unsupported | LinkError::Updating,
+        ) => {}
+    }
 }

@@ -1,6 +1,8 @@
 //! [`X10`]: the handle robot programs use, a `&'static` reference to the [`MbCore`] (and
 //! the [`Link`] implementations through which the drivers reach it).
 
+use core::future::Future;
+
 use x10_devices::{Link, LinkError, PinEvent};
 use x10_microcode::{Address, Op, Payload, PinRef};
 
@@ -49,21 +51,26 @@ impl X10 {
     ///
     /// # Errors
     /// As [`MbCore::call_with_timeout`].
-    pub async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
-        self.core.call(db, op).await
+    pub fn call<'a>(
+        &'a self,
+        db: Address,
+        op: Op<'a>,
+    ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
+        // The core's future itself, not one wrapped in another state machine (issue 27).
+        self.core.call_with(db, op, None)
     }
 
     /// [`X10::call`] with an explicit timeout in µs.
     ///
     /// # Errors
     /// As [`MbCore::call_with_timeout`].
-    pub async fn call_with_timeout(
-        &self,
+    pub fn call_with_timeout<'a>(
+        &'a self,
         db: Address,
-        op: Op<'_>,
+        op: Op<'a>,
         timeout_us: u64,
-    ) -> Result<Payload, LinkError> {
-        self.core.call_with_timeout(db, op, timeout_us).await
+    ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
+        self.core.call_with(db, op, Some(timeout_us))
     }
 
     /// Waits for the next pin-change or analog-threshold event from `pin` on board `db`
@@ -208,8 +215,8 @@ impl defmt::Format for X10 {
 }
 
 impl Link for X10 {
-    async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
-        self.core.call(db, op).await
+    fn call(&self, db: Address, op: Op<'_>) -> impl Future<Output = Result<Payload, LinkError>> {
+        self.core.call_with(db, op, None)
     }
 
     async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
@@ -218,8 +225,8 @@ impl Link for X10 {
 }
 
 impl Link for MbCore {
-    async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
-        MbCore::call(self, db, op).await
+    fn call(&self, db: Address, op: Op<'_>) -> impl Future<Output = Result<Payload, LinkError>> {
+        self.call_with(db, op, None)
     }
 
     async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {

@@ -71,7 +71,7 @@ pub use directory::{choose_address, BoardQuery, KnownBoard, COLLISION_WINDOW_US}
 pub use handle::{WAIT_FOR_BOARD_POLL_US, X10};
 pub use jobs::REQUEST_QUEUE_LEN;
 pub use keepalive::KEEPALIVE_RAM_BYTES;
-pub use mb_core::MbCore;
+pub use mb_core::{InternalBoard, MbCore};
 pub use motherboard::Motherboard;
 pub use observe::{CallObserver, CallRecord};
 pub use requests::{MAX_PENDING, RECENT_LEN};

@@ -6,20 +6,22 @@
 //! means is [`crate::transfer`]'s, where events go [`crate::routing`]'s.
 
 use core::cell::RefCell;
+use core::future::Future;
 use core::task::Poll;
 
 use embassy_futures::select::{select, Either};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
+use embassy_sync::once_lock::OnceLock;
 use embassy_sync::signal::Signal;
 use heapless::Vec;
 use x10_devices::{LinkError, PinEvent};
 use x10_hal::time::Instant;
-use x10_microcode::{Address, Op, Payload, Request, MAX_FRAME_LEN};
+use x10_microcode::{Address, Op, Payload, Request, Status, MAX_FRAME_LEN};
 
 use crate::boards::{failsafe_change, pec_change};
 use crate::config::MbConfig;
-use crate::diag::{bump, MbDiagnostics};
+use crate::diag::{bump, count_outcome, MbDiagnostics};
 use crate::jobs::{Job, JobMeta};
 use crate::observe::{CallObserver, CallRecord};
 use crate::requests::{Ended, SlotState, Ticket, MAX_PENDING};
@@ -38,6 +40,37 @@ pub(crate) fn now() -> Instant {
 /// Sleeps until `at` (embassy-time).
 pub(crate) async fn sleep_until(at: Instant) {
     embassy_time::Timer::at(embassy_time::Instant::from_micros(at.as_micros())).await
+}
+
+/// The internal daughterboard as the calling task runs it (the direct path of
+/// [`MbCore::call`]): a [`crate::Motherboard`] whose ports are `Sync` is one
+/// ([`crate::Motherboard::serve_internal_directly`] hands it to its core).
+pub trait InternalBoard: Sync {
+    /// Executes `op` on the internal daughterboard now, in the calling task, under the lock
+    /// that keeps its calls from overlapping (`firmware_db::Daughterboard::execute`): its
+    /// status, its value in `value`. `None`: it cannot be run from here; the request then
+    /// goes to the internal worker's queue, as a pulse-in does.
+    fn execute(&self, op: &Op<'_>, value: &mut Payload) -> Option<Status>;
+}
+
+/// True for the operations a call to the internal daughterboard runs in the calling task
+/// when its core has an [`InternalBoard`]: those whose outcome the motherboard only hands
+/// back (ports, ping, heartbeat, scan). The others change the motherboard's view of the
+/// board once confirmed (PEC, failsafe, event enables, identity, address), are deferred
+/// (pulse-in) or carry borrowed data (batch, serial): they take the internal worker's queue.
+fn runs_directly(op: &Op<'_>) -> bool {
+    matches!(
+        op,
+        Op::DigitalWrite(..)
+            | Op::DigitalRead(_)
+            | Op::PwmDuty(..)
+            | Op::AnalogRead(_)
+            | Op::PwmFrequency(..)
+            | Op::PwmPulseWidth(..)
+            | Op::Ping
+            | Op::Heartbeat
+            | Op::Scan
+    )
 }
 
 /// What robot tasks, the dispatcher and the keepalive share: configuration, the pending
@@ -61,6 +94,8 @@ pub struct MbCore {
     /// Per waiter slot: the pin event, for the waiting task.
     pub(crate) waiters: [Signal<M, PinEvent>; MAX_EVENT_WAITERS],
     pub(crate) observer: Option<&'static dyn CallObserver>,
+    /// The internal daughterboard for the direct path, once given ([`InternalBoard`]).
+    direct: OnceLock<&'static dyn InternalBoard>,
 }
 
 /// A caller counted among those waiting for a slot: uncounted when it gets one, gives up or
@@ -144,7 +179,14 @@ impl MbCore {
             done: [const { Signal::new() }; MAX_PENDING],
             waiters: [const { Signal::new() }; MAX_EVENT_WAITERS],
             observer: None,
+            direct: OnceLock::new(),
         }
+    }
+
+    /// Lets calls to the internal daughterboard run `board` in the calling task (see
+    /// [`InternalBoard`]); once. False if the core has one already.
+    pub fn set_internal_board(&self, board: &'static dyn InternalBoard) -> bool {
+        self.direct.init(board).is_ok()
     }
 
     /// Runs `f` on the table, under the lock.
@@ -187,8 +229,14 @@ impl MbCore {
     ///
     /// # Errors
     /// As [`MbCore::call_with_timeout`].
-    pub async fn call(&self, db: Address, op: Op<'_>) -> Result<Payload, LinkError> {
-        self.call_with_timeout(db, op, self.timeout_us(&op)).await
+    pub fn call<'a>(
+        &'a self,
+        db: Address,
+        op: Op<'a>,
+    ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
+        // Not an `async fn` of its own: the future is `call_with`'s, one state machine less
+        // to copy the operation and the result through (issue 27).
+        self.call_with(db, op, None)
     }
 
     /// Sends `op` to board `db` (0: the internal daughterboard, without the bus) and waits at
@@ -223,38 +271,72 @@ impl MbCore {
     /// [`LinkError::ArbitrationLost`] (after every retry), [`LinkError::Bus`],
     /// [`LinkError::BadReply`] (unparsable, wrong PEC or wrong sequence number),
     /// [`LinkError::Status`] (the board refused it).
-    pub async fn call_with_timeout(
+    pub fn call_with_timeout<'a>(
+        &'a self,
+        db: Address,
+        op: Op<'a>,
+        timeout_us: u64,
+    ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
+        self.call_with(db, op, Some(timeout_us))
+    }
+
+    /// [`MbCore::call_with_timeout`], `None`: the default timeout ([`MbCore::timeout_us`]),
+    /// worked out only for a call that can wait. A call to the internal daughterboard that
+    /// the direct path runs ([`InternalBoard`]) is checked as any call, yields once, and is
+    /// executed by the calling task; the others go through the pending table and a queue.
+    pub(crate) async fn call_with(
         &self,
         db: Address,
         op: Op<'_>,
-        timeout_us: u64,
+        timeout_us: Option<u64>,
     ) -> Result<Payload, LinkError> {
-        let Some(observer) = self.observer else {
-            return self.call_inner(db, op, timeout_us).await;
+        let started = self.observer.map(|_| now());
+        let result = 'call: {
+            if let Some(board) = self.direct_board(db, &op) {
+                if let Err(e) = self.check(db, &op) {
+                    break 'call Err(e);
+                }
+                // Other tasks run first: a loop of such calls cannot starve them.
+                embassy_futures::yield_now().await;
+                let mut value = Payload::new();
+                if let Some(status) = board.execute(&op, &mut value) {
+                    break 'call self.direct_outcome(&op, status, value);
+                }
+            }
+            let timeout_us = timeout_us.unwrap_or_else(|| self.timeout_us(&op));
+            self.call_inner(db, op, timeout_us).await
         };
-        let started = now();
-        let result = self.call_inner(db, op, timeout_us).await;
-        observer.observe(&CallRecord {
-            db,
-            op: &op,
-            result: &result,
-            started,
-            ended: now(),
-        });
+        if let (Some(observer), Some(started)) = (self.observer, started) {
+            observer.observe(&CallRecord {
+                db,
+                op: &op,
+                result: &result,
+                started,
+                ended: now(),
+            });
+        }
         result
     }
 
-    async fn call_inner(
-        &self,
-        db: Address,
-        op: Op<'_>,
-        timeout_us: u64,
-    ) -> Result<Payload, LinkError> {
-        if self.with(|t| t.updating == Some(db)) && !crate::update::is_update_op(&op) {
-            return Err(LinkError::Updating);
+    /// The internal daughterboard, when the direct path runs `op` to `db` (see
+    /// [`runs_directly`]).
+    fn direct_board(&self, db: Address, op: &Op<'_>) -> Option<&'static dyn InternalBoard> {
+        if db.is_internal() && runs_directly(op) {
+            self.direct.try_get().copied()
+        } else {
+            None
         }
+    }
+
+    /// What is checked before anything is sent: the operation encodes, PEC stays on with the
+    /// safe defaults, `db` is not the motherboard's own address, the board has the port.
+    ///
+    /// # Errors
+    /// As [`MbCore::call_with_timeout`]: `Invalid`, `Updating` (the board is being updated
+    /// and `op` is not one of the update's), or `Status(port_out_of_range)` (counted).
+    fn check(&self, db: Address, op: &Op<'_>) -> Result<(), LinkError> {
         op.validate()?;
-        if self.config.pec && !db.is_internal() && pec_change(&op) == Some(false) {
+        if self.config.pec && !db.is_internal() && pec_change(op) == Some(false) {
             // PEC stays on with the safe defaults (MbConfig::pec).
             return Err(LinkError::Invalid(x10_microcode::Error::BadArgument));
         }
@@ -263,13 +345,36 @@ impl MbCore {
                 db.get(),
             )));
         }
-        // A port the board does not have (as its boot event or identify reply said): refused
-        // here, as the board would refuse it, so that an output to it never returns `Ok`.
-        if let Err(port) = self.with(|t| t.boards.check_ports(db, &op)) {
-            warn!("board {} has no port {}", db.get(), port.number());
-            self.with(|t| bump(&mut t.diag.status_errors));
-            return Err(LinkError::Status(x10_microcode::Status::PortOutOfRange));
+        // A board being updated takes only the update's own operations. A port the board
+        // does not have (as its boot event or identify reply said): refused here, as the
+        // board would refuse it, so that an output to it never returns `Ok`.
+        let refused = self.with(|t| {
+            if t.updating == Some(db) && !crate::update::is_update_op(op) {
+                return Err(None);
+            }
+            let r = t.boards.check_ports(db, op);
+            if r.is_err() {
+                bump(&mut t.diag.status_errors);
+            }
+            r.map_err(Some)
+        });
+        match refused {
+            Ok(()) => Ok(()),
+            Err(None) => Err(LinkError::Updating),
+            Err(Some(port)) => {
+                warn!("board {} has no port {}", db.get(), port.number());
+                Err(LinkError::Status(x10_microcode::Status::PortOutOfRange))
+            }
         }
+    }
+
+    async fn call_inner(
+        &self,
+        db: Address,
+        op: Op<'_>,
+        timeout_us: u64,
+    ) -> Result<Payload, LinkError> {
+        self.check(db, &op)?;
         let t_now = now();
         let deadline = t_now.plus_us(timeout_us);
         // A free slot at once (the usual case) without the waiting machinery.
@@ -352,6 +457,50 @@ impl MbCore {
             }
             Either::Second(()) => guard.expire(),
         }
+    }
+
+    /// The outcome of an operation the internal daughterboard executed in the calling task,
+    /// checked and counted as the internal worker checks and counts its reply
+    /// ([`MbCore::interpret`]): the value must fit the operation (a level is 0 or 1, a scan
+    /// reports the ports the board has), a refusal is its status. The board heard a
+    /// transaction: a failsafe kept alive on it is due again later.
+    fn direct_outcome(
+        &self,
+        op: &Op<'_>,
+        status: Status,
+        value: Payload,
+    ) -> Result<Payload, LinkError> {
+        let db = Address::INTERNAL;
+        // An operation that answers no value (an output, a heartbeat) answered without one
+        // fits, whatever its status: what `check_reply` says of it, without the look at its
+        // reply length (x10-microcode's tests/reply_len.rs holds the two together).
+        let fits = if value.is_empty() && !op.expects_reply() {
+            Ok(())
+        } else {
+            op.check_reply(status, &value)
+        };
+        // What the outcome is, decided and counted under the lock without moving the value
+        // in and out of it (each move of a payload is a 32-byte copy).
+        let outcome = self.with(|t| {
+            if t.boards.keepalive.tracks(db) {
+                t.boards.keepalive.sent(db, now());
+            }
+            let outcome = match (status, fits) {
+                (_, Err(_)) | (Status::Pending, _) => Err(LinkError::BadReply),
+                // A scan must report the ports the board has.
+                (Status::Ok, Ok(()))
+                    if matches!(op, Op::Scan) && !t.boards.scan_fits(db, &value) =>
+                {
+                    Err(LinkError::BadReply)
+                }
+                (Status::Ok, Ok(())) => Ok(()),
+                (s, Ok(())) => Err(LinkError::Status(s)),
+            };
+            bump(&mut t.diag.requests);
+            count_outcome(&mut t.diag, &outcome);
+            outcome
+        });
+        outcome.map(|()| value)
     }
 
     /// Claims a slot and a sequence number for a request to `db`, under the lock: counted in

@@ -8,11 +8,12 @@ use core::ops::Deref;
 
 use embassy_futures::join::join4;
 use embassy_futures::select::{select, select3, Either, Either3};
+use embassy_sync::blocking_mutex::Mutex as BlockingMutex;
 use firmware_db::{Daughterboard, Ports, REPLY_BUF_LEN};
 use heapless::Vec;
 use x10_hal::bus::MultiMaster;
 use x10_hal::time::EmbassyClock;
-use x10_microcode::{Address, Op, Request, MAX_FRAME_LEN};
+use x10_microcode::{Address, Op, Payload, Request, Status, MAX_FRAME_LEN};
 
 use crate::config::MbConfig;
 use crate::diag::bump;
@@ -20,7 +21,7 @@ use crate::directory::KnownBoard;
 use crate::handle::X10;
 use crate::jobs::Job;
 use crate::keepalive::{KeepaliveOp, Next};
-use crate::mb_core::{now, sleep_until, MbCore, M};
+use crate::mb_core::{now, sleep_until, InternalBoard, MbCore, M};
 use crate::observe::CallObserver;
 use crate::transfer::Outcome;
 
@@ -33,6 +34,9 @@ use crate::transfer::Outcome;
 pub struct Motherboard<P: Ports> {
     core: MbCore,
     internal: Daughterboard<M, P>,
+    /// Held while the internal daughterboard executes a request (a critical section): the
+    /// internal worker's transactions and the callers' direct ones never overlap.
+    internal_lock: BlockingMutex<M, ()>,
 }
 
 impl<P: Ports> Deref for Motherboard<P> {
@@ -52,7 +56,24 @@ impl<P: Ports> Motherboard<P> {
         Motherboard {
             core: MbCore::new(config),
             internal: Daughterboard::new(internal_ports, internal),
+            internal_lock: BlockingMutex::new(()),
         }
+    }
+
+    /// Executes `op` on the internal daughterboard in the calling task, under the lock
+    /// around it (the direct path: see [`InternalBoard`]): its status, its value in `value`.
+    pub fn execute_internal(&self, op: &Op<'_>, value: &mut Payload) -> Status {
+        self.internal_lock
+            .lock(|()| self.internal.execute(0, op, value))
+    }
+
+    /// One transaction of the internal worker: `frame` written, the reply read into `buf`;
+    /// its length. Under the lock around the internal board.
+    fn internal_transaction(&self, frame: &[u8], buf: &mut [u8]) -> usize {
+        self.internal_lock.lock(|()| {
+            self.internal.handle_write(frame, true);
+            self.internal.take_reply(buf)
+        })
     }
 
     /// The same motherboard, reporting every finished call to `observer` (the simulator
@@ -86,6 +107,18 @@ impl<P: Ports> Motherboard<P> {
     /// The robot programs' handle: one concrete, `Copy` type whatever the board.
     pub fn handle(&'static self) -> X10 {
         X10::new(&self.core)
+    }
+
+    /// Runs the robot programs' calls to the internal daughterboard in the calling task from
+    /// now on (ports, ping, heartbeat, scan: see [`InternalBoard`]): no queue, no frame, no
+    /// worker in between, one yield per call. Once; the board crates' `start_motherboard`
+    /// calls it. Without it (or for the other operations) the calls go to the internal
+    /// worker's queue, with the same outcomes.
+    pub fn serve_internal_directly(&'static self)
+    where
+        P: Sync,
+    {
+        let _ = self.core.set_internal_board(self);
     }
 
     /// Runs the motherboard; never returns. Run it in a task of its own: the dispatcher with
@@ -146,9 +179,8 @@ impl<P: Ports> Motherboard<P> {
             // Every request is read back, outputs too (it costs no bus): a refusal ends the
             // call in its status, never in `Ok` followed by a `rejected` event.
             let (frame, pec) = self.core.frame_to_send(&job);
-            self.internal.handle_write(&frame, true);
             let mut reply = [0u8; REPLY_BUF_LEN];
-            let n = self.internal.take_reply(&mut reply);
+            let n = self.internal_transaction(&frame, &mut reply);
             self.core.finish_transfer(&job, pec, Ok(reply.get(..n)));
         }
     }
@@ -174,9 +206,8 @@ impl<P: Ports> Motherboard<P> {
                 frame.truncate(n);
                 let job = Job::own(board, seq, Some(0), frame);
                 let (tx, pec) = self.core.frame_to_send(&job);
-                self.internal.handle_write(&tx, true);
                 let mut reply = [0u8; REPLY_BUF_LEN];
-                let n = self.internal.take_reply(&mut reply);
+                let n = self.internal_transaction(&tx, &mut reply);
                 let read = reply.get(..n).unwrap_or(&[]);
                 let (outcome, _) = self.core.interpret(&job.meta, pec, &op_sent, read);
                 matches!(outcome, Outcome::Complete(Ok(_)))
@@ -197,5 +228,11 @@ impl<P: Ports> Motherboard<P> {
             // The internal board's events never cross a bus: as good as checked.
             self.core.route_event(&ev.as_event(Address::INTERNAL), true);
         }
+    }
+}
+
+impl<P: Ports + Sync> InternalBoard for Motherboard<P> {
+    fn execute(&self, op: &Op<'_>, value: &mut Payload) -> Option<Status> {
+        Some(self.execute_internal(op, value))
     }
 }

@@ -24,7 +24,7 @@ use x10_hal::time::Instant;
 use x10_microcode::{Address, Payload, PinRef};
 
 use crate::board_set::{board_index, BOARDS};
-use crate::diag::{bump, MbDiagnostics};
+use crate::diag::{bump, count_outcome, MbDiagnostics};
 
 /// Requests outstanding at the same time (all boards together).
 pub const MAX_PENDING: usize = 16;
@@ -392,22 +392,7 @@ impl Requests {
             s.until = Instant(0);
         }
         s.state = SlotState::Done;
-        let d = diag;
-        match result {
-            Ok(_) => bump(&mut d.completed),
-            Err(LinkError::Timeout) => bump(&mut d.timeouts),
-            Err(LinkError::Nack) => bump(&mut d.nacks),
-            Err(LinkError::ArbitrationLost) => bump(&mut d.arbitration_failures),
-            Err(LinkError::Bus) => bump(&mut d.bus_errors),
-            Err(LinkError::BadReply) => bump(&mut d.bad_replies),
-            Err(LinkError::Status(_)) => bump(&mut d.status_errors),
-            Err(
-                LinkError::Invalid(_)
-                | LinkError::Busy
-                | LinkError::Unsupported
-                | LinkError::Updating,
-            ) => {}
-        }
+        count_outcome(diag, result);
         true
     }
 

@@ -111,6 +111,8 @@ macro_rules! motherboard_starter {
             let mb: &'static StartedMb = MOTHERBOARD
                 .try_init(started)
                 .ok_or(crate::start::StartError::AlreadyStarted)?;
+            // Robot calls to the board's own ports run in the calling task (issue 27).
+            mb.serve_internal_directly();
             let task =
                 motherboard_task(mb, board.bus).map_err(|_| crate::start::StartError::Spawn)?;
             spawner.spawn(task);

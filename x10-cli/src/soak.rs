@@ -606,6 +606,8 @@ pub fn run(cfg: SoakConfig) -> Result<Row, x10_sim::exec::RunError> {
     mb_cfg.seed = (cfg.seed as u32) ^ ((cfg.seed >> 32) as u32) ^ 0x5a;
     let mb: &'static Motherboard<SimPorts> =
         Box::leak(Box::new(Motherboard::new(mb_cfg, make_ports(0))));
+    // Calls to board 0 run in the calling task, as on the boards (issue 27).
+    let _direct = x10_sim::sim::DirectInternal::start(mb);
     let x10 = mb.handle();
     let rec = RefCell::new(Record {
         in_flight: vec![None; TASKS],

@@ -201,3 +201,27 @@ fn a_flipped_length_byte_never_moves_the_pec() {
     );
     assert!(scan.len() <= MAX_FRAME_LEN);
 }
+
+/// The motherboard's direct path (issue 27) takes an operation that expects no reply,
+/// answered with no value, as fitting without calling `check_reply`: here `check_reply` says
+/// so for every such operation and every status.
+#[test]
+fn an_operation_without_a_reply_fits_an_empty_answer_whatever_its_status() {
+    let mut buf = [0u8; MAX_FRAME_LEN];
+    let b = batch(&mut buf);
+    let mut without = 0;
+    for (op, len) in every_op(b) {
+        if op.expects_reply() {
+            continue;
+        }
+        without += 1;
+        assert_eq!(len, ReplyLen::Exact(0), "{op:?}");
+        for code in 0..=255u8 {
+            let status = Status::from_byte(code);
+            assert_eq!(op.check_reply(status, &[]), Ok(()), "{op:?} {status:?}");
+        }
+    }
+    // Heartbeat, set_failsafe, event_enable, clear_diagnostics, set_pec, digital write,
+    // three PWM settings, serial write and config.
+    assert_eq!(without, 11);
+}

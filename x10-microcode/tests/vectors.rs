@@ -9,7 +9,7 @@ use x10_microcode::test_support::{a, s};
 use x10_microcode::{
     pec, Address, Batch, BatchItem, BatchResults, BatchWriter, BoardKind, Capabilities,
     Diagnostics, Edge, Error, Event, EventConfig, EventFrame, EventKind, Function, Identity, Level,
-    Op, Pin, Reply, ReplyFrame, Request, RequestFrame, ScanResult, Status, MAX_FRAME_LEN,
+    Op, Pin, PinRef, Reply, ReplyFrame, Request, RequestFrame, ScanResult, Status, MAX_FRAME_LEN,
     MAX_REQUEST_DATA,
 };
 
@@ -1658,4 +1658,41 @@ fn scan_payload() {
 fn check_bytes(addr_byte: u8, frame: &[u8]) -> Vec<u8> {
     let c = pec::check(addr_byte, frame).to_le_bytes();
     c[..pec::check_len(frame.len())].to_vec()
+}
+
+/// `Op::validate` checks the port operations and the data-less system operations without
+/// encoding them (issue 27); here it gives the round trip's answer (`validate_encoded`: the
+/// data emitted and parsed back) for every port byte and the edge values of each argument.
+#[test]
+fn validate_without_encoding_agrees_with_the_round_trip() {
+    let mut checked = 0;
+    let mut refused = 0;
+    for byte in 0..=255u8 {
+        let pin = PinRef::from_byte(byte);
+        let port = pin.port;
+        let mut ops = vec![
+            Op::Ping,
+            Op::Heartbeat,
+            Op::Scan,
+            Op::DigitalRead(pin),
+            Op::DigitalWrite(pin, Level::Low),
+            Op::DigitalWrite(pin, Level::High),
+            Op::AnalogRead(port),
+        ];
+        for duty in [0, 1, 128, 255] {
+            ops.push(Op::PwmDuty(pin, duty));
+        }
+        for v in [0, 1, 50, 1500, u16::MAX] {
+            ops.push(Op::PwmPulseWidth(pin, v));
+            ops.push(Op::PwmFrequency(port, v));
+        }
+        for op in ops {
+            assert_eq!(op.validate(), op.validate_encoded(), "{op:?}");
+            checked += 1;
+            refused += usize::from(op.validate().is_err());
+        }
+    }
+    // Both answers occur: wrong port kinds and a zero frequency are refused.
+    assert_eq!(checked, 256 * 21);
+    assert!(refused > 256 * 4, "{refused}");
 }

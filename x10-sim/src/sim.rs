@@ -35,9 +35,10 @@ use std::rc::Rc;
 use std::sync::Mutex;
 
 use firmware_mb::{
-    CallObserver, CallRecord, KnownBoard, MbConfig, MbDiagnostics, Motherboard, PinnedAddress,
+    CallObserver, CallRecord, InternalBoard, KnownBoard, MbConfig, MbDiagnostics, Motherboard,
+    PinnedAddress,
 };
-use x10_microcode::{Address, Diagnostics, Op, Payload, Uid};
+use x10_microcode::{Address, Diagnostics, Op, Payload, Status, Uid};
 
 pub use firmware_mb::X10;
 
@@ -56,6 +57,61 @@ pub const UNPLUGGED_NS: Nanos = Nanos::MAX / 4;
 
 /// The motherboard runtime as the simulator runs it.
 pub type SimMotherboard = Motherboard<SimPorts>;
+
+std::thread_local! {
+    /// The motherboards of the runs under way on this thread: where [`SimInternal`] finds
+    /// its run's internal daughterboard.
+    static RUNNING: std::cell::RefCell<Vec<&'static SimMotherboard>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// The internal daughterboard of one run for the motherboard's direct path (issue 27: robot
+/// calls to `SELF` run it in the calling task, as on the boards, where
+/// `start_motherboard` calls `Motherboard::serve_internal_directly`). The simulator's ports
+/// are not `Sync` (one thread runs a simulation), so the core gets this stand-in instead,
+/// which is: it names its motherboard by address and finds it among the runs of the
+/// calling thread. From another thread it finds none, and the call takes the internal
+/// worker's queue (the same outcome).
+struct SimInternal {
+    mb: usize,
+}
+
+impl InternalBoard for SimInternal {
+    fn execute(&self, op: &Op<'_>, value: &mut Payload) -> Option<Status> {
+        let mb = RUNNING.with(|r| {
+            r.borrow()
+                .iter()
+                .copied()
+                .find(|&m| std::ptr::from_ref(m) as usize == self.mb)
+        })?;
+        Some(mb.execute_internal(op, value))
+    }
+}
+
+/// Robot calls to `SELF` on `mb` run its internal daughterboard in the calling task (the
+/// motherboard's direct path, as on the boards) while this lives; it must live on the thread
+/// that runs the simulation. [`Sim`]'s runs do this themselves; a program that builds its
+/// own [`SimMotherboard`] (the soak) calls it.
+pub struct DirectInternal(&'static SimMotherboard);
+
+impl DirectInternal {
+    /// Starts the direct path of `mb` on this thread (see [`DirectInternal`]). The first
+    /// call for `mb` gives its core the stand-in; it stays the stand-in for good.
+    pub fn start(mb: &'static SimMotherboard) -> DirectInternal {
+        RUNNING.with(|r| r.borrow_mut().push(mb));
+        let stand_in: &'static SimInternal = Box::leak(Box::new(SimInternal {
+            mb: std::ptr::from_ref(mb) as usize,
+        }));
+        mb.core().set_internal_board(stand_in);
+        DirectInternal(mb)
+    }
+}
+
+impl Drop for DirectInternal {
+    fn drop(&mut self) {
+        RUNNING.with(|r| r.borrow_mut().retain(|&m| !std::ptr::eq(m, self.0)));
+    }
+}
 
 /// Settings of a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -982,6 +1038,7 @@ impl Sim {
             motherboard = motherboard.with_directory(Box::leak(entries));
         }
         let mb: &'static SimMotherboard = Box::leak(Box::new(motherboard));
+        let _direct = DirectInternal::start(mb);
 
         let run = {
             let mut ex = Executor::with_clock(&clock);
