@@ -750,7 +750,7 @@ mod tests {
                 "--target",
                 "thumbv7em-none-eabihf",
                 "--features",
-                "stm32g431,daughterboard",
+                "stm32g431,daughterboard,g431-update",
                 "--bin",
                 "db-g431",
                 "--",
