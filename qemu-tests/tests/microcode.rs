@@ -125,8 +125,8 @@ mod tests {
             Some(Error::BadAddress(5))
         );
         assert_eq!(
-            Request::parse(&[0x70, 0x09, 0x00, 0x01]).err(),
-            Some(Error::UnknownFunction(7))
+            Request::parse(&[0xF0, 0x09, 0x00, 0x01]).err(),
+            Some(Error::UnknownFunction(15))
         );
         assert_eq!(Request::parse(&[0x12, 0x09]).err(), Some(Error::Truncated));
     }
