@@ -469,6 +469,11 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
     }
 
     fn commit(&mut self) -> Status {
+        // A repeated commit (its reply was lost on the way): the image is verified and the
+        // swap marked, or about to be; it is answered as the first was.
+        if self.phase == UpdateState::Committed {
+            return Status::Ok;
+        }
         let Some(info) = self.info.filter(|_| self.phase == UpdateState::Receiving) else {
             return Status::NoSession;
         };
