@@ -455,4 +455,40 @@ proptest! {
             prop_assert_eq!(&out[..n], &b[..]);
         }
     }
+
+    #[test]
+    fn sweep_pack_unpack_roundtrip(scan in scan_result()) {
+        let mut scan = scan;
+        for v in scan.analog.iter_mut() {
+            *v &= 0x0fff;
+        }
+        // A board has two pins per port: the levels above them are 0.
+        scan.digital &= u16::MAX.checked_shr(16 - 2 * u32::from(scan.ports)).unwrap_or(0);
+        let mut out = [0u8; x10_microcode::sweep::MAX_PAYLOAD_LEN];
+        let n = x10_microcode::sweep::pack(&scan, &mut out).unwrap();
+        prop_assert_eq!(n, x10_microcode::sweep::payload_len(scan.ports));
+        prop_assert_eq!(x10_microcode::sweep::unpack(scan.ports, &out[..n]).unwrap(), scan);
+    }
+
+    #[test]
+    fn sweep_unpack_arbitrary(ports in 0u8..12, b in proptest::collection::vec(any::<u8>(), 0..20)) {
+        // Whatever unpacks packs again to exactly the same bytes: no two payloads give the
+        // same values.
+        if let Ok(scan) = x10_microcode::sweep::unpack(ports, &b) {
+            let mut out = [0u8; x10_microcode::sweep::MAX_PAYLOAD_LEN];
+            let n = x10_microcode::sweep::pack(&scan, &mut out).unwrap();
+            prop_assert_eq!(&out[..n], &b[..]);
+        }
+    }
+
+    #[test]
+    fn update_op_parse_arbitrary(operand in any::<u8>(), port in any::<u8>(),
+                                 b in proptest::collection::vec(any::<u8>(), 0..=MAX_REQUEST_DATA)) {
+        if let Ok(op) = x10_microcode::UpdateOp::parse(operand, port, &b) {
+            let mut out = [0u8; MAX_REQUEST_DATA];
+            let n = op.emit_data(&mut out).unwrap();
+            prop_assert_eq!(&out[..n], &b[..]);
+        }
+        let _ = x10_microcode::UpdateReport::parse(&b);
+    }
 }
