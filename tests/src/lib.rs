@@ -17,6 +17,7 @@
 //! | `determinism.rs` | same seed, same trace and waveform, byte for byte |
 //! | `waveform.rs` | the VCD encodes every START, repeated START and STOP |
 //! | `faults.rs` | the robot keeps working through injected NACKs and corrupted bytes |
+//! | `faults_together.rs` | a sweep and outputs set together on a faulty bus, against the world and the ports |
 //! | `latency.rs` | the latency table's figures against the wire-time minimum |
 //!
 //! This library only holds small helpers the tests share.
