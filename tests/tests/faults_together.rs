@@ -157,9 +157,12 @@ fn every_value_a_sweep_gives_on_a_faulty_bus_is_one_the_world_held_for_that_boar
     assert!(ok > 3_000, "{ok} values, {failed} errors");
 }
 
+/// Each `together`'s value and outcome (`Err(before_apply)`).
+type Outcomes = Rc<RefCell<Vec<(u8, Result<(), bool>)>>>;
+
 #[test]
 fn outputs_set_together_on_a_faulty_bus_reach_the_ports_only_as_set_and_in_order() {
-    let results: Rc<RefCell<Vec<(u8, Result<(), bool>)>>> = Rc::new(RefCell::new(Vec::new()));
+    let results: Outcomes = Rc::new(RefCell::new(Vec::new()));
     let out = results.clone();
     let mut sim = Sim::new(faulty(11, 4_000));
     let boards = [("db09", 0x09u8), ("db0a", 0x0a), ("db0b", 0x0b)];
@@ -204,7 +207,7 @@ fn outputs_set_together_on_a_faulty_bus_reach_the_ports_only_as_set_and_in_order
             .of(name, motor)
             .into_iter()
             .filter_map(|c| match c.change {
-                Change::Duty(d) if d > 0 => Some((d as u8, c.t_ns)),
+                Change::Duty(d) if d > 0 => Some((d, c.t_ns)),
                 _ => None,
             })
             .collect();
