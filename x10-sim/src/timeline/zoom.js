@@ -19,8 +19,11 @@
       for (var i = 0; i < rows; i++) ends.push(-Infinity);
       g.querySelectorAll('text.label').forEach(function (t) {
         var x = px(num(t, 'data-x')), w = num(t, 'data-w'), a, b, anchor;
+        // A change scrolled out of the plot has no label; one whose text would cross an edge
+        // of the plot (over the lanes' names, past the right end) has no room.
+        if (x < L || x > R) { t.setAttribute('visibility', 'hidden'); return; }
         if (x + 2 + w <= R) { a = x + 2; b = a + w; anchor = 'start'; } else { b = x - 2; a = b - w; anchor = 'end'; }
-        if (b < L || a > R) { t.setAttribute('visibility', 'hidden'); return; }
+        if (a < L) { hidden++; t.setAttribute('visibility', 'hidden'); return; }
         var r = 0;
         while (r < rows && ends[r] + SPACE > a) r++;
         if (r === rows) { hidden++; t.setAttribute('visibility', 'hidden'); return; }
