@@ -10,7 +10,7 @@
 //! (so a motherboard with little RAM, like the Cortex-M0 test suite's, pays nothing for it).
 
 use x10_hal::time::Instant;
-use x10_microcode::{Address, BoardKind, BootInfo, Op, Uid};
+use x10_microcode::{Address, BoardKind, BootInfo, Identity, Op, Uid};
 
 use crate::config::{PinBy, PinnedAddress};
 
@@ -306,6 +306,23 @@ impl Directory {
         any
     }
 
+    /// `identify` answered from `address`: the one board present there (not `collided`)
+    /// runs what it says. Its `boot` event says the same, unless that event was lost: after
+    /// an update the new version is then known all the same, and the board is not updated
+    /// again.
+    pub(crate) fn identified(&mut self, address: Address, id: &Identity) {
+        let mut there = self
+            .known_mut()
+            .iter_mut()
+            .filter(|b| b.address == address && b.present && !b.collided);
+        if let (Some(b), None) = (there.next(), there.next()) {
+            b.kind = id.board;
+            b.firmware = id.firmware;
+            b.sensor_ports = id.sensor_ports;
+            b.actuator_ports = id.actuator_ports;
+        }
+    }
+
     /// The board at `from` confirmed `set_address(to)`: it is at `to` once its `boot`
     /// arrives from there.
     pub(crate) fn moved(&mut self, from: Address, to: Address) {
@@ -416,6 +433,29 @@ mod tests {
 
     fn hashed(u: Uid) -> u8 {
         0x08 + (u.hash32() % 111) as u8
+    }
+
+    #[test]
+    fn identify_updates_the_one_board_present_there_and_no_collided_one() {
+        let mut d = dir(4);
+        let now = Instant(0);
+        d.seen(a(0x20), &info(uid(1), BoardKind::PICO), now);
+        let mut newer = info(uid(1), BoardKind::PICO).identity;
+        newer.firmware = [0, 2, 0];
+        newer.sensor_ports = 3;
+        d.identified(a(0x20), &newer);
+        let b = d.find(BoardQuery::Uid(uid(1))).unwrap();
+        assert_eq!(
+            (b.firmware, b.sensor_ports, b.actuator_ports),
+            ([0, 2, 0], 3, 2)
+        );
+        // Nobody known at 0x21: nothing changes.
+        d.identified(a(0x21), &info(uid(9), BoardKind::G431).identity);
+        assert_eq!(d.boards().count(), 1);
+        // Two IDs from one address (collided): which one answered is not known.
+        d.seen(a(0x20), &info(uid(2), BoardKind::PICO), now);
+        d.identified(a(0x20), &info(uid(3), BoardKind::G431).identity);
+        assert!(d.boards().all(|b| b.kind == BoardKind::PICO));
     }
 
     #[test]

@@ -620,7 +620,10 @@ impl MbCore {
                     self.with(|t| t.boards.keepalive.sent(db, t_now));
                     if let (Op::Identify, Outcome::Complete(Ok(p))) = (op, &outcome) {
                         if let Ok(id) = x10_microcode::Identity::parse(p) {
-                            self.with(|t| t.boards.identified(db, &id));
+                            self.with(|t| {
+                                t.boards.identified(db, &id);
+                                t.directory.identified(db, &id);
+                            });
                         }
                     }
                     return match outcome {

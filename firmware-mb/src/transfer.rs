@@ -82,7 +82,10 @@ impl MbCore {
                         }
                         (Op::Identify, Outcome::Complete(Ok(p))) => {
                             if let Ok(id) = x10_microcode::Identity::parse(p) {
-                                self.with(|t| t.boards.identified(meta.db, &id));
+                                self.with(|t| {
+                                    t.boards.identified(meta.db, &id);
+                                    t.directory.identified(meta.db, &id);
+                                });
                             }
                             outcome
                         }

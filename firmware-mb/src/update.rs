@@ -218,8 +218,9 @@ async fn wait_for<L: UpdateLink, T>(
     }
 }
 
-/// `op` to `db`, tried again after a transport error (the board is deaf while it erases or
-/// writes its flash; a repeated chunk is idempotent) up to [`UpdateConfig::chunk_retries`]
+/// `op` to `db`, tried again after a transport error or `pec_mismatch` (the board is deaf
+/// while it erases or writes its flash; a bit flipped on the way; a repeated chunk or commit
+/// is idempotent) up to [`UpdateConfig::chunk_retries`]
 /// times, [`UpdateConfig::poll_us`] apart.
 async fn call_retrying<L: UpdateLink>(
     link: &L,
@@ -231,7 +232,11 @@ async fn call_retrying<L: UpdateLink>(
     let mut tries = 0u8;
     loop {
         match link.call(db, op).await {
-            Err(LinkError::Status(s)) => return Err(LinkError::Status(s)),
+            // `pec_mismatch`: the request was hit on the way (the board executed nothing),
+            // as a transport error is; every other status is the board's answer.
+            Err(LinkError::Status(s)) if s != Status::PecMismatch => {
+                return Err(LinkError::Status(s))
+            }
             Err(e) if tries >= cfg.chunk_retries => return Err(e),
             Err(_) => {
                 tries += 1;

@@ -18,6 +18,7 @@
 //! | `waveform.rs` | the VCD encodes every START, repeated START and STOP |
 //! | `faults.rs` | the robot keeps working through injected NACKs and corrupted bytes |
 //! | `faults_together.rs` | a sweep and outputs set together on a faulty bus, against the world and the ports |
+//! | `faults_update.rs` | two boards updated through a faulty bus: each flash holds the image sent, byte for byte |
 //! | `latency.rs` | the latency table's figures against the wire-time minimum |
 //!
 //! This library only holds small helpers the tests share.
