@@ -370,6 +370,12 @@ impl<'d, D: NorFlash, S: NorFlash, const W: usize> Session<'d, D, S, W> {
     }
 
     fn begin(&mut self, info: ImageInfo) -> Status {
+        // Committed: the slot holds a verified image marked for the swap and the board is
+        // about to reset into it. A new transfer now would write into the slot the swap
+        // reads: refused.
+        if self.phase == UpdateState::Committed {
+            return Status::Busy;
+        }
         self.drop_transfer();
         let status = self.check_info(&info);
         if status.is_ok() {

@@ -333,3 +333,30 @@ fn flash_work_waits_until_the_reply_has_been_read() {
     assert_eq!(s.exit(), Exit::Reset);
     assert_eq!(board.state_magic(), State::Swap);
 }
+
+#[test]
+fn after_a_commit_a_repeated_commit_is_ok_and_a_new_begin_is_busy() {
+    let old = image(20_000, OLD, 1);
+    let new = image(6_000, NEW, 5);
+    let board = Board::new(&old);
+    let power = Power::new(None, Cut::Clean);
+    board.enter_update(&power).unwrap();
+    {
+        let mut aligned = [0u8; WRITE];
+        let st = BlockingFirmwareState::new(board.part(0, &power), &mut aligned);
+        let mut s: Session<'_, Part, Part, BUF> = Session::new(config(), board.part(2, &power), st);
+        assert_eq!(transfer(&mut s, &new, NEW), Status::Ok);
+        // The commit's reply was lost: the motherboard sends it again.
+        assert_eq!(call(&mut s, 7, UpdateOp::Commit).0, Status::Ok);
+        // A begin now would write into the slot the swap reads.
+        assert_eq!(
+            call(&mut s, 8, UpdateOp::Begin(info(&old, [0, 4, 0]))).0,
+            Status::Busy
+        );
+        assert_eq!(status(&mut s).state, UpdateState::Committed);
+        assert_eq!(s.exit(), Exit::Reset);
+    }
+    assert_eq!(board.state_magic(), State::Swap);
+    board.start(&power).unwrap();
+    assert!(board.active_is(&new));
+}
