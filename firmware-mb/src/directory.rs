@@ -128,7 +128,15 @@ pub(crate) struct Directory {
     len: usize,
     /// The next address the start-up sweep probes (`who_is_there`); `None` when done.
     sweep: Option<u8>,
+    /// No board that stopped answering is asked again before this (µs since start).
+    recheck_after: u64,
+    /// Where the round of those boards goes on.
+    recheck_next: usize,
 }
+
+/// How often a board that stopped answering ([`Directory::lost`]) is asked `who_is_there`
+/// again: one such board per second, in turn. Its `announce` makes it present again.
+pub const RECHECK_US: u64 = 1_000_000;
 
 impl Directory {
     /// No storage: nothing is known, nothing is swept.
@@ -137,6 +145,8 @@ impl Directory {
             entries: &mut [],
             len: 0,
             sweep: None,
+            recheck_after: 0,
+            recheck_next: 0,
         }
     }
 
@@ -293,6 +303,44 @@ impl Directory {
         }
     }
 
+    /// The address of the next board that stopped answering to ask `who_is_there` again,
+    /// when [`RECHECK_US`] have passed since the last one asked; one at a time, in turn. A
+    /// board whose address another board present is known at is not asked (that one would
+    /// answer).
+    pub(crate) fn next_recheck(&mut self, now: Instant) -> Option<Address> {
+        if now.0 < self.recheck_after {
+            return None;
+        }
+        let known = self.known();
+        let n = known.len();
+        let lost = (0..n)
+            .map(|k| (self.recheck_next + k) % n.max(1))
+            .find(|&i| {
+                known.get(i).is_some_and(|b| {
+                    !b.present
+                        && !b.collided
+                        && !b.address.is_internal()
+                        && !b.address.is_unaddressed()
+                        && !known.iter().any(|o| o.present && o.address == b.address)
+                })
+            })?;
+        let address = known.get(lost)?.address;
+        self.recheck_next = lost + 1;
+        self.recheck_after = now.0.saturating_add(RECHECK_US);
+        Some(address)
+    }
+
+    /// When [`Directory::next_recheck`] may have work: `None` while every known board is
+    /// present.
+    pub(crate) fn recheck_at(&self) -> Option<Instant> {
+        self.known()
+            .iter()
+            .any(|b| {
+                !b.present && !b.collided && !b.address.is_internal() && !b.address.is_unaddressed()
+            })
+            .then_some(Instant(self.recheck_after))
+    }
+
     /// A request to `address` went unanswered: a board known there is no longer present.
     /// True when one was (the caller counts and logs it).
     pub(crate) fn lost(&mut self, address: Address) -> bool {
@@ -304,6 +352,21 @@ impl Directory {
             }
         }
         any
+    }
+
+    /// A reply with the right sequence number came from `address`: the one board known there
+    /// (its entry alone at that address, not `collided`) is present again, after a request
+    /// to it went unanswered ([`Directory::lost`]: a loose contact, a burst of noise) or
+    /// after it moved there. True when it was not present before.
+    pub(crate) fn answered(&mut self, address: Address) -> bool {
+        let mut there = self.known_mut().iter_mut().filter(|b| b.address == address);
+        match (there.next(), there.next()) {
+            (Some(b), None) if !b.present && !b.collided => {
+                b.present = true;
+                true
+            }
+            _ => false,
+        }
     }
 
     /// `identify` answered from `address`: the one board present there (not `collided`)
@@ -433,6 +496,58 @@ mod tests {
 
     fn hashed(u: Uid) -> u8 {
         0x08 + (u.hash32() % 111) as u8
+    }
+
+    #[test]
+    fn a_board_lost_then_answering_is_present_again_unless_another_is_known_there() {
+        let mut d = dir(4);
+        let now = Instant(0);
+        d.seen(a(0x20), &info(uid(1), BoardKind::PICO), now);
+        assert!(d.lost(a(0x20)));
+        assert!(!d.find(BoardQuery::Uid(uid(1))).unwrap().present);
+        assert!(d.answered(a(0x20)));
+        assert!(d.find(BoardQuery::Uid(uid(1))).unwrap().present);
+        assert!(!d.answered(a(0x20)), "present already");
+        // Two entries at one address: which one answered is not known.
+        d.seen(a(0x20), &info(uid(2), BoardKind::PICO), now);
+        d.lost(a(0x20));
+        assert!(!d.answered(a(0x20)));
+        assert!(d.boards().all(|b| !b.present));
+    }
+
+    #[test]
+    fn boards_that_stopped_answering_are_asked_again_one_per_second_in_turn() {
+        let mut d = dir(4);
+        let t0 = Instant(5_000_000);
+        for (n, at) in [(1, 0x20), (2, 0x21), (3, 0x22)] {
+            d.seen(a(at), &info(uid(n), BoardKind::PICO), t0);
+        }
+        assert_eq!(d.recheck_at(), None, "every board present");
+        assert_eq!(d.next_recheck(t0), None);
+        d.lost(a(0x20));
+        d.lost(a(0x22));
+        assert_eq!(d.recheck_at(), Some(Instant(0)));
+        assert_eq!(d.next_recheck(t0), Some(a(0x20)));
+        assert_eq!(d.recheck_at(), Some(Instant(t0.0 + RECHECK_US)));
+        assert_eq!(d.next_recheck(Instant(t0.0 + RECHECK_US - 1)), None);
+        assert_eq!(d.next_recheck(Instant(t0.0 + RECHECK_US)), Some(a(0x22)));
+        assert_eq!(
+            d.next_recheck(Instant(t0.0 + 2 * RECHECK_US)),
+            Some(a(0x20))
+        );
+        // 0x22 answered (its announce): only 0x20 is left.
+        d.seen(a(0x22), &info(uid(3), BoardKind::PICO), t0);
+        assert_eq!(
+            d.next_recheck(Instant(t0.0 + 3 * RECHECK_US)),
+            Some(a(0x20))
+        );
+        // Another board is known present at 0x20 now: it would answer, 0x20 is not asked.
+        d.seen(
+            a(0x20),
+            &info(uid(4), BoardKind::PICO),
+            Instant(t0.0 + 4 * COLLISION_WINDOW_US),
+        );
+        assert_eq!(d.next_recheck(Instant(t0.0 + 9 * RECHECK_US)), None);
     }
 
     #[test]

@@ -71,6 +71,11 @@ impl MbCore {
                 Next::At(at) => Some(at),
                 Next::Idle => None,
             };
+            // A board that stopped answering is asked again (`Directory::next_recheck`).
+            let wake = match (wake, self.with(|t| t.directory.recheck_at())) {
+                (Some(a), Some(b)) => Some(if a.0 <= b.0 { a } else { b }),
+                (a, b) => a.or(b),
+            };
             let keepalive_due = async {
                 match wake {
                     Some(at) => {
@@ -166,6 +171,8 @@ impl MbCore {
     ///   changes nothing) written once to each address `0x08..=0x76` but the motherboard's;
     ///   every board there answers with an `announce` (routed as any event). Nobody there: a
     ///   NACK.
+    /// * Then, once a second, `who_is_there` to one board that stopped answering (in turn):
+    ///   its `announce` makes it present again ([`crate::directory::RECHECK_US`]).
     ///
     /// After a lost arbitration (an event won the bus) the work is put back and the loop
     /// serves the listener first.
@@ -176,6 +183,12 @@ impl MbCore {
                 .take_assign()
                 .map(Ok)
                 .or_else(|| t.directory.next_sweep(mb).map(Err))
+                .or_else(|| {
+                    t.directory
+                        .recheck_at()
+                        .and_then(|_| t.directory.next_recheck(now()))
+                        .map(Err)
+                })
         });
         let (db, op) = match work {
             None => return false,

@@ -102,6 +102,15 @@ impl MbCore {
             },
             Err(e) => Outcome::Complete(Err(link_error(e))),
         };
+        // The board's own reply (its sequence number, its check): it is there.
+        if matches!(
+            outcome,
+            Outcome::Complete(Ok(_) | Err(LinkError::Status(_))) | Outcome::Defer { .. }
+        ) && replied
+            && self.with(|t| t.directory.answered(meta.db))
+        {
+            info!("board {} answers again", meta.db.get());
+        }
         self.end_job(meta, outcome, acked, replied);
     }
 

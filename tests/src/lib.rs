@@ -19,6 +19,7 @@
 //! | `faults.rs` | the robot keeps working through injected NACKs and corrupted bytes |
 //! | `faults_together.rs` | a sweep and outputs set together on a faulty bus, against the world and the ports |
 //! | `faults_update.rs` | two boards updated through a faulty bus: each flash holds the image sent, byte for byte |
+//! | `faults_pnp.rs` | ten unaddressed boards on a faulty bus: distinct addresses, the directory right, writes reach the right board |
 //! | `latency.rs` | the latency table's figures against the wire-time minimum |
 //!
 //! This library only holds small helpers the tests share.
