@@ -53,6 +53,11 @@ pub struct RunArgs {
     /// Write the SDA/SCL waveform to FILE as VCD (GTKWave, Surfer).
     #[arg(long, value_name = "FILE")]
     pub vcd: Option<PathBuf>,
+    /// Write the run to FILE as MCAP for Foxglove: output changes on
+    /// /x10/outputs/BOARD/PIN/KIND (plot `.value`), calls, events and the trace
+    /// (docs/usb-link.md, "Plotting in Foxglove").
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
     /// What the run keeps: `all` (every transaction and call: what --trace, --svg, --html
     /// and --vcd need; memory grows with the run, about 6 MB per virtual minute of a lightly
     /// loaded bus) or `summary` (counts, the bus load and the first 10 000 failures, output
@@ -91,13 +96,15 @@ fn keep(s: &str) -> Result<Keep, String> {
 }
 
 impl RunArgs {
-    /// The options that need every transaction and call (the trace, the pages, the VCD).
+    /// The options that need every transaction and call (the trace, the pages, the VCD, the
+    /// MCAP file).
     fn needs_full_record(&self) -> Option<&'static str> {
         [
             (self.trace, "--trace"),
             (self.svg.is_some(), "--svg"),
             (self.html.is_some(), "--html"),
             (self.vcd.is_some(), "--vcd"),
+            (self.mcap.is_some(), "--mcap"),
         ]
         .into_iter()
         .find_map(|(on, name)| on.then_some(name))
@@ -352,6 +359,13 @@ fn write_files(
             }
         }
     }
+    if let Some(path) = &args.mcap {
+        let messages = crate::foxglove::sim_messages(world, outcome, config(args).mb_address);
+        if let Err(e) = crate::foxglove::write_file(path, &messages) {
+            eprintln!("sim: cannot write {}: {e}", path.display());
+            return Err(ExitCode::FAILURE);
+        }
+    }
     Ok(())
 }
 
@@ -389,6 +403,7 @@ mod tests {
             &["--svg", "a.svg"],
             &["--html", "a.html"],
             &["--vcd", "a.vcd"],
+            &["--mcap", "a.mcap"],
         ] {
             let mut v = vec!["--duration-ms", "3600000"];
             v.extend_from_slice(option);

@@ -14,10 +14,13 @@
 //! * [`new`]: `x10 new`, a robot crate from the template.
 //! * [`monitor`]: `x10 monitor`, the live robot over its USB link, and [`monitor::Robot`], the
 //!   laptop program's API.
+//! * [`foxglove`]: `--mcap FILE` of `x10 monitor`, `x10 sim` and `cargo sim`: the run as an
+//!   MCAP file for plotting in Foxglove.
 //! * [`uf2`]: `x10 uf2`, a Pico image as a UF2 file for the boot ROM's drive (no probe).
 pub mod app;
 pub mod cli_sim;
 pub mod codec;
+pub mod foxglove;
 pub mod monitor;
 pub mod new;
 pub mod report;

@@ -275,6 +275,8 @@ pub struct LinkRun {
     pub calls: Vec<CallSpan>,
     /// Events routed.
     pub events: usize,
+    /// Every event, in the order they came (for `--mcap`).
+    pub event_records: Vec<crate::foxglove::EventRecord>,
     /// Failed calls as warning lines.
     pub warnings: Vec<TraceLine>,
     /// The motherboard's last drop report.
@@ -377,6 +379,8 @@ impl LinkRun {
             ToHost::Call(c) => vec![self.call(c)],
             ToHost::Event(e) => {
                 self.events += 1;
+                self.event_records
+                    .push(crate::foxglove::EventRecord::from_link(e));
                 self.saw(e.at_us);
                 Vec::new()
             }
@@ -776,12 +780,14 @@ OUTPUT
   One line per call and output change as they come, in the simulator's trace words; at the end
   the summary in `cargo sim`'s words (the devices' changes, then the link's counts and the
   failed calls) and the simulator's HTML timeline page (--html FILE, default
-  x10-monitor.html).
+  x10-monitor.html). --mcap FILE writes the run for Foxglove as it comes (with --replay: a
+  recording converted): plot /x10/outputs/BOARD/PIN/KIND .value (docs/usb-link.md).
 
 EXAMPLES
   x10 monitor
   x10 monitor --example fig4_4 --html run.html --duration-s 10
-  x10 monitor --replay x10-monitor.x10link --elf target/thumbv6m-none-eabi/release/mb-pico";
+  x10 monitor --replay x10-monitor.x10link --elf target/thumbv6m-none-eabi/release/mb-pico
+  x10 monitor --replay x10-monitor.x10link --mcap run.mcap     # open run.mcap in Foxglove";
 
 /// Arguments of `x10 monitor`.
 #[derive(clap::Args, Debug)]
@@ -814,6 +820,11 @@ pub struct MonitorArgs {
     /// Print no line per record, only the summary.
     #[arg(long)]
     pub quiet: bool,
+    /// Write the run to FILE as MCAP for Foxglove, as it comes: output changes on
+    /// /x10/outputs/BOARD/PIN/KIND (plot `.value`), calls, events and the lines printed
+    /// (docs/usb-link.md, "Plotting in Foxglove"). With --replay: a recorded run converted.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
     /// The motherboard's image (ELF): its defmt log, which comes over the link, is decoded
     /// with it and printed with the records.
     #[arg(long, value_name = "IMAGE")]
@@ -846,6 +857,60 @@ fn world_of(args: &MonitorArgs, run: &LinkRun) -> Result<(World, String), String
                 .map_err(|e| e.to_string())
         }
         None => Ok((World::new(), "no world".to_string())),
+    }
+}
+
+/// `--mcap FILE`: the run written as MCAP as it comes.
+struct McapSink {
+    out: crate::foxglove::McapOut<std::io::BufWriter<std::fs::File>>,
+    cursor: crate::foxglove::LinkCursor,
+    /// The world naming the devices, once known (`--world`, `--example` or the hello).
+    world: Option<World>,
+    path: PathBuf,
+}
+
+impl McapSink {
+    fn create(path: &Path) -> Result<McapSink, String> {
+        let out = crate::foxglove::McapOut::create(path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(McapSink {
+            out,
+            cursor: crate::foxglove::LinkCursor::new(),
+            world: None,
+            path: path.to_path_buf(),
+        })
+    }
+
+    /// Writes what `run` got since the last call and the `lines` it printed.
+    fn update(
+        &mut self,
+        args: &MonitorArgs,
+        run: &LinkRun,
+        lines: &[TraceLine],
+    ) -> Result<(), String> {
+        if self.world.is_none() {
+            self.world = world_of(args, run)
+                .ok()
+                .map(|(w, _)| w)
+                .filter(|w| !w.devices().is_empty());
+        }
+        for m in self.cursor.take(run, lines, self.world.as_ref()) {
+            self.out
+                .write(&m)
+                .map_err(|e| format!("{}: {e}", self.path.display()))?;
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> Result<(), String> {
+        let path = self.path;
+        self.out
+            .finish()
+            .and_then(|mut w| {
+                w.flush()
+                    .map_err(|e| crate::foxglove::McapError(e.to_string()))
+            })
+            .map_err(|e| format!("{}: {e}", path.display()))
     }
 }
 
@@ -904,6 +969,16 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
         };
         let lines = run.feed(&bytes);
         print_lines(args, &lines);
+        if let Some(path) = &args.mcap {
+            let written = McapSink::create(path).and_then(|mut sink| {
+                sink.update(args, &run, &lines)?;
+                sink.finish()
+            });
+            if let Err(e) = written {
+                eprintln!("x10 monitor: {e}");
+                return std::process::ExitCode::FAILURE;
+            }
+        }
         return finish(args, &run, &file.display().to_string());
     }
     let path = match args
@@ -927,6 +1002,13 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
         Ok(f) => f,
         Err(e) => {
             eprintln!("x10 monitor: {}: {e}", args.record.display());
+            return std::process::ExitCode::FAILURE;
+        }
+    };
+    let mut mcap = match args.mcap.as_deref().map(McapSink::create).transpose() {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("x10 monitor: {e}");
             return std::process::ExitCode::FAILURE;
         }
     };
@@ -963,6 +1045,10 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
                 }
                 let lines = run.feed(bytes);
                 print_lines(args, &lines);
+                if let Some(Err(e)) = mcap.as_mut().map(|m| m.update(args, &run, &lines)) {
+                    eprintln!("x10 monitor: {e}; the MCAP file stops here");
+                    mcap = None;
+                }
             }
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
             Err(_) => {
@@ -975,6 +1061,15 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
         let _ = p.write_all(&frame(&ToDevice::Bye));
     }
     println!("recorded: {}", args.record.display());
+    if let Some(m) = mcap {
+        match m.finish() {
+            Ok(()) => println!(
+                "for Foxglove: {}",
+                args.mcap.as_deref().unwrap_or(Path::new("")).display()
+            ),
+            Err(e) => eprintln!("x10 monitor: {e}"),
+        }
+    }
     finish(args, &run, &path.display().to_string())
 }
 
