@@ -42,7 +42,9 @@ cargo sim -- --trace | grep -q "1.000000 INFO  mb: A1.A pwm 153"
 cargo sim --svg timeline.svg
 cargo sim --html timeline.html
 cargo sim --vcd bus.vcd
+cargo sim --mcap run.mcap
 test -s timeline.svg && test -s timeline.html && test -s bus.vcd
+head -c 8 run.mcap | od -c | grep -q "M   C   A   P   0"
 
 echo "-- cargo test"
 cargo test

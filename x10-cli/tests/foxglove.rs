@@ -170,6 +170,25 @@ fn x10_sim_writes_fig4_4_as_mcap() {
         assert_eq!(ev["seq"], 0);
         assert_eq!(ev["status"], "ok");
         assert!(msgs.windows(2).all(|w| w[0].1 <= w[1].1));
+        // The series docs/usb-link.md tells to plot are topics of this file, with the field.
+        let doc = include_str!("../../docs/usb-link.md");
+        let section = doc
+            .split("## Plotting in Foxglove")
+            .nth(1)
+            .and_then(|s| s.split("\n## ").next())
+            .unwrap();
+        let mut plotted = 0;
+        for path in section.split('`').filter(|p| p.starts_with("/x10/")) {
+            let Some((topic, field)) = path.split_once('.') else {
+                continue;
+            };
+            let topic = topic.split('{').next().unwrap();
+            let m = msgs.iter().find(|(t, _, _)| t == topic);
+            let (_, _, v) = m.unwrap_or_else(|| panic!("{path}: no topic {topic}"));
+            assert!(v.get(field).is_some(), "{path}: no field {field}");
+            plotted += 1;
+        }
+        assert_eq!(plotted, 4);
     });
 }
 
