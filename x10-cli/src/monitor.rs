@@ -825,6 +825,11 @@ pub struct MonitorArgs {
     /// (docs/usb-link.md, "Plotting in Foxglove"). With --replay: a recorded run converted.
     #[arg(long, value_name = "FILE")]
     pub mcap: Option<PathBuf>,
+    /// Serve the live run to Foxglove's Open connection (the Foxglove WebSocket protocol)
+    /// at ADDR (default 127.0.0.1:8765, Foxglove's own: ws://localhost:8765).
+    #[cfg(feature = "foxglove-live")]
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::foxglove_ws::DEFAULT_ADDR, conflicts_with_all = ["from", "replay"])]
+    pub foxglove_ws: Option<String>,
     /// The motherboard's image (ELF): its defmt log, which comes over the link, is decoded
     /// with it and printed with the records.
     #[arg(long, value_name = "IMAGE")]
@@ -860,28 +865,59 @@ fn world_of(args: &MonitorArgs, run: &LinkRun) -> Result<(World, String), String
     }
 }
 
-/// `--mcap FILE`: the run written as MCAP as it comes.
-struct McapSink {
-    out: crate::foxglove::McapOut<std::io::BufWriter<std::fs::File>>,
+/// `--mcap FILE` and `--foxglove-ws`: the run for Foxglove, written and served as it comes.
+struct Plot {
+    out: Option<crate::foxglove::McapOut<std::io::BufWriter<std::fs::File>>>,
+    #[cfg(feature = "foxglove-live")]
+    live: Option<crate::foxglove_ws::LiveServer>,
     cursor: crate::foxglove::LinkCursor,
     /// The world naming the devices, once known (`--world`, `--example` or the hello).
     world: Option<World>,
     path: PathBuf,
 }
 
-impl McapSink {
-    fn create(path: &Path) -> Result<McapSink, String> {
-        let out = crate::foxglove::McapOut::create(path)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-        Ok(McapSink {
+impl Plot {
+    /// The file and the server `args` ask for; `None` when neither.
+    fn create(args: &MonitorArgs) -> Result<Option<Plot>, String> {
+        let out = match &args.mcap {
+            Some(path) => Some(
+                crate::foxglove::McapOut::create(path)
+                    .map_err(|e| format!("{}: {e}", path.display()))?,
+            ),
+            None => None,
+        };
+        #[cfg(feature = "foxglove-live")]
+        let live = match &args.foxglove_ws {
+            Some(addr) => {
+                let server = crate::foxglove_ws::LiveServer::start(addr.as_str(), "x10 monitor")
+                    .map_err(|e| format!("--foxglove-ws {addr}: {e}"))?;
+                println!(
+                    "x10 monitor: Foxglove's Open connection: ws://{}",
+                    server.addr()
+                );
+                Some(server)
+            }
+            None => None,
+        };
+        #[cfg(feature = "foxglove-live")]
+        let none = out.is_none() && live.is_none();
+        #[cfg(not(feature = "foxglove-live"))]
+        let none = out.is_none();
+        if none {
+            return Ok(None);
+        }
+        Ok(Some(Plot {
             out,
+            #[cfg(feature = "foxglove-live")]
+            live,
             cursor: crate::foxglove::LinkCursor::new(),
             world: None,
-            path: path.to_path_buf(),
-        })
+            path: args.mcap.clone().unwrap_or_default(),
+        }))
     }
 
-    /// Writes what `run` got since the last call and the `lines` it printed.
+    /// Writes (and serves) what `run` got since the last call and the `lines` it printed. A
+    /// file that cannot be written is given up, said once.
     fn update(
         &mut self,
         args: &MonitorArgs,
@@ -894,23 +930,39 @@ impl McapSink {
                 .map(|(w, _)| w)
                 .filter(|w| !w.devices().is_empty());
         }
+        let mut failed = None;
         for m in self.cursor.take(run, lines, self.world.as_ref()) {
-            self.out
-                .write(&m)
-                .map_err(|e| format!("{}: {e}", self.path.display()))?;
+            if let Some(out) = self.out.as_mut() {
+                if let Err(e) = out.write(&m) {
+                    failed = Some(format!(
+                        "{}: {e}; the MCAP file stops here",
+                        self.path.display()
+                    ));
+                    self.out = None;
+                }
+            }
+            #[cfg(feature = "foxglove-live")]
+            if let Some(live) = &self.live {
+                live.publish(m);
+            }
         }
-        Ok(())
+        failed.map_or(Ok(()), Err)
     }
 
+    /// Completes the file.
     fn finish(self) -> Result<(), String> {
         let path = self.path;
-        self.out
-            .finish()
+        let Some(out) = self.out else {
+            return Ok(());
+        };
+        out.finish()
             .and_then(|mut w| {
                 w.flush()
                     .map_err(|e| crate::foxglove::McapError(e.to_string()))
             })
-            .map_err(|e| format!("{}: {e}", path.display()))
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        println!("for Foxglove: {}", path.display());
+        Ok(())
     }
 }
 
@@ -969,15 +1021,15 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
         };
         let lines = run.feed(&bytes);
         print_lines(args, &lines);
-        if let Some(path) = &args.mcap {
-            let written = McapSink::create(path).and_then(|mut sink| {
-                sink.update(args, &run, &lines)?;
-                sink.finish()
-            });
-            if let Err(e) = written {
-                eprintln!("x10 monitor: {e}");
-                return std::process::ExitCode::FAILURE;
-            }
+        let written = Plot::create(args).and_then(|plot| {
+            plot.map_or(Ok(()), |mut p| {
+                p.update(args, &run, &lines)?;
+                p.finish()
+            })
+        });
+        if let Err(e) = written {
+            eprintln!("x10 monitor: {e}");
+            return std::process::ExitCode::FAILURE;
         }
         return finish(args, &run, &file.display().to_string());
     }
@@ -1005,7 +1057,7 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
             return std::process::ExitCode::FAILURE;
         }
     };
-    let mut mcap = match args.mcap.as_deref().map(McapSink::create).transpose() {
+    let mut plot = match Plot::create(args) {
         Ok(m) => m,
         Err(e) => {
             eprintln!("x10 monitor: {e}");
@@ -1045,9 +1097,8 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
                 }
                 let lines = run.feed(bytes);
                 print_lines(args, &lines);
-                if let Some(Err(e)) = mcap.as_mut().map(|m| m.update(args, &run, &lines)) {
-                    eprintln!("x10 monitor: {e}; the MCAP file stops here");
-                    mcap = None;
+                if let Some(Err(e)) = plot.as_mut().map(|p| p.update(args, &run, &lines)) {
+                    eprintln!("x10 monitor: {e}");
                 }
             }
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
@@ -1061,14 +1112,8 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
         let _ = p.write_all(&frame(&ToDevice::Bye));
     }
     println!("recorded: {}", args.record.display());
-    if let Some(m) = mcap {
-        match m.finish() {
-            Ok(()) => println!(
-                "for Foxglove: {}",
-                args.mcap.as_deref().unwrap_or(Path::new("")).display()
-            ),
-            Err(e) => eprintln!("x10 monitor: {e}"),
-        }
+    if let Some(Err(e)) = plot.map(Plot::finish) {
+        eprintln!("x10 monitor: {e}");
     }
     finish(args, &run, &path.display().to_string())
 }

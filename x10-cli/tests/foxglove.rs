@@ -286,3 +286,155 @@ fn x10_monitor_replay_converts_a_recording_to_mcap() {
         assert!(compared >= 4, "{compared}");
     });
 }
+
+/// `x10 monitor --foxglove-ws` serves the live run to a Foxglove client: the monitor reads a
+/// pseudo-terminal standing for the motherboard's USB port, this test writes the Figure 4.4
+/// robot's link recording into it, and as a client of the Foxglove WebSocket protocol
+/// subscribes to the light motor's duty as soon as it is advertised: every later duty record
+/// comes, in order, with its time.
+#[cfg(all(unix, feature = "foxglove-live"))]
+#[test]
+fn x10_monitor_serves_the_live_run_to_foxglove() {
+    use serialport::SerialPort as _;
+    use std::io::{BufRead, Read as _, Write as _};
+    use tungstenite::client::IntoClientRequest;
+    use tungstenite::Message as Ws;
+    use x10_link::{Feed, FrameReader, OutputValue, ToHost, MAX_FRAME};
+
+    x10_sim::isolated(|| {
+        let example = x10_sim::examples::find("fig4_4").unwrap();
+        let world = World::from_toml(example.world).unwrap();
+        REC.set_listening(true);
+        let sim = world.sim(SimConfig::default()).unwrap().also_observe(&REC);
+        (example.add_tasks)(sim).run().unwrap();
+        let mut stream = Vec::new();
+        let mut buf = [0u8; 4096];
+        loop {
+            let n = REC.take(&mut buf);
+            if n == 0 {
+                break;
+            }
+            stream.extend_from_slice(&buf[..n]);
+        }
+        // Where each frame ends, and the light motor's duty records: (frame index, µs, duty).
+        let a1a = x10_microcode::Port::actuator(1)
+            .unwrap()
+            .pin(x10_microcode::Pin::A)
+            .to_byte();
+        let mut ends = Vec::new();
+        let mut duties = Vec::new();
+        let mut reader: Box<FrameReader<{ MAX_FRAME }>> = Box::default();
+        for (i, &b) in stream.iter().enumerate() {
+            if reader.feed(b) == Feed::Frame {
+                if let Ok(ToHost::Output(o)) = reader.decode::<ToHost>() {
+                    if let (9, true, OutputValue::Duty(d)) = (o.db, o.port == a1a, o.value) {
+                        duties.push((ends.len(), o.at_us, d));
+                    }
+                }
+                ends.push(i + 1);
+            }
+        }
+        assert!(duties.len() >= 3, "{duties:?}");
+
+        let (mut master, slave) = serialport::TTYPort::pair().unwrap();
+        master
+            .set_timeout(std::time::Duration::from_secs(10))
+            .unwrap();
+        let dir = temp("live");
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_x10"))
+            .args(["monitor", "--quiet", "--example", "fig4_4"])
+            .args(["--foxglove-ws", "127.0.0.1:0", "--port"])
+            .arg(slave.name().unwrap())
+            .arg("--record")
+            .arg(dir.join("run.x10link"))
+            .arg("--html")
+            .arg(dir.join("run.html"))
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+        let url = loop {
+            let mut line = String::new();
+            assert!(out.read_line(&mut line).unwrap() > 0, "no address printed");
+            if let Some(u) = line
+                .trim()
+                .strip_prefix("x10 monitor: Foxglove's Open connection: ")
+            {
+                break u.to_string();
+            }
+        };
+        let addr = url.strip_prefix("ws://").unwrap();
+        let tcp = std::net::TcpStream::connect(addr).unwrap();
+        tcp.set_read_timeout(Some(std::time::Duration::from_secs(10)))
+            .unwrap();
+        let mut req = url.as_str().into_client_request().unwrap();
+        req.headers_mut().insert(
+            "Sec-WebSocket-Protocol",
+            "foxglove.websocket.v1".parse().unwrap(),
+        );
+        let (mut ws, _) = tungstenite::client(req, tcp).unwrap();
+        let text = |ws: &mut tungstenite::WebSocket<std::net::TcpStream>| loop {
+            match ws.read().unwrap() {
+                Ws::Text(t) => break serde_json::from_str::<Value>(t.as_str()).unwrap(),
+                Ws::Binary(_) | Ws::Ping(_) | Ws::Pong(_) => {}
+                other => panic!("{other:?}"),
+            }
+        };
+        assert_eq!(text(&mut ws)["op"], "serverInfo");
+        // The monitor opened the port: its hello.
+        let hello = x10_cli::monitor::frame(&x10_cli::monitor::laptop_hello());
+        let mut got = vec![0u8; hello.len()];
+        master.read_exact(&mut got).unwrap();
+        assert_eq!(got, hello);
+        // The records up to the light motor's first duty; its channel is advertised.
+        let first = duties[0].0;
+        master.write_all(&stream[..ends[first]]).unwrap();
+        let topic = "/x10/outputs/db09/A1_A/pwm";
+        let channel = loop {
+            let v = text(&mut ws);
+            if v["op"] != "advertise" {
+                continue;
+            }
+            if let Some(c) = v["channels"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .find(|c| c["topic"] == topic)
+            {
+                break c["id"].as_u64().unwrap();
+            }
+        };
+        ws.send(Ws::text(format!(
+            r#"{{"op":"subscribe","subscriptions":[{{"id":3,"channelId":{channel}}}]}}"#
+        )))
+        .unwrap();
+        // The server reads requests in order and answers a ping after the subscription.
+        ws.send(Ws::Ping(b"sub".to_vec().into())).unwrap();
+        loop {
+            match ws.read().unwrap() {
+                Ws::Pong(p) if p.as_ref() == b"sub" => break,
+                _ => {}
+            }
+        }
+        master.write_all(&stream[ends[first]..]).unwrap();
+        // Every later duty, in order, with its time, on subscription 3.
+        for &(_, at_us, duty) in &duties[1..] {
+            let frame = loop {
+                if let Ws::Binary(b) = ws.read().unwrap() {
+                    break b;
+                }
+            };
+            assert_eq!(frame[0], 1);
+            assert_eq!(frame[1..5], 3u32.to_le_bytes());
+            assert_eq!(frame[5..13], (at_us * 1_000).to_le_bytes());
+            let v: Value = serde_json::from_slice(&frame[13..]).unwrap();
+            assert_eq!(v["value"], u64::from(duty));
+            assert_eq!(v["device"], "light_motor");
+        }
+        child.kill().unwrap();
+        child.wait().unwrap();
+        drop(slave);
+        std::fs::remove_dir_all(dir.parent().unwrap()).unwrap();
+    });
+}
