@@ -781,7 +781,9 @@ OUTPUT
   the summary in `cargo sim`'s words (the devices' changes, then the link's counts and the
   failed calls) and the simulator's HTML timeline page (--html FILE, default
   x10-monitor.html). --mcap FILE writes the run for Foxglove as it comes (with --replay: a
-  recording converted): plot /x10/outputs/BOARD/PIN/KIND .value (docs/usb-link.md).
+  recording converted): plot /x10/outputs/BOARD/PIN/KIND .value (docs/usb-link.md). Built
+  with the feature foxglove-live, --foxglove-ws serves it live to Foxglove's Open connection
+  (ws://localhost:8765).
 
 EXAMPLES
   x10 monitor
