@@ -28,7 +28,8 @@ OUTPUT
   change: `seconds LEVEL source: what`. The same seed gives the same output, byte for byte.
   --svg/--html draw the devices, the bus and each task's calls over time (hover for details; the
   page zooms and lists every change); --vcd writes SDA/SCL for GTKWave or Surfer; --mcap writes
-  the run for Foxglove (plot /x10/outputs/BOARD/PIN/KIND .value: docs/usb-link.md).
+  the run for Foxglove (plot /x10/outputs/BOARD/PIN/KIND .value: docs/usb-link.md); built with
+  the feature foxglove-live, --foxglove-ws plays it to Foxglove's Open connection.
 
 LONG RUNS
   A run longer than a virtual minute keeps a summary, built as it goes (--keep summary): the

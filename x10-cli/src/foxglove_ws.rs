@@ -76,6 +76,8 @@ pub struct LiveStats {
     pub dropped: u64,
     /// Connections refused (no Foxglove subprotocol, a failed handshake).
     pub refused: u64,
+    /// Calls of [`LiveServer::advertise`] served.
+    pub advertised: u64,
 }
 
 struct Client {
@@ -85,6 +87,7 @@ struct Client {
 }
 
 enum Cmd {
+    Advertise(Vec<Message>),
     Publish(Message),
     Stop,
 }
@@ -140,6 +143,42 @@ impl LiveServer {
     pub fn publish(&self, m: Message) {
         // The thread ends only with the server: a send cannot fail before.
         let _ = self.tx.send(Cmd::Publish(m));
+    }
+
+    /// Advertises the topics of `messages` (their channels, to every client now and to
+    /// come) without sending them: a run known in advance shows all its topics at once.
+    /// Returns when the server has them.
+    pub fn advertise(&self, messages: &[Message]) {
+        let (lock, cv) = &*self.stats;
+        let before = lock.lock().map(|s| s.advertised).unwrap_or(0);
+        if self.tx.send(Cmd::Advertise(messages.to_vec())).is_err() {
+            return;
+        }
+        if let Ok(guard) = lock.lock() {
+            let _unused = cv.wait_while(guard, |s| s.advertised == before);
+        }
+    }
+
+    /// Plays `messages` (in time order) at the pace of their log times, from the first one on,
+    /// once a client subscribed (the simulator's run, live: `x10 sim --foxglove-ws`). Every
+    /// topic is advertised first. Returns when the last message was handed over.
+    pub fn play(&self, messages: &[Message], speed: f64) {
+        self.advertise(messages);
+        let (lock, cv) = &*self.stats;
+        if let Ok(guard) = lock.lock() {
+            let _unused = cv.wait_while(guard, |s| s.subscriptions == 0);
+        }
+        let start = std::time::Instant::now();
+        let first = messages.first().map_or(0, |m| m.log_time_ns);
+        for m in messages {
+            let due = (m.log_time_ns.saturating_sub(first) as f64 / speed.max(1e-6)) as u64;
+            let due = Duration::from_nanos(due);
+            let now = start.elapsed();
+            if due > now {
+                std::thread::sleep(due - now);
+            }
+            self.publish(m.clone());
+        }
     }
 
     /// The counts so far.
@@ -260,6 +299,17 @@ fn serve(listener: &TcpListener, rx: &Receiver<Cmd>, shared: &Shared, name: &str
         // What the clients asked.
         clients.retain_mut(|c| read_requests(c, shared));
         match rx.recv_timeout(Duration::from_millis(5)) {
+            Ok(Cmd::Advertise(messages)) => {
+                for m in messages {
+                    if !channels.contains_key(&m.topic) {
+                        let id = u32::try_from(channels.len() + 1).unwrap_or(u32::MAX);
+                        channels.insert(m.topic.clone(), (id, channel_json(id, &m)));
+                        let ad = json!({"op": "advertise", "channels": [channel_json(id, &m)]});
+                        clients.retain_mut(|c| send_text(c, &ad));
+                    }
+                }
+                count(shared, |s| s.advertised += 1);
+            }
             Ok(Cmd::Publish(m)) => {
                 let next = u32::try_from(channels.len() + 1).unwrap_or(u32::MAX);
                 let (id, new) = match channels.get(&m.topic) {

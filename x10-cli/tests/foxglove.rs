@@ -438,3 +438,124 @@ fn x10_monitor_serves_the_live_run_to_foxglove() {
         std::fs::remove_dir_all(dir.parent().unwrap()).unwrap();
     });
 }
+
+/// `x10 sim --foxglove-ws` plays the simulated run to a Foxglove client: every topic is
+/// advertised at once; once the client subscribes to the motherboard's motor duty, the run
+/// plays (ten times its virtual pace here) and every duty change of the simulator's record
+/// comes, in order, with its virtual time.
+#[cfg(all(unix, feature = "foxglove-live"))]
+#[test]
+fn x10_sim_plays_the_run_to_foxglove() {
+    use std::io::BufRead;
+    use tungstenite::client::IntoClientRequest;
+    use tungstenite::Message as Ws;
+
+    x10_sim::isolated(|| {
+        let example = x10_sim::examples::find("fig4_4").unwrap();
+        let world = World::from_toml(example.world).unwrap();
+        let config = SimConfig {
+            duration_ms: 2_500,
+            ..SimConfig::default()
+        };
+        let outcome = (example.add_tasks)(world.sim(config).unwrap())
+            .run()
+            .unwrap();
+        let duties: Vec<(u64, u64)> = outcome
+            .log
+            .changes()
+            .iter()
+            .filter(|c| x10_cli::foxglove::output_topic(c) == "/x10/outputs/mb/A1_A/pwm")
+            .map(|c| (c.t_ns, x10_cli::foxglove::output_value(&c.change).1.into()))
+            .collect();
+        // The button at 2 s starts the motor.
+        assert!(!duties.is_empty());
+
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_x10"))
+            .args(["sim", "fig4_4", "--duration-ms", "2500"])
+            .args(["--foxglove-ws", "127.0.0.1:0", "--foxglove-speed", "10"])
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+        let url = loop {
+            let mut line = String::new();
+            assert!(out.read_line(&mut line).unwrap() > 0, "no address printed");
+            if let Some(rest) = line.strip_prefix("sim: Foxglove's Open connection: ") {
+                break rest.split(' ').next().unwrap().to_string();
+            }
+        };
+        let tcp = std::net::TcpStream::connect(url.strip_prefix("ws://").unwrap()).unwrap();
+        tcp.set_read_timeout(Some(std::time::Duration::from_secs(10)))
+            .unwrap();
+        let mut req = url.as_str().into_client_request().unwrap();
+        req.headers_mut().insert(
+            "Sec-WebSocket-Protocol",
+            "foxglove.websocket.v1".parse().unwrap(),
+        );
+        let (mut ws, _) = tungstenite::client(req, tcp).unwrap();
+        let mut text = || match ws.read().unwrap() {
+            Ws::Text(t) => serde_json::from_str::<Value>(t.as_str()).unwrap(),
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(text()["op"], "serverInfo");
+        // Every topic of the run, advertised before anything plays.
+        let ads = text();
+        assert_eq!(ads["op"], "advertise");
+        let topics: Vec<(String, u64)> = ads["channels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| {
+                (
+                    c["topic"].as_str().unwrap().to_string(),
+                    c["id"].as_u64().unwrap(),
+                )
+            })
+            .collect();
+        let want: Vec<String> =
+            x10_cli::foxglove::sim_messages(&world, &outcome, SimConfig::default().mb_address)
+                .into_iter()
+                .map(|m| m.topic)
+                .collect();
+        let mut unique = Vec::new();
+        for t in want {
+            if !unique.contains(&t) {
+                unique.push(t);
+            }
+        }
+        assert_eq!(
+            topics.iter().map(|(t, _)| t.clone()).collect::<Vec<_>>(),
+            unique
+        );
+        let channel = topics
+            .iter()
+            .find(|(t, _)| t == "/x10/outputs/mb/A1_A/pwm")
+            .unwrap()
+            .1;
+        ws.send(Ws::text(format!(
+            r#"{{"op":"subscribe","subscriptions":[{{"id":1,"channelId":{channel}}}]}}"#
+        )))
+        .unwrap();
+        for &(t_ns, duty) in &duties {
+            let frame = loop {
+                match ws.read().unwrap() {
+                    Ws::Binary(b) => break b,
+                    Ws::Ping(_) | Ws::Pong(_) => {}
+                    other => panic!("{other:?}"),
+                }
+            };
+            assert_eq!(frame[..5], [1, 1, 0, 0, 0]);
+            assert_eq!(frame[5..13], t_ns.to_le_bytes());
+            let v: Value = serde_json::from_slice(&frame[13..]).unwrap();
+            assert_eq!(v["value"], duty);
+            assert_eq!(v["device"], "motor");
+        }
+        let mut line = String::new();
+        while !line.starts_with("sim: played ") {
+            line.clear();
+            assert!(out.read_line(&mut line).unwrap() > 0, "no end of play");
+        }
+        child.kill().unwrap();
+        child.wait().unwrap();
+    });
+}
