@@ -42,7 +42,9 @@ cargo sim -- --trace | grep -q "1.000000 INFO  mb: A1.A pwm 153"
 cargo sim --svg timeline.svg
 cargo sim --html timeline.html
 cargo sim --vcd bus.vcd
+cargo sim --mcap run.mcap
 test -s timeline.svg && test -s timeline.html && test -s bus.vcd
+test "$(head -c 5 run.mcap | tail -c 4)" = MCAP   # the MCAP magic
 
 echo "-- cargo test"
 cargo test

@@ -53,6 +53,27 @@ pub struct RunArgs {
     /// Write the SDA/SCL waveform to FILE as VCD (GTKWave, Surfer).
     #[arg(long, value_name = "FILE")]
     pub vcd: Option<PathBuf>,
+    /// Write the run to FILE as MCAP for Foxglove: output changes on
+    /// /x10/outputs/BOARD/PIN/KIND (plot `.value`), calls, events and the trace
+    /// (docs/usb-link.md, "Plotting in Foxglove").
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
+    /// After the run, serve it to Foxglove's Open connection (the Foxglove WebSocket
+    /// protocol) at ADDR (default 127.0.0.1:8765: ws://localhost:8765), played at the pace of
+    /// its virtual time once a panel subscribes.
+    #[cfg(feature = "foxglove-live")]
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::foxglove_ws::DEFAULT_ADDR)]
+    pub foxglove_ws: Option<String>,
+    /// How fast --foxglove-ws plays the run: 1 is the virtual time's own pace, 10 ten times
+    /// faster.
+    #[cfg(feature = "foxglove-live")]
+    #[arg(
+        long,
+        value_name = "X",
+        default_value_t = 1.0,
+        requires = "foxglove_ws"
+    )]
+    pub foxglove_speed: f64,
     /// What the run keeps: `all` (every transaction and call: what --trace, --svg, --html
     /// and --vcd need; memory grows with the run, about 6 MB per virtual minute of a lightly
     /// loaded bus) or `summary` (counts, the bus load and the first 10 000 failures, output
@@ -91,16 +112,27 @@ fn keep(s: &str) -> Result<Keep, String> {
 }
 
 impl RunArgs {
-    /// The options that need every transaction and call (the trace, the pages, the VCD).
+    /// The options that need every transaction and call (the trace, the pages, the VCD, the
+    /// MCAP file).
     fn needs_full_record(&self) -> Option<&'static str> {
         [
             (self.trace, "--trace"),
             (self.svg.is_some(), "--svg"),
             (self.html.is_some(), "--html"),
             (self.vcd.is_some(), "--vcd"),
+            (self.mcap.is_some(), "--mcap"),
+            (self.foxglove_live(), "--foxglove-ws"),
         ]
         .into_iter()
         .find_map(|(on, name)| on.then_some(name))
+    }
+
+    /// True with `--foxglove-ws` (in a build with the feature `foxglove-live`).
+    fn foxglove_live(&self) -> bool {
+        #[cfg(feature = "foxglove-live")]
+        return self.foxglove_ws.is_some();
+        #[cfg(not(feature = "foxglove-live"))]
+        false
     }
 
     /// What the run keeps: `--keep`, else a summary for runs longer than
@@ -259,10 +291,47 @@ pub fn run(
         text.push_str(&stats_line(&outcome, started.elapsed(), cpu_before));
     }
     let printed = write_out(&text);
+    #[cfg(feature = "foxglove-live")]
+    if let Some(addr) = &args.foxglove_ws {
+        let Err(code) = serve_live(args, world, &outcome, addr);
+        return code;
+    }
     if problems.is_empty() {
         printed
     } else {
         ExitCode::FAILURE
+    }
+}
+
+/// `--foxglove-ws ADDR`: the run served to Foxglove, played once a panel subscribes.
+#[cfg(feature = "foxglove-live")]
+fn serve_live(
+    args: &RunArgs,
+    world: &World,
+    outcome: &SimOutcome,
+    addr: &str,
+) -> Result<std::convert::Infallible, ExitCode> {
+    let server = crate::foxglove_ws::LiveServer::start(addr, "x10 sim").map_err(|e| {
+        eprintln!("sim: --foxglove-ws {addr}: {e}");
+        ExitCode::FAILURE
+    })?;
+    let messages = crate::foxglove::sim_messages(world, outcome, config(args).mb_address);
+    // Every topic first: a client that connects sees them all.
+    server.advertise(&messages);
+    println!(
+        "sim: Foxglove's Open connection: ws://{} (the run plays once a panel subscribes; Ctrl-C ends)",
+        server.addr()
+    );
+    let _ = io::stdout().flush();
+    server.play(&messages, args.foxglove_speed);
+    println!(
+        "sim: played {} messages; Foxglove keeps them while connected (Ctrl-C ends)",
+        messages.len()
+    );
+    let _ = io::stdout().flush();
+    // Connected panels keep what they got while the server lives: until Ctrl-C.
+    loop {
+        std::thread::park();
     }
 }
 
@@ -352,6 +421,13 @@ fn write_files(
             }
         }
     }
+    if let Some(path) = &args.mcap {
+        let messages = crate::foxglove::sim_messages(world, outcome, config(args).mb_address);
+        if let Err(e) = crate::foxglove::write_file(path, &messages) {
+            eprintln!("sim: cannot write {}: {e}", path.display());
+            return Err(ExitCode::FAILURE);
+        }
+    }
     Ok(())
 }
 
@@ -389,6 +465,7 @@ mod tests {
             &["--svg", "a.svg"],
             &["--html", "a.html"],
             &["--vcd", "a.vcd"],
+            &["--mcap", "a.mcap"],
         ] {
             let mut v = vec!["--duration-ms", "3600000"];
             v.extend_from_slice(option);

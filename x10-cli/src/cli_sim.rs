@@ -27,13 +27,15 @@ OUTPUT
   line per bus transaction (microcode, bytes, bus time), reply, event, robot call and output
   change: `seconds LEVEL source: what`. The same seed gives the same output, byte for byte.
   --svg/--html draw the devices, the bus and each task's calls over time (hover for details; the
-  page zooms and lists every change); --vcd writes SDA/SCL for GTKWave or Surfer.
+  page zooms and lists every change); --vcd writes SDA/SCL for GTKWave or Surfer; --mcap writes
+  the run for Foxglove (plot /x10/outputs/BOARD/PIN/KIND .value: docs/usb-link.md); built with
+  the feature foxglove-live, --foxglove-ws plays it to Foxglove's Open connection.
 
 LONG RUNS
   A run longer than a virtual minute keeps a summary, built as it goes (--keep summary): the
   counts and the bus load of the whole run, the first 10 000 failures, warnings and output
-  changes; its memory does not grow with the run. --trace, --svg, --html and --vcd need the
-  full record (--keep all, about 6 MB per virtual minute of a lightly loaded bus): with them
+  changes; its memory does not grow with the run. --trace, --svg, --html, --vcd and --mcap need
+  the full record (--keep all, about 6 MB per virtual minute of a lightly loaded bus): with them
   the run keeps everything, and warns past 10 virtual minutes. --record FILE streams the
   bus's lines of --trace to FILE as each transaction ends, in any run: the whole bus record of
   a long one without holding it. --stats prints the speed and the peak memory; --bench runs
@@ -45,6 +47,7 @@ YOUR OWN ROBOT
 EXAMPLES
   x10 sim fig4_4
   x10 sim bumper --html bumper.html
+  x10 sim fig4_4 --mcap fig4_4.mcap                            # open it in Foxglove
   x10 sim explorer --duration-ms 20000 --html explorer.html    # the arena seen from above
   x10 sim fig4_6 --clock 100k --duration-ms 4000 --trace --vcd fig4_6.vcd
   x10 sim fig4_4 --duration-ms 36000000 --stats                # 10 virtual hours

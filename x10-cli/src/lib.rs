@@ -14,10 +14,17 @@
 //! * [`new`]: `x10 new`, a robot crate from the template.
 //! * [`monitor`]: `x10 monitor`, the live robot over its USB link, and [`monitor::Robot`], the
 //!   laptop program's API.
+//! * [`foxglove`]: `--mcap FILE` of `x10 monitor`, `x10 sim` and `cargo sim`: the run as an
+//!   MCAP file for plotting in Foxglove.
+//! * `foxglove_ws` (cargo feature `foxglove-live`): `x10 monitor --foxglove-ws`, the live run
+//!   served to Foxglove's *Open connection*.
 //! * [`uf2`]: `x10 uf2`, a Pico image as a UF2 file for the boot ROM's drive (no probe).
 pub mod app;
 pub mod cli_sim;
 pub mod codec;
+pub mod foxglove;
+#[cfg(feature = "foxglove-live")]
+pub mod foxglove_ws;
 pub mod monitor;
 pub mod new;
 pub mod report;

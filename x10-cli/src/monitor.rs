@@ -275,6 +275,8 @@ pub struct LinkRun {
     pub calls: Vec<CallSpan>,
     /// Events routed.
     pub events: usize,
+    /// Every event, in the order they came (for `--mcap`).
+    pub event_records: Vec<crate::foxglove::EventRecord>,
     /// Failed calls as warning lines.
     pub warnings: Vec<TraceLine>,
     /// The motherboard's last drop report.
@@ -377,6 +379,8 @@ impl LinkRun {
             ToHost::Call(c) => vec![self.call(c)],
             ToHost::Event(e) => {
                 self.events += 1;
+                self.event_records
+                    .push(crate::foxglove::EventRecord::from_link(e));
                 self.saw(e.at_us);
                 Vec::new()
             }
@@ -776,12 +780,16 @@ OUTPUT
   One line per call and output change as they come, in the simulator's trace words; at the end
   the summary in `cargo sim`'s words (the devices' changes, then the link's counts and the
   failed calls) and the simulator's HTML timeline page (--html FILE, default
-  x10-monitor.html).
+  x10-monitor.html). --mcap FILE writes the run for Foxglove as it comes (with --replay: a
+  recording converted): plot /x10/outputs/BOARD/PIN/KIND .value (docs/usb-link.md). Built
+  with the feature foxglove-live, --foxglove-ws serves it live to Foxglove's Open connection
+  (ws://localhost:8765).
 
 EXAMPLES
   x10 monitor
   x10 monitor --example fig4_4 --html run.html --duration-s 10
-  x10 monitor --replay x10-monitor.x10link --elf target/thumbv6m-none-eabi/release/mb-pico";
+  x10 monitor --replay x10-monitor.x10link --elf target/thumbv6m-none-eabi/release/mb-pico
+  x10 monitor --replay x10-monitor.x10link --mcap run.mcap     # open run.mcap in Foxglove";
 
 /// Arguments of `x10 monitor`.
 #[derive(clap::Args, Debug)]
@@ -814,6 +822,16 @@ pub struct MonitorArgs {
     /// Print no line per record, only the summary.
     #[arg(long)]
     pub quiet: bool,
+    /// Write the run to FILE as MCAP for Foxglove, as it comes: output changes on
+    /// /x10/outputs/BOARD/PIN/KIND (plot `.value`), calls, events and the lines printed
+    /// (docs/usb-link.md, "Plotting in Foxglove"). With --replay: a recorded run converted.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
+    /// Serve the live run to Foxglove's Open connection (the Foxglove WebSocket protocol)
+    /// at ADDR (default 127.0.0.1:8765, Foxglove's own: ws://localhost:8765).
+    #[cfg(feature = "foxglove-live")]
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::foxglove_ws::DEFAULT_ADDR, conflicts_with_all = ["from", "replay"])]
+    pub foxglove_ws: Option<String>,
     /// The motherboard's image (ELF): its defmt log, which comes over the link, is decoded
     /// with it and printed with the records.
     #[arg(long, value_name = "IMAGE")]
@@ -846,6 +864,107 @@ fn world_of(args: &MonitorArgs, run: &LinkRun) -> Result<(World, String), String
                 .map_err(|e| e.to_string())
         }
         None => Ok((World::new(), "no world".to_string())),
+    }
+}
+
+/// `--mcap FILE` and `--foxglove-ws`: the run for Foxglove, written and served as it comes.
+struct Plot {
+    out: Option<crate::foxglove::McapOut<std::io::BufWriter<std::fs::File>>>,
+    #[cfg(feature = "foxglove-live")]
+    live: Option<crate::foxglove_ws::LiveServer>,
+    cursor: crate::foxglove::LinkCursor,
+    /// The world naming the devices, once known (`--world`, `--example` or the hello).
+    world: Option<World>,
+    path: PathBuf,
+}
+
+impl Plot {
+    /// The file and the server `args` ask for; `None` when neither.
+    fn create(args: &MonitorArgs) -> Result<Option<Plot>, String> {
+        let out = match &args.mcap {
+            Some(path) => Some(
+                crate::foxglove::McapOut::create(path)
+                    .map_err(|e| format!("{}: {e}", path.display()))?,
+            ),
+            None => None,
+        };
+        #[cfg(feature = "foxglove-live")]
+        let live = match &args.foxglove_ws {
+            Some(addr) => {
+                let server = crate::foxglove_ws::LiveServer::start(addr.as_str(), "x10 monitor")
+                    .map_err(|e| format!("--foxglove-ws {addr}: {e}"))?;
+                println!(
+                    "x10 monitor: Foxglove's Open connection: ws://{}",
+                    server.addr()
+                );
+                Some(server)
+            }
+            None => None,
+        };
+        #[cfg(feature = "foxglove-live")]
+        let none = out.is_none() && live.is_none();
+        #[cfg(not(feature = "foxglove-live"))]
+        let none = out.is_none();
+        if none {
+            return Ok(None);
+        }
+        Ok(Some(Plot {
+            out,
+            #[cfg(feature = "foxglove-live")]
+            live,
+            cursor: crate::foxglove::LinkCursor::new(),
+            world: None,
+            path: args.mcap.clone().unwrap_or_default(),
+        }))
+    }
+
+    /// Writes (and serves) what `run` got since the last call and the `lines` it printed. A
+    /// file that cannot be written is given up, said once.
+    fn update(
+        &mut self,
+        args: &MonitorArgs,
+        run: &LinkRun,
+        lines: &[TraceLine],
+    ) -> Result<(), String> {
+        if self.world.is_none() {
+            self.world = world_of(args, run)
+                .ok()
+                .map(|(w, _)| w)
+                .filter(|w| !w.devices().is_empty());
+        }
+        let mut failed = None;
+        for m in self.cursor.take(run, lines, self.world.as_ref()) {
+            if let Some(out) = self.out.as_mut() {
+                if let Err(e) = out.write(&m) {
+                    failed = Some(format!(
+                        "{}: {e}; the MCAP file stops here",
+                        self.path.display()
+                    ));
+                    self.out = None;
+                }
+            }
+            #[cfg(feature = "foxglove-live")]
+            if let Some(live) = &self.live {
+                live.publish(m);
+            }
+        }
+        failed.map_or(Ok(()), Err)
+    }
+
+    /// Completes the file.
+    fn finish(self) -> Result<(), String> {
+        let path = self.path;
+        let Some(out) = self.out else {
+            return Ok(());
+        };
+        out.finish()
+            .and_then(|mut w| {
+                w.flush()
+                    .map_err(|e| crate::foxglove::McapError(e.to_string()))
+            })
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        println!("for Foxglove: {}", path.display());
+        Ok(())
     }
 }
 
@@ -904,6 +1023,16 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
         };
         let lines = run.feed(&bytes);
         print_lines(args, &lines);
+        let written = Plot::create(args).and_then(|plot| {
+            plot.map_or(Ok(()), |mut p| {
+                p.update(args, &run, &lines)?;
+                p.finish()
+            })
+        });
+        if let Err(e) = written {
+            eprintln!("x10 monitor: {e}");
+            return std::process::ExitCode::FAILURE;
+        }
         return finish(args, &run, &file.display().to_string());
     }
     let path = match args
@@ -927,6 +1056,13 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
         Ok(f) => f,
         Err(e) => {
             eprintln!("x10 monitor: {}: {e}", args.record.display());
+            return std::process::ExitCode::FAILURE;
+        }
+    };
+    let mut plot = match Plot::create(args) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("x10 monitor: {e}");
             return std::process::ExitCode::FAILURE;
         }
     };
@@ -963,6 +1099,9 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
                 }
                 let lines = run.feed(bytes);
                 print_lines(args, &lines);
+                if let Some(Err(e)) = plot.as_mut().map(|p| p.update(args, &run, &lines)) {
+                    eprintln!("x10 monitor: {e}");
+                }
             }
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
             Err(_) => {
@@ -975,6 +1114,9 @@ pub fn monitor_main(args: &MonitorArgs) -> std::process::ExitCode {
         let _ = p.write_all(&frame(&ToDevice::Bye));
     }
     println!("recorded: {}", args.record.display());
+    if let Some(Err(e)) = plot.map(Plot::finish) {
+        eprintln!("x10 monitor: {e}");
+    }
     finish(args, &run, &path.display().to_string())
 }
 

@@ -58,11 +58,12 @@ fn every_rust_and_toml_block_is_a_template_file_word_for_word() {
 /// Commands of the guide that CI cannot run: they flash a board through a probe or its boot
 /// drive, or watch a running board over USB (their build is the guide's `cargo build
 /// --release …` lines, which CI runs; `x10 uf2` and `x10 monitor` have their own tests).
-const FLASHING: [&str; 4] = [
+const FLASHING: [&str; 5] = [
     "cargo mb-pico",
     "cargo mb-g431",
     "cargo x10 uf2 target/thumbv6m-none-eabi/release/mb-pico --copy",
     "cargo x10 monitor --world ~/robots/rover/world.toml --html rover.html",
+    "cargo x10 monitor --world ~/robots/rover/world.toml --mcap rover.mcap",
 ];
 
 #[test]
@@ -92,7 +93,7 @@ fn every_command_of_the_guide_is_run_by_ci() {
             checked += 1;
         }
     }
-    assert_eq!(checked, 16);
+    assert_eq!(checked, 17);
 }
 
 /// The robot's tasks are named once, in `src/lib.rs` (`x10::robot!`): `cargo sim`, the tests
