@@ -90,8 +90,8 @@ impl Method {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct UpdateConfig {
     /// The bus is left alone this long after each chunk's reply (µs): the robot's requests
-    /// queued meanwhile go first. With a chunk transaction of about 1 ms at 400 kHz, 1 ms
-    /// caps the update at about half of the bus.
+    /// queued meanwhile go first. [`UpdateConfig::for_bus_hz`] makes it one chunk
+    /// transaction's wire time, which caps the update at half of the bus.
     pub chunk_gap_us: u64,
     /// How often a board is asked whether it is back (its bootloader, its new image), µs.
     pub poll_us: u64,
@@ -103,14 +103,24 @@ pub struct UpdateConfig {
     /// Tries per board; a board that failed this often (e.g. rolled back each time) is left
     /// alone until the motherboard restarts.
     pub tries: u8,
-    /// Tries of one request of the transfer after a transport error (the board is deaf while
-    /// it erases a sector, 45 ms on the Pico's flash; a lost reply: the repeat is idempotent).
+    /// Tries of one request of the transfer after a transport error (a lost reply: the
+    /// repeat is idempotent; a board whose flash work took longer than [`FlashTiming`] says).
     pub chunk_retries: u8,
+    /// Waits out the flash work the board's kind is known to do after `begin` and a chunk
+    /// ([`FlashTiming`]) instead of sending into it (true; false: only the gap).
+    pub wait_flash: bool,
 }
 
+/// Bits on the wire of one chunk transaction: START, the address byte, the 34-byte request
+/// (4 header, 28 data, the CRC-16), repeated START, the address byte, the 4-byte reply
+/// (3 header, the PEC byte), STOP; 9 bits a byte and 3 for the START, repeated START and
+/// STOP.
+pub const CHUNK_WIRE_BITS: u64 = (1 + 34 + 1 + 4) * 9 + 3;
+
 impl UpdateConfig {
-    /// 1 ms between chunks, polls every 20 ms, 2 s for the bootloader, 5 s for the new image,
-    /// 2 tries per board, 5 per chunk.
+    /// 1 ms between chunks (the gap [`UpdateConfig::for_bus_hz`] gives at 363 kHz), polls
+    /// every 20 ms, 2 s for the bootloader, 5 s for the new image, 2 tries per board, 5 per
+    /// chunk, the flash work waited out.
     pub const DEFAULT: UpdateConfig = UpdateConfig {
         chunk_gap_us: 1_000,
         poll_us: 20_000,
@@ -118,7 +128,71 @@ impl UpdateConfig {
         boot_wait_us: 5_000_000,
         tries: 2,
         chunk_retries: 5,
+        wait_flash: true,
     };
+
+    /// [`UpdateConfig::DEFAULT`] with the gap between chunks scaled to the bus clock `hz`:
+    /// the wire time of one chunk transaction ([`CHUNK_WIRE_BITS`]), rounded up, so that the
+    /// update takes at most half of the bus whatever its clock (3.63 ms at 100 kHz, 0.91 ms
+    /// at 400 kHz, 0.37 ms at 1 MHz). An MB image passes the clock its bus runs at.
+    pub const fn for_bus_hz(hz: u32) -> UpdateConfig {
+        let hz = if hz == 0 { 1 } else { hz as u64 };
+        let mut c = Self::DEFAULT;
+        c.chunk_gap_us = (CHUNK_WIRE_BITS * 1_000_000).div_ceil(hz);
+        c
+    }
+}
+
+/// What the motherboard knows of a board kind's flash as its bootloader works it, so that it
+/// waits the flash work out instead of sending into it: a board erasing or programming its
+/// flash does not answer (the RP2040 runs from that flash: XIP is off, its I2C target deaf),
+/// and a request sent then is lost and tried again ([`UpdateStats::chunk_retries`]).
+///
+/// The bootloader (`x10-boot`) erases a sector after `begin` (the first) and after the chunk
+/// that fills the last page of a sector (the next one), and programs a page after the chunk
+/// that fills it ([`FlashTiming::work_after_chunk_us`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FlashTiming {
+    /// Bytes of one erase sector.
+    pub sector: u32,
+    /// Time of one sector erase, µs, with a margin.
+    pub erase_us: u32,
+    /// Time of one page program (the bootloader's write buffer), µs, with a margin.
+    pub program_us: u32,
+}
+
+impl FlashTiming {
+    /// The flash of a board kind: the RP2040's W25Q16JV (and the simulator's board, which
+    /// models it): 4 KiB sectors, 45 ms per erase and 0.4 ms per 256-byte page (typical,
+    /// W25Q16JV datasheet, "AC Electrical Characteristics": tSE, tPP), plus 1 ms and 0.1 ms.
+    /// Other kinds: `None` (no planned waits: a request that meets a busy board is tried
+    /// again).
+    pub const fn for_kind(kind: BoardKind) -> Option<FlashTiming> {
+        match kind.0 {
+            1 | 3 => Some(FlashTiming {
+                sector: 4096,
+                erase_us: 46_000,
+                program_us: 500,
+            }),
+            _ => None,
+        }
+    }
+
+    /// How long the board works its flash after answering the chunk of `len` bytes at
+    /// `offset` of an image of `image_len` bytes, µs: a page program at most, and the erase of
+    /// the next sector when the chunk ends in another sector than it began (and the image
+    /// goes on).
+    pub const fn work_after_chunk_us(&self, offset: u32, len: u32, image_len: u32) -> u32 {
+        let end = offset.saturating_add(len);
+        let sector = if self.sector == 0 { 1 } else { self.sector };
+        let next = end / sector * sector;
+        if next > offset && next < image_len {
+            self.erase_us + self.program_us
+        } else {
+            self.program_us
+        }
+    }
 }
 
 impl Default for UpdateConfig {
@@ -180,8 +254,46 @@ pub struct UpdateStats {
     pub restarts: u16,
 }
 
+/// What the motherboard does with one board, and why ([`decide`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Decision<'a> {
+    /// It runs another version than the image carried for its kind: updated to it.
+    Update(&'a DbImage),
+    /// It runs the version carried for its kind.
+    UpToDate(&'a DbImage),
+    /// The policy pins it ([`UpdatePolicy::Except`]).
+    Pinned,
+    /// The policy updates no board ([`UpdatePolicy::Never`]).
+    Never,
+    /// No image of its kind is carried.
+    NoImage,
+}
+
+/// What the motherboard does with a board of `kind` running `version` under `policy`, given
+/// the images it carries: pure, the whole decision ([`plan`] is its yes or no; `x10 plan`
+/// prints it in words).
+pub fn decide(
+    images: &[DbImage],
+    policy: UpdatePolicy,
+    uid: Uid,
+    kind: BoardKind,
+    version: Version,
+) -> Decision<'_> {
+    match policy {
+        UpdatePolicy::Never => return Decision::Never,
+        UpdatePolicy::Except(pinned) if pinned.contains(&uid) => return Decision::Pinned,
+        _ => {}
+    }
+    match images.iter().find(|i| i.kind == kind) {
+        None => Decision::NoImage,
+        Some(i) if i.version == version => Decision::UpToDate(i),
+        Some(i) => Decision::Update(i),
+    }
+}
+
 /// The image `images` carries for a board of `kind` running `version` under `policy`, when the
-/// board is to be updated: pure, the whole decision (`x10 update --plan` prints it).
+/// board is to be updated ([`decide`] says [`Decision::Update`]).
 pub fn plan(
     images: &[DbImage],
     policy: UpdatePolicy,
@@ -189,15 +301,10 @@ pub fn plan(
     kind: BoardKind,
     version: Version,
 ) -> Option<&DbImage> {
-    match policy {
-        UpdatePolicy::Never => return None,
-        UpdatePolicy::Except(pinned) if pinned.contains(&uid) => return None,
-        _ => {}
+    match decide(images, policy, uid, kind, version) {
+        Decision::Update(i) => Some(i),
+        _ => None,
     }
-    images
-        .iter()
-        .find(|i| i.kind == kind)
-        .filter(|i| i.version != version)
 }
 
 async fn wait_for<L: UpdateLink, T>(
@@ -257,6 +364,7 @@ async fn transfer<L: UpdateLink>(
     image: &DbImage,
     stats: &mut UpdateStats,
 ) -> Result<bool, UpdateError> {
+    let flash = FlashTiming::for_kind(image.kind).filter(|_| cfg.wait_flash);
     let refused = |e: LinkError| match e {
         LinkError::Status(Status::NoSession) => Ok(false),
         LinkError::Status(s) => Err(UpdateError::Refused(s)),
@@ -266,6 +374,10 @@ async fn transfer<L: UpdateLink>(
     let begin = UpdateOp::Begin(image.info()).to_op(&mut buf);
     if let Err(e) = call_retrying(link, cfg, db, begin, stats).await {
         return refused(e);
+    }
+    // The first sector's erase.
+    if let Some(f) = flash {
+        link.pause(u64::from(f.erase_us)).await;
     }
     let mut offset = 0usize;
     for data in image.bytes.chunks(CHUNK_MAX) {
@@ -278,8 +390,11 @@ async fn transfer<L: UpdateLink>(
         if let Err(e) = call_retrying(link, cfg, db, op, stats).await {
             return refused(e);
         }
+        let work = flash.map_or(0, |f| {
+            f.work_after_chunk_us(offset as u32, data.len() as u32, image.bytes.len() as u32)
+        });
         offset += data.len();
-        link.pause(cfg.chunk_gap_us).await;
+        link.pause(cfg.chunk_gap_us.max(u64::from(work))).await;
     }
     let commit = UpdateOp::Commit.to_op(&mut buf);
     match call_retrying(link, cfg, db, commit, stats).await {

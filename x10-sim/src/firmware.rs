@@ -194,3 +194,85 @@ impl SimFirmware {
         x10_boot::confirm_firmware(&mut st).is_ok()
     }
 }
+
+/// What the motherboard would update in `world`, one line per daughterboard, in words: the
+/// decision is `firmware_mb::update::decide`'s, the one the motherboard's updater takes, for
+/// each board's kind (as its chip reports it), version ([`crate::world::Board::firmware_version`])
+/// and unique ID, with the images the world says the motherboard carries (`[[image]]`) and the
+/// boards it pins (`update = false`). `x10 plan` prints it.
+pub fn update_plan(world: &crate::world::World) -> Vec<String> {
+    use firmware_mb::update::{decide, DbImage, Decision, UpdatePolicy};
+    let images: Vec<DbImage> = world
+        .images()
+        .iter()
+        .map(|i| DbImage {
+            kind: i.kind.wire_kind(),
+            version: i.version,
+            // The decision reads kind and version only.
+            bytes: &[],
+            crc32: 0,
+        })
+        .collect();
+    let boards: Vec<_> = world
+        .boards()
+        .into_iter()
+        .filter(|b| !b.is_internal())
+        .collect();
+    // `UpdatePolicy::Except` takes a list that lives as long as the motherboard's program.
+    let pinned: &'static [x10_microcode::Uid] = Box::leak(
+        boards
+            .iter()
+            .filter(|b| b.is_pinned())
+            .map(|b| b.unique_id())
+            .collect::<Vec<_>>()
+            .into_boxed_slice(),
+    );
+    let v = |v: Version| format!("{}.{}.{}", v[0], v[1], v[2]);
+    let mut out = Vec::new();
+    if images.is_empty() {
+        out.push(
+            "the motherboard carries no daughterboard images: no board is updated".to_string(),
+        );
+    } else {
+        let carried: Vec<String> = world
+            .images()
+            .iter()
+            .map(|i| format!("{} {}", i.kind.label(), v(i.version)))
+            .collect();
+        out.push(format!(
+            "the motherboard carries {} (fakes of the right length and CRC in the simulator)",
+            carried.join(", ")
+        ));
+    }
+    for b in &boards {
+        let who = match (b.is_unaddressed(), b.alias()) {
+            (true, Some(n)) => format!("board \"{n}\" (no address yet)"),
+            (false, Some(n)) => format!("board 0x{:02x} \"{n}\"", b.address()),
+            _ => format!("board 0x{:02x}", b.address()),
+        };
+        let kind = b.kind().label();
+        let runs = v(b.firmware_version());
+        let line = match decide(
+            &images,
+            UpdatePolicy::Except(pinned),
+            b.unique_id(),
+            b.wire_kind(),
+            b.firmware_version(),
+        ) {
+            Decision::Update(i) => format!(
+                "{who} ({kind}) runs {runs}, the motherboard carries {}: it will be updated",
+                v(i.version)
+            ),
+            Decision::UpToDate(_) => format!("{who} ({kind}) runs {runs}: up to date, not updated"),
+            Decision::Pinned => {
+                format!("{who} ({kind}) runs {runs}: pinned (update = false), not updated")
+            }
+            Decision::NoImage => format!(
+                "{who} ({kind}) runs {runs}: the motherboard carries no {kind} image, not updated"
+            ),
+            Decision::Never => format!("{who} ({kind}) runs {runs}: updates are off, not updated"),
+        };
+        out.push(line);
+    }
+    out
+}
