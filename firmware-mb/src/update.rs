@@ -13,8 +13,13 @@
 //! `LinkError::Updating`, never a hang.
 //!
 //! A C011 board has no room for a bootloader of ours: its method is ST's ROM bootloader over
-//! I2C (AN4221), written as a crate of its own; [`Method::for_kind`] is the seam, and this
-//! module refuses to update a board whose method it does not implement.
+//! I2C (AN4221, the `x10-stmboot` crate). `enter_update` sends the board into its ROM, which
+//! answers at `Address::STM32_BOOTLOADER` (0x64); the updater speaks AN4221 there through the
+//! motherboard's own bus ([`UpdateLink::i2c`]: raw transfers through the dispatcher's queue,
+//! between the robot's requests, outside the robot's API), one C011 at a time, then waits for
+//! the board at its address with the new version (it keeps its address in its OTP area, which
+//! no page erase touches). A C011 found answering at 0x64 ([`rescue_rom`]: an update cut by
+//! power) is updated first.
 
 use x10_devices::LinkError;
 use x10_microcode::{
@@ -67,8 +72,8 @@ pub enum Method {
     /// `enter_update`, then function 7 answered by the board's bootloader (`x10-boot`):
     /// RP2040 and STM32G431 boards, and the simulator's.
     X10Boot,
-    /// ST's ROM bootloader over I2C (AN4221): the STM32C011, whose 32 KiB hold one image.
-    /// Not implemented here (its client is a crate of its own).
+    /// ST's ROM bootloader over I2C (AN4221, `x10-stmboot`): the STM32C011, whose 32 KiB
+    /// hold one image.
     StRom,
     /// No known way.
     None,
@@ -219,6 +224,30 @@ pub enum UpdateError {
     NotBack,
     /// It came back with this version instead of the new one (rolled back).
     RolledBack(Version),
+    /// The ROM bootloader refused, or the update through it failed (AN4221: a wrong chip, a
+    /// refusal, a read-back that differs, the bus).
+    Rom(RomError),
+}
+
+/// Why an update through the ROM bootloader failed (`x10_stmboot::Error`, its bus error a
+/// [`RomBusError`]).
+pub type RomError = x10_stmboot::Error<RomBusError>;
+
+/// A raw transfer's [`LinkError`] as an `embedded_hal_async` I2C error.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RomBusError(pub LinkError);
+
+impl embedded_hal_async::i2c::Error for RomBusError {
+    fn kind(&self) -> embedded_hal_async::i2c::ErrorKind {
+        use embedded_hal_async::i2c::{ErrorKind, NoAcknowledgeSource};
+        match self.0 {
+            LinkError::Nack => ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address),
+            LinkError::ArbitrationLost => ErrorKind::ArbitrationLoss,
+            LinkError::Bus => ErrorKind::Bus,
+            _ => ErrorKind::Other,
+        }
+    }
 }
 
 /// What the updater needs of the motherboard: calls that bypass the `Updating` refusal, the
@@ -236,6 +265,51 @@ pub trait UpdateLink {
     async fn pause(&self, us: u64);
     /// Microseconds since start.
     fn now_us(&self) -> u64;
+    /// A raw I2C transfer through the motherboard's bus, outside the microcode (no frame, no
+    /// check, no board prepared): `write` to the 7-bit address `addr`, then, unless `read`
+    /// is empty, `read.len()` bytes after a repeated START (a plain read when `write` is
+    /// empty). At most `x10_microcode::MAX_PAYLOAD` bytes each way. For ST's ROM bootloader.
+    ///
+    /// # Errors
+    /// As `X10::call` for the bus; [`LinkError::Unsupported`] where there is no such path.
+    async fn i2c(&self, addr: u8, write: &[u8], read: &mut [u8]) -> Result<(), LinkError> {
+        let _ = (addr, write, read);
+        Err(LinkError::Unsupported)
+    }
+}
+
+/// Bytes per Write Memory and Read Memory through [`UpdateLink::i2c`]: a multiple of the
+/// C011's double word that a raw transfer carries (the data frame is two bytes more).
+pub const ROM_BLOCK: usize = 24;
+
+/// [`UpdateLink::i2c`] as the `embedded_hal_async` bus and delay `x10_stmboot::Client` takes.
+struct RomBus<'l, L>(&'l L);
+
+impl<L> embedded_hal_async::i2c::ErrorType for RomBus<'_, L> {
+    type Error = RomBusError;
+}
+
+impl<L: UpdateLink> embedded_hal_async::i2c::I2c for RomBus<'_, L> {
+    async fn transaction(
+        &mut self,
+        address: u8,
+        operations: &mut [embedded_hal_async::i2c::Operation<'_>],
+    ) -> Result<(), RomBusError> {
+        use embedded_hal_async::i2c::Operation;
+        match operations {
+            [Operation::Write(w)] => self.0.i2c(address, w, &mut []).await,
+            [Operation::Read(r)] => self.0.i2c(address, &[], r).await,
+            [Operation::Write(w), Operation::Read(r)] => self.0.i2c(address, w, r).await,
+            _ => Err(LinkError::Unsupported),
+        }
+        .map_err(RomBusError)
+    }
+}
+
+impl<L: UpdateLink> embedded_hal_async::delay::DelayNs for RomBus<'_, L> {
+    async fn delay_ns(&mut self, ns: u32) {
+        self.0.pause(u64::from(ns).div_ceil(1_000)).await;
+    }
 }
 
 /// Counters of the updater.
@@ -419,11 +493,16 @@ pub async fn update_board<L: UpdateLink>(
     image: &DbImage,
     stats: &mut UpdateStats,
 ) -> Result<(), UpdateError> {
-    if Method::for_kind(kind) != Method::X10Boot {
+    let method = Method::for_kind(kind);
+    if method == Method::None {
         return Err(UpdateError::NoMethod);
     }
     link.set_updating(Some(db));
-    let r = update_marked(link, cfg, db, image, stats).await;
+    let r = if method == Method::StRom {
+        update_rom(link, cfg, Some(db), image).await
+    } else {
+        update_marked(link, cfg, db, image, stats).await
+    };
     link.set_updating(None);
     match r {
         Ok(()) => stats.done = stats.done.saturating_add(1),
@@ -490,6 +569,90 @@ async fn update_marked<L: UpdateLink>(
     Ok(())
 }
 
+/// Updates a board through ST's ROM bootloader: `enter_update` to `db` (unless `db` is
+/// `None` or the ROM already answers at 0x64: a board left there by a cut update), waits
+/// until the ROM answers Get Version, `x10_stmboot::update` (Get ID checked against the
+/// kind's target, page 0 erased first, the first double word written last, everything read
+/// back, Go), then waits until `db` answers `identify` with the new version. The image has
+/// no slot to roll back to: nothing to confirm.
+async fn update_rom<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    db: Option<Address>,
+    image: &DbImage,
+) -> Result<(), UpdateError> {
+    let target = x10_stmboot::Target::for_board_kind(image.kind.0).ok_or(UpdateError::NoMethod)?;
+    if !rom_answers(link).await {
+        let db = db.ok_or(UpdateError::NoBootloader)?;
+        link.call(db, Op::EnterUpdate)
+            .await
+            .map_err(UpdateError::Enter)?;
+        let up = wait_for(link, cfg, cfg.bootloader_wait_us, async || {
+            rom_answers(link).await.then_some(())
+        })
+        .await;
+        if up.is_none() {
+            return Err(UpdateError::NoBootloader);
+        }
+    }
+    let mut client = x10_stmboot::Client::new(RomBus(link), RomBus(link));
+    client.block = ROM_BLOCK;
+    match x10_stmboot::update(&mut client, &target, image.bytes).await {
+        Ok(_) => {}
+        // Refused before any erase: the old image is whole, start it again.
+        Err(e @ x10_stmboot::Error::WrongChip { .. }) => {
+            let _ = client.go(target.flash_base).await;
+            return Err(UpdateError::Rom(e));
+        }
+        Err(e) => return Err(UpdateError::Rom(e)),
+    }
+    let Some(db) = db else {
+        return Ok(());
+    };
+    let version = wait_for(link, cfg, cfg.boot_wait_us, async || {
+        let p = link.call(db, Op::Identify).await.ok()?;
+        Identity::parse(&p).ok().map(|id| id.firmware)
+    })
+    .await
+    .ok_or(UpdateError::NotBack)?;
+    if version != image.version {
+        return Err(UpdateError::RolledBack(version));
+    }
+    Ok(())
+}
+
+/// True when a ROM bootloader answers Get Version at `Address::STM32_BOOTLOADER`.
+async fn rom_answers<L: UpdateLink>(link: &L) -> bool {
+    let mut client = x10_stmboot::Client::new(RomBus(link), RomBus(link));
+    client.get_version().await.is_ok()
+}
+
+/// A board answering at `Address::STM32_BOOTLOADER` (0x64) is an STM32C011 whose update was
+/// cut (its first word erased: every power-on starts the ROM bootloader). When `images`
+/// carries an image for a kind updated through the ROM, the board is updated with it and
+/// started; it then boots at the address it keeps and announces itself. `None`: no board
+/// answers there, or no such image is carried.
+pub async fn rescue_rom<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    images: &[DbImage],
+    stats: &mut UpdateStats,
+) -> Option<Result<(), UpdateError>> {
+    let image = images
+        .iter()
+        .find(|i| Method::for_kind(i.kind) == Method::StRom)?;
+    if !rom_answers(link).await {
+        return None;
+    }
+    info!("update: a board in its ROM bootloader at 0x64");
+    let r = update_rom(link, cfg, None, image).await;
+    match r {
+        Ok(()) => stats.done = stats.done.saturating_add(1),
+        Err(_) => stats.failed = stats.failed.saturating_add(1),
+    }
+    Some(r)
+}
+
 /// True for the operations the updater sends (they pass while their board is marked as
 /// updating); `identify` and `ping` too, so that anyone may see whether the board is back.
 pub(crate) const fn is_update_op(op: &Op<'_>) -> bool {
@@ -515,6 +678,27 @@ impl UpdateLink for crate::X10 {
     fn now_us(&self) -> u64 {
         crate::mb_core::now().0
     }
+
+    /// A job of its own kind in the dispatcher's queue (a plain transfer: the bytes as they
+    /// are, no board prepared), between the robot's requests.
+    async fn i2c(&self, addr: u8, write: &[u8], read: &mut [u8]) -> Result<(), LinkError> {
+        let n = read.len();
+        let (_, p) = self
+            .core()
+            .raw_job(
+                Address::new(addr)?,
+                crate::jobs::JobKind::PlainRead,
+                (n > 0).then_some(n),
+                |_, frame| {
+                    frame
+                        .extend_from_slice(write)
+                        .map_err(|_| LinkError::Invalid(x10_microcode::Error::BufferTooShort))
+                },
+            )
+            .await?;
+        read.copy_from_slice(p.get(..n).ok_or(LinkError::BadReply)?);
+        Ok(())
+    }
 }
 
 /// How often [`run_updates`] looks at the directory (100 ms).
@@ -527,6 +711,11 @@ pub const MAX_TRACKED: usize = 16;
 #[derive(Clone, Debug, Default)]
 pub struct UpdateState {
     tried: heapless::Vec<(Uid, u8), MAX_TRACKED>,
+    /// 0x64 was looked at since the start or the last failed update through the ROM.
+    rom_checked: bool,
+    /// Updates of a board found at 0x64 ([`rescue_rom`]) so far: at most
+    /// [`UpdateConfig::tries`].
+    rom_rescues: u8,
     /// The counters.
     pub stats: UpdateStats,
 }
@@ -563,6 +752,19 @@ pub async fn update_pass<L: UpdateLink>(
     mut on_result: impl FnMut(&crate::KnownBoard, &DbImage, &Result<(), UpdateError>),
 ) -> usize {
     let mut n = 0;
+    // First a C011 left in its ROM bootloader by a cut update (at start, and after an update
+    // through the ROM failed): it cannot be called at its address until it is whole.
+    if !state.rom_checked && state.rom_rescues < cfg.tries {
+        state.rom_checked = true;
+        if let Some(r) = rescue_rom(link, cfg, images, &mut state.stats).await {
+            state.rom_rescues += 1;
+            n += 1;
+            if r.is_err() {
+                warn!("update: the board at 0x64 failed");
+                state.rom_checked = false;
+            }
+        }
+    }
     for b in boards {
         if !b.present {
             continue;
@@ -588,7 +790,12 @@ pub async fn update_pass<L: UpdateLink>(
         let r = update_board(link, cfg, b.address, b.kind, image, &mut state.stats).await;
         match r {
             Ok(()) => info!("update: board {} done", b.address.get()),
-            Err(_) => warn!("update: board {} failed", b.address.get()),
+            Err(_) => {
+                warn!("update: board {} failed", b.address.get());
+                if Method::for_kind(b.kind) == Method::StRom {
+                    state.rom_checked = false;
+                }
+            }
         }
         on_result(b, image, &r);
     }

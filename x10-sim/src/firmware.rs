@@ -195,6 +195,52 @@ impl SimFirmware {
     }
 }
 
+/// An STM32C011 board's flash and ROM bootloader (issue 25): `x10_stmboot::model::RomModel`,
+/// kept across the board's resets. The board runs the image its flash holds (a fake: the
+/// version at bytes 4..7, as [`fake_image`] writes it); System 12 jumps into the ROM, which
+/// answers AN4221 at 0x64 until `Go`; a power cut with the first word erased starts the ROM
+/// again (the C0's empty check). Cloning shares it.
+#[derive(Clone)]
+pub struct SimRom(pub Rc<RefCell<x10_stmboot::model::RomModel>>);
+
+impl std::fmt::Debug for SimRom {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "SimRom({:?}, {:?})", self.version(), self.boot())
+    }
+}
+
+impl SimRom {
+    /// A C011 flashed (by a probe) with a fake image of `version`, 20 000 bytes.
+    pub fn new(version: Version) -> SimRom {
+        let img = fake_image(version, 20_000);
+        SimRom(Rc::new(RefCell::new(x10_stmboot::model::RomModel::c011(
+            &img,
+        ))))
+    }
+
+    /// The version the image in flash reports.
+    pub fn version(&self) -> Version {
+        let m = self.0.borrow();
+        let f = m.flash();
+        [f[4], f[5], f[6]]
+    }
+
+    /// What the chip runs.
+    pub fn boot(&self) -> x10_stmboot::model::Boot {
+        self.0.borrow().boot()
+    }
+
+    /// Whether the flash holds `image` and nothing else.
+    pub fn holds(&self, image: &[u8]) -> bool {
+        self.0.borrow().holds(image)
+    }
+
+    /// Counts of the ROM's bus and flash work so far.
+    pub fn stats(&self) -> x10_stmboot::model::Stats {
+        self.0.borrow().stats()
+    }
+}
+
 /// What the motherboard would update in `world`, one line per daughterboard, in words: the
 /// decision is `firmware_mb::update::decide`'s, the one the motherboard's updater takes, for
 /// each board's kind (as its chip reports it), version ([`crate::world::Board::firmware_version`])
