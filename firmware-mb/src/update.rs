@@ -268,7 +268,8 @@ pub trait UpdateLink {
     /// A raw I2C transfer through the motherboard's bus, outside the microcode (no frame, no
     /// check, no board prepared): `write` to the 7-bit address `addr`, then, unless `read`
     /// is empty, `read.len()` bytes after a repeated START (a plain read when `write` is
-    /// empty). At most `x10_microcode::MAX_PAYLOAD` bytes each way. For ST's ROM bootloader.
+    /// empty). At most a job's frame out (`x10_microcode::MAX_FRAME_LEN`, 36 bytes) and a
+    /// payload in (`x10_microcode::MAX_PAYLOAD`, 28 bytes). For ST's ROM bootloader.
     ///
     /// # Errors
     /// As `X10::call` for the bus; [`LinkError::Unsupported`] where there is no such path.
