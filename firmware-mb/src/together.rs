@@ -110,23 +110,38 @@ impl MbCore {
         op: Option<Op<'_>>,
         read: Option<usize>,
     ) -> Result<(u8, Payload), LinkError> {
+        self.raw_job(db, kind, read, |seq, frame| {
+            if let Some(op) = op {
+                let req = Request {
+                    db: Address::new(0)?,
+                    seq,
+                    op,
+                };
+                let _ = frame.resize(req.buffer_len().min(MAX_FRAME_LEN), 0);
+                let n = req.emit(frame).map_err(LinkError::Invalid)?;
+                frame.truncate(n);
+            }
+            Ok(())
+        })
+        .await
+    }
+
+    /// One transfer of kind `kind` through the queue, its frame written by `fill` (given the
+    /// sequence number), with a pending slot of `db`: the sequence number and the raw bytes
+    /// read.
+    pub(crate) async fn raw_job(
+        &self,
+        db: Address,
+        kind: JobKind,
+        read: Option<usize>,
+        fill: impl FnOnce(u8, &mut Vec<u8, MAX_FRAME_LEN>) -> Result<(), LinkError>,
+    ) -> Result<(u8, Payload), LinkError> {
         let deadline = now().plus_us(self.config.request_timeout_us);
         let (ticket, seq) = self.claim_slot(db, deadline).await?;
         let mut frame: Vec<u8, MAX_FRAME_LEN> = Vec::new();
-        if let Some(op) = op {
-            let req = Request {
-                db: Address::new(0)?,
-                seq,
-                op,
-            };
-            let _ = frame.resize(req.buffer_len().min(MAX_FRAME_LEN), 0);
-            match req.emit(&mut frame) {
-                Ok(n) => frame.truncate(n),
-                Err(e) => {
-                    self.with(|t| t.release(ticket, Ended::GaveUp));
-                    return Err(LinkError::Invalid(e));
-                }
-            }
+        if let Err(e) = fill(seq, &mut frame) {
+            self.with(|t| t.release(ticket, Ended::GaveUp));
+            return Err(e);
         }
         let meta = JobMeta {
             ticket,

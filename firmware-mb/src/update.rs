@@ -13,8 +13,13 @@
 //! `LinkError::Updating`, never a hang.
 //!
 //! A C011 board has no room for a bootloader of ours: its method is ST's ROM bootloader over
-//! I2C (AN4221), written as a crate of its own; [`Method::for_kind`] is the seam, and this
-//! module refuses to update a board whose method it does not implement.
+//! I2C (AN4221, the `x10-stmboot` crate). `enter_update` sends the board into its ROM, which
+//! answers at `Address::STM32_BOOTLOADER` (0x64); the updater speaks AN4221 there through the
+//! motherboard's own bus ([`UpdateLink::i2c`]: raw transfers through the dispatcher's queue,
+//! between the robot's requests, outside the robot's API), one C011 at a time, then waits for
+//! the board at its address with the new version (it keeps its address in its OTP area, which
+//! no page erase touches). A C011 found answering at 0x64 ([`rescue_rom`]: an update cut by
+//! power) is updated first.
 
 use x10_devices::LinkError;
 use x10_microcode::{
@@ -67,8 +72,8 @@ pub enum Method {
     /// `enter_update`, then function 7 answered by the board's bootloader (`x10-boot`):
     /// RP2040 and STM32G431 boards, and the simulator's.
     X10Boot,
-    /// ST's ROM bootloader over I2C (AN4221): the STM32C011, whose 32 KiB hold one image.
-    /// Not implemented here (its client is a crate of its own).
+    /// ST's ROM bootloader over I2C (AN4221, `x10-stmboot`): the STM32C011, whose 32 KiB
+    /// hold one image.
     StRom,
     /// No known way.
     None,
@@ -90,8 +95,8 @@ impl Method {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct UpdateConfig {
     /// The bus is left alone this long after each chunk's reply (µs): the robot's requests
-    /// queued meanwhile go first. With a chunk transaction of about 1 ms at 400 kHz, 1 ms
-    /// caps the update at about half of the bus.
+    /// queued meanwhile go first. [`UpdateConfig::for_bus_hz`] makes it one chunk
+    /// transaction's wire time, which caps the update at half of the bus.
     pub chunk_gap_us: u64,
     /// How often a board is asked whether it is back (its bootloader, its new image), µs.
     pub poll_us: u64,
@@ -103,14 +108,24 @@ pub struct UpdateConfig {
     /// Tries per board; a board that failed this often (e.g. rolled back each time) is left
     /// alone until the motherboard restarts.
     pub tries: u8,
-    /// Tries of one request of the transfer after a transport error (the board is deaf while
-    /// it erases a sector, 45 ms on the Pico's flash; a lost reply: the repeat is idempotent).
+    /// Tries of one request of the transfer after a transport error (a lost reply: the
+    /// repeat is idempotent; a board whose flash work took longer than [`FlashTiming`] says).
     pub chunk_retries: u8,
+    /// Waits out the flash work the board's kind is known to do after `begin` and a chunk
+    /// ([`FlashTiming`]) instead of sending into it (true; false: only the gap).
+    pub wait_flash: bool,
 }
 
+/// Bits on the wire of one chunk transaction: START, the address byte, the 34-byte request
+/// (4 header, 28 data, the CRC-16), repeated START, the address byte, the 4-byte reply
+/// (3 header, the PEC byte), STOP; 9 bits a byte and 3 for the START, repeated START and
+/// STOP.
+pub const CHUNK_WIRE_BITS: u64 = (1 + 34 + 1 + 4) * 9 + 3;
+
 impl UpdateConfig {
-    /// 1 ms between chunks, polls every 20 ms, 2 s for the bootloader, 5 s for the new image,
-    /// 2 tries per board, 5 per chunk.
+    /// 1 ms between chunks (the gap [`UpdateConfig::for_bus_hz`] gives at 363 kHz), polls
+    /// every 20 ms, 2 s for the bootloader, 5 s for the new image, 2 tries per board, 5 per
+    /// chunk, the flash work waited out.
     pub const DEFAULT: UpdateConfig = UpdateConfig {
         chunk_gap_us: 1_000,
         poll_us: 20_000,
@@ -118,7 +133,71 @@ impl UpdateConfig {
         boot_wait_us: 5_000_000,
         tries: 2,
         chunk_retries: 5,
+        wait_flash: true,
     };
+
+    /// [`UpdateConfig::DEFAULT`] with the gap between chunks scaled to the bus clock `hz`:
+    /// the wire time of one chunk transaction ([`CHUNK_WIRE_BITS`]), rounded up, so that the
+    /// update takes at most half of the bus whatever its clock (3.63 ms at 100 kHz, 0.91 ms
+    /// at 400 kHz, 0.37 ms at 1 MHz). An MB image passes the clock its bus runs at.
+    pub const fn for_bus_hz(hz: u32) -> UpdateConfig {
+        let hz = if hz == 0 { 1 } else { hz as u64 };
+        let mut c = Self::DEFAULT;
+        c.chunk_gap_us = (CHUNK_WIRE_BITS * 1_000_000).div_ceil(hz);
+        c
+    }
+}
+
+/// What the motherboard knows of a board kind's flash as its bootloader works it, so that it
+/// waits the flash work out instead of sending into it: a board erasing or programming its
+/// flash does not answer (the RP2040 runs from that flash: XIP is off, its I2C target deaf),
+/// and a request sent then is lost and tried again ([`UpdateStats::chunk_retries`]).
+///
+/// The bootloader (`x10-boot`) erases a sector after `begin` (the first) and after the chunk
+/// that fills the last page of a sector (the next one), and programs a page after the chunk
+/// that fills it ([`FlashTiming::work_after_chunk_us`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct FlashTiming {
+    /// Bytes of one erase sector.
+    pub sector: u32,
+    /// Time of one sector erase, µs, with a margin.
+    pub erase_us: u32,
+    /// Time of one page program (the bootloader's write buffer), µs, with a margin.
+    pub program_us: u32,
+}
+
+impl FlashTiming {
+    /// The flash of a board kind: the RP2040's W25Q16JV (and the simulator's board, which
+    /// models it): 4 KiB sectors, 45 ms per erase and 0.4 ms per 256-byte page (typical,
+    /// W25Q16JV datasheet, "AC Electrical Characteristics": tSE, tPP), plus 1 ms and 0.1 ms.
+    /// Other kinds: `None` (no planned waits: a request that meets a busy board is tried
+    /// again).
+    pub const fn for_kind(kind: BoardKind) -> Option<FlashTiming> {
+        match kind.0 {
+            1 | 3 => Some(FlashTiming {
+                sector: 4096,
+                erase_us: 46_000,
+                program_us: 500,
+            }),
+            _ => None,
+        }
+    }
+
+    /// How long the board works its flash after answering the chunk of `len` bytes at
+    /// `offset` of an image of `image_len` bytes, µs: a page program at most, and the erase of
+    /// the next sector when the chunk ends in another sector than it began (and the image
+    /// goes on).
+    pub const fn work_after_chunk_us(&self, offset: u32, len: u32, image_len: u32) -> u32 {
+        let end = offset.saturating_add(len);
+        let sector = if self.sector == 0 { 1 } else { self.sector };
+        let next = end / sector * sector;
+        if next > offset && next < image_len {
+            self.erase_us + self.program_us
+        } else {
+            self.program_us
+        }
+    }
 }
 
 impl Default for UpdateConfig {
@@ -145,6 +224,30 @@ pub enum UpdateError {
     NotBack,
     /// It came back with this version instead of the new one (rolled back).
     RolledBack(Version),
+    /// The ROM bootloader refused, or the update through it failed (AN4221: a wrong chip, a
+    /// refusal, a read-back that differs, the bus).
+    Rom(RomError),
+}
+
+/// Why an update through the ROM bootloader failed (`x10_stmboot::Error`, its bus error a
+/// [`RomBusError`]).
+pub type RomError = x10_stmboot::Error<RomBusError>;
+
+/// A raw transfer's [`LinkError`] as an `embedded_hal_async` I2C error.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct RomBusError(pub LinkError);
+
+impl embedded_hal_async::i2c::Error for RomBusError {
+    fn kind(&self) -> embedded_hal_async::i2c::ErrorKind {
+        use embedded_hal_async::i2c::{ErrorKind, NoAcknowledgeSource};
+        match self.0 {
+            LinkError::Nack => ErrorKind::NoAcknowledge(NoAcknowledgeSource::Address),
+            LinkError::ArbitrationLost => ErrorKind::ArbitrationLoss,
+            LinkError::Bus => ErrorKind::Bus,
+            _ => ErrorKind::Other,
+        }
+    }
 }
 
 /// What the updater needs of the motherboard: calls that bypass the `Updating` refusal, the
@@ -162,6 +265,52 @@ pub trait UpdateLink {
     async fn pause(&self, us: u64);
     /// Microseconds since start.
     fn now_us(&self) -> u64;
+    /// A raw I2C transfer through the motherboard's bus, outside the microcode (no frame, no
+    /// check, no board prepared): `write` to the 7-bit address `addr`, then, unless `read`
+    /// is empty, `read.len()` bytes after a repeated START (a plain read when `write` is
+    /// empty). At most a job's frame out (`x10_microcode::MAX_FRAME_LEN`, 36 bytes) and a
+    /// payload in (`x10_microcode::MAX_PAYLOAD`, 28 bytes). For ST's ROM bootloader.
+    ///
+    /// # Errors
+    /// As `X10::call` for the bus; [`LinkError::Unsupported`] where there is no such path.
+    async fn i2c(&self, addr: u8, write: &[u8], read: &mut [u8]) -> Result<(), LinkError> {
+        let _ = (addr, write, read);
+        Err(LinkError::Unsupported)
+    }
+}
+
+/// Bytes per Write Memory and Read Memory through [`UpdateLink::i2c`]: a multiple of the
+/// C011's double word that a raw transfer carries (the data frame is two bytes more).
+pub const ROM_BLOCK: usize = 24;
+
+/// [`UpdateLink::i2c`] as the `embedded_hal_async` bus and delay `x10_stmboot::Client` takes.
+struct RomBus<'l, L>(&'l L);
+
+impl<L> embedded_hal_async::i2c::ErrorType for RomBus<'_, L> {
+    type Error = RomBusError;
+}
+
+impl<L: UpdateLink> embedded_hal_async::i2c::I2c for RomBus<'_, L> {
+    async fn transaction(
+        &mut self,
+        address: u8,
+        operations: &mut [embedded_hal_async::i2c::Operation<'_>],
+    ) -> Result<(), RomBusError> {
+        use embedded_hal_async::i2c::Operation;
+        match operations {
+            [Operation::Write(w)] => self.0.i2c(address, w, &mut []).await,
+            [Operation::Read(r)] => self.0.i2c(address, &[], r).await,
+            [Operation::Write(w), Operation::Read(r)] => self.0.i2c(address, w, r).await,
+            _ => Err(LinkError::Unsupported),
+        }
+        .map_err(RomBusError)
+    }
+}
+
+impl<L: UpdateLink> embedded_hal_async::delay::DelayNs for RomBus<'_, L> {
+    async fn delay_ns(&mut self, ns: u32) {
+        self.0.pause(u64::from(ns).div_ceil(1_000)).await;
+    }
 }
 
 /// Counters of the updater.
@@ -180,8 +329,46 @@ pub struct UpdateStats {
     pub restarts: u16,
 }
 
+/// What the motherboard does with one board, and why ([`decide`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Decision<'a> {
+    /// It runs another version than the image carried for its kind: updated to it.
+    Update(&'a DbImage),
+    /// It runs the version carried for its kind.
+    UpToDate(&'a DbImage),
+    /// The policy pins it ([`UpdatePolicy::Except`]).
+    Pinned,
+    /// The policy updates no board ([`UpdatePolicy::Never`]).
+    Never,
+    /// No image of its kind is carried.
+    NoImage,
+}
+
+/// What the motherboard does with a board of `kind` running `version` under `policy`, given
+/// the images it carries: pure, the whole decision ([`plan`] is its yes or no; `x10 plan`
+/// prints it in words).
+pub fn decide(
+    images: &[DbImage],
+    policy: UpdatePolicy,
+    uid: Uid,
+    kind: BoardKind,
+    version: Version,
+) -> Decision<'_> {
+    match policy {
+        UpdatePolicy::Never => return Decision::Never,
+        UpdatePolicy::Except(pinned) if pinned.contains(&uid) => return Decision::Pinned,
+        _ => {}
+    }
+    match images.iter().find(|i| i.kind == kind) {
+        None => Decision::NoImage,
+        Some(i) if i.version == version => Decision::UpToDate(i),
+        Some(i) => Decision::Update(i),
+    }
+}
+
 /// The image `images` carries for a board of `kind` running `version` under `policy`, when the
-/// board is to be updated: pure, the whole decision (`x10 update --plan` prints it).
+/// board is to be updated ([`decide`] says [`Decision::Update`]).
 pub fn plan(
     images: &[DbImage],
     policy: UpdatePolicy,
@@ -189,15 +376,10 @@ pub fn plan(
     kind: BoardKind,
     version: Version,
 ) -> Option<&DbImage> {
-    match policy {
-        UpdatePolicy::Never => return None,
-        UpdatePolicy::Except(pinned) if pinned.contains(&uid) => return None,
-        _ => {}
+    match decide(images, policy, uid, kind, version) {
+        Decision::Update(i) => Some(i),
+        _ => None,
     }
-    images
-        .iter()
-        .find(|i| i.kind == kind)
-        .filter(|i| i.version != version)
 }
 
 async fn wait_for<L: UpdateLink, T>(
@@ -257,6 +439,7 @@ async fn transfer<L: UpdateLink>(
     image: &DbImage,
     stats: &mut UpdateStats,
 ) -> Result<bool, UpdateError> {
+    let flash = FlashTiming::for_kind(image.kind).filter(|_| cfg.wait_flash);
     let refused = |e: LinkError| match e {
         LinkError::Status(Status::NoSession) => Ok(false),
         LinkError::Status(s) => Err(UpdateError::Refused(s)),
@@ -266,6 +449,10 @@ async fn transfer<L: UpdateLink>(
     let begin = UpdateOp::Begin(image.info()).to_op(&mut buf);
     if let Err(e) = call_retrying(link, cfg, db, begin, stats).await {
         return refused(e);
+    }
+    // The first sector's erase.
+    if let Some(f) = flash {
+        link.pause(u64::from(f.erase_us)).await;
     }
     let mut offset = 0usize;
     for data in image.bytes.chunks(CHUNK_MAX) {
@@ -278,8 +465,11 @@ async fn transfer<L: UpdateLink>(
         if let Err(e) = call_retrying(link, cfg, db, op, stats).await {
             return refused(e);
         }
+        let work = flash.map_or(0, |f| {
+            f.work_after_chunk_us(offset as u32, data.len() as u32, image.bytes.len() as u32)
+        });
         offset += data.len();
-        link.pause(cfg.chunk_gap_us).await;
+        link.pause(cfg.chunk_gap_us.max(u64::from(work))).await;
     }
     let commit = UpdateOp::Commit.to_op(&mut buf);
     match call_retrying(link, cfg, db, commit, stats).await {
@@ -304,11 +494,16 @@ pub async fn update_board<L: UpdateLink>(
     image: &DbImage,
     stats: &mut UpdateStats,
 ) -> Result<(), UpdateError> {
-    if Method::for_kind(kind) != Method::X10Boot {
+    let method = Method::for_kind(kind);
+    if method == Method::None {
         return Err(UpdateError::NoMethod);
     }
     link.set_updating(Some(db));
-    let r = update_marked(link, cfg, db, image, stats).await;
+    let r = if method == Method::StRom {
+        update_rom(link, cfg, Some(db), image).await
+    } else {
+        update_marked(link, cfg, db, image, stats).await
+    };
     link.set_updating(None);
     match r {
         Ok(()) => stats.done = stats.done.saturating_add(1),
@@ -375,6 +570,90 @@ async fn update_marked<L: UpdateLink>(
     Ok(())
 }
 
+/// Updates a board through ST's ROM bootloader: `enter_update` to `db` (unless `db` is
+/// `None` or the ROM already answers at 0x64: a board left there by a cut update), waits
+/// until the ROM answers Get Version, `x10_stmboot::update` (Get ID checked against the
+/// kind's target, page 0 erased first, the first double word written last, everything read
+/// back, Go), then waits until `db` answers `identify` with the new version. The image has
+/// no slot to roll back to: nothing to confirm.
+async fn update_rom<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    db: Option<Address>,
+    image: &DbImage,
+) -> Result<(), UpdateError> {
+    let target = x10_stmboot::Target::for_board_kind(image.kind.0).ok_or(UpdateError::NoMethod)?;
+    if !rom_answers(link).await {
+        let db = db.ok_or(UpdateError::NoBootloader)?;
+        link.call(db, Op::EnterUpdate)
+            .await
+            .map_err(UpdateError::Enter)?;
+        let up = wait_for(link, cfg, cfg.bootloader_wait_us, async || {
+            rom_answers(link).await.then_some(())
+        })
+        .await;
+        if up.is_none() {
+            return Err(UpdateError::NoBootloader);
+        }
+    }
+    let mut client = x10_stmboot::Client::new(RomBus(link), RomBus(link));
+    client.block = ROM_BLOCK;
+    match x10_stmboot::update(&mut client, &target, image.bytes).await {
+        Ok(_) => {}
+        // Refused before any erase: the old image is whole, start it again.
+        Err(e @ x10_stmboot::Error::WrongChip { .. }) => {
+            let _ = client.go(target.flash_base).await;
+            return Err(UpdateError::Rom(e));
+        }
+        Err(e) => return Err(UpdateError::Rom(e)),
+    }
+    let Some(db) = db else {
+        return Ok(());
+    };
+    let version = wait_for(link, cfg, cfg.boot_wait_us, async || {
+        let p = link.call(db, Op::Identify).await.ok()?;
+        Identity::parse(&p).ok().map(|id| id.firmware)
+    })
+    .await
+    .ok_or(UpdateError::NotBack)?;
+    if version != image.version {
+        return Err(UpdateError::RolledBack(version));
+    }
+    Ok(())
+}
+
+/// True when a ROM bootloader answers Get Version at `Address::STM32_BOOTLOADER`.
+async fn rom_answers<L: UpdateLink>(link: &L) -> bool {
+    let mut client = x10_stmboot::Client::new(RomBus(link), RomBus(link));
+    client.get_version().await.is_ok()
+}
+
+/// A board answering at `Address::STM32_BOOTLOADER` (0x64) is an STM32C011 whose update was
+/// cut (its first word erased: every power-on starts the ROM bootloader). When `images`
+/// carries an image for a kind updated through the ROM, the board is updated with it and
+/// started; it then boots at the address it keeps and announces itself. `None`: no board
+/// answers there, or no such image is carried.
+pub async fn rescue_rom<L: UpdateLink>(
+    link: &L,
+    cfg: &UpdateConfig,
+    images: &[DbImage],
+    stats: &mut UpdateStats,
+) -> Option<Result<(), UpdateError>> {
+    let image = images
+        .iter()
+        .find(|i| Method::for_kind(i.kind) == Method::StRom)?;
+    if !rom_answers(link).await {
+        return None;
+    }
+    info!("update: a board in its ROM bootloader at 0x64");
+    let r = update_rom(link, cfg, None, image).await;
+    match r {
+        Ok(()) => stats.done = stats.done.saturating_add(1),
+        Err(_) => stats.failed = stats.failed.saturating_add(1),
+    }
+    Some(r)
+}
+
 /// True for the operations the updater sends (they pass while their board is marked as
 /// updating); `identify` and `ping` too, so that anyone may see whether the board is back.
 pub(crate) const fn is_update_op(op: &Op<'_>) -> bool {
@@ -400,6 +679,27 @@ impl UpdateLink for crate::X10 {
     fn now_us(&self) -> u64 {
         crate::mb_core::now().0
     }
+
+    /// A job of its own kind in the dispatcher's queue (a plain transfer: the bytes as they
+    /// are, no board prepared), between the robot's requests.
+    async fn i2c(&self, addr: u8, write: &[u8], read: &mut [u8]) -> Result<(), LinkError> {
+        let n = read.len();
+        let (_, p) = self
+            .core()
+            .raw_job(
+                Address::new(addr)?,
+                crate::jobs::JobKind::PlainRead,
+                (n > 0).then_some(n),
+                |_, frame| {
+                    frame
+                        .extend_from_slice(write)
+                        .map_err(|_| LinkError::Invalid(x10_microcode::Error::BufferTooShort))
+                },
+            )
+            .await?;
+        read.copy_from_slice(p.get(..n).ok_or(LinkError::BadReply)?);
+        Ok(())
+    }
 }
 
 /// How often [`run_updates`] looks at the directory (100 ms).
@@ -412,6 +712,11 @@ pub const MAX_TRACKED: usize = 16;
 #[derive(Clone, Debug, Default)]
 pub struct UpdateState {
     tried: heapless::Vec<(Uid, u8), MAX_TRACKED>,
+    /// 0x64 was looked at since the start or the last failed update through the ROM.
+    rom_checked: bool,
+    /// Updates of a board found at 0x64 ([`rescue_rom`]) so far: at most
+    /// [`UpdateConfig::tries`].
+    rom_rescues: u8,
     /// The counters.
     pub stats: UpdateStats,
 }
@@ -448,6 +753,19 @@ pub async fn update_pass<L: UpdateLink>(
     mut on_result: impl FnMut(&crate::KnownBoard, &DbImage, &Result<(), UpdateError>),
 ) -> usize {
     let mut n = 0;
+    // First a C011 left in its ROM bootloader by a cut update (at start, and after an update
+    // through the ROM failed): it cannot be called at its address until it is whole.
+    if !state.rom_checked && state.rom_rescues < cfg.tries {
+        state.rom_checked = true;
+        if let Some(r) = rescue_rom(link, cfg, images, &mut state.stats).await {
+            state.rom_rescues += 1;
+            n += 1;
+            if r.is_err() {
+                warn!("update: the board at 0x64 failed");
+                state.rom_checked = false;
+            }
+        }
+    }
     for b in boards {
         if !b.present {
             continue;
@@ -473,7 +791,12 @@ pub async fn update_pass<L: UpdateLink>(
         let r = update_board(link, cfg, b.address, b.kind, image, &mut state.stats).await;
         match r {
             Ok(()) => info!("update: board {} done", b.address.get()),
-            Err(_) => warn!("update: board {} failed", b.address.get()),
+            Err(_) => {
+                warn!("update: board {} failed", b.address.get());
+                if Method::for_kind(b.kind) == Method::StRom {
+                    state.rom_checked = false;
+                }
+            }
         }
         on_result(b, image, &r);
     }

@@ -205,6 +205,32 @@ fn load_world(
     }
 }
 
+/// Arguments of `x10 plan`.
+#[derive(Args, Debug)]
+pub struct PlanArgs {
+    /// Example robot whose world to read (fig4_2, fig4_4, fig4_6, bumper, doorbell).
+    #[arg(value_parser = example, required_unless_present = "world")]
+    pub program: Option<&'static Example>,
+    /// A world file instead of an example's.
+    #[arg(long)]
+    pub world: Option<std::path::PathBuf>,
+}
+
+/// `x10 plan`: what the motherboard would update in a world, before any run: the images it
+/// carries (`[[image]]`), then one line per daughterboard, its version (`firmware = …`) and
+/// what happens to it (`x10_sim::firmware::update_plan`, the decision of the motherboard's
+/// updater).
+pub fn plan_main(args: PlanArgs) -> ExitCode {
+    let Some((world, source)) = load_world("plan", args.world.as_deref(), args.program) else {
+        return ExitCode::FAILURE;
+    };
+    println!("# x10 plan {source}");
+    for line in x10_sim::firmware::update_plan(&world) {
+        println!("{line}");
+    }
+    ExitCode::SUCCESS
+}
+
 /// Arguments of `x10 signals`.
 #[derive(Args, Debug)]
 pub struct SignalsArgs {

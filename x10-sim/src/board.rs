@@ -68,6 +68,8 @@ pub struct SimRecord {
     fixed: bool,
     /// Its flash with A/B slots and a bootloader (issue 25), if it has one.
     pub firmware: Option<crate::firmware::SimFirmware>,
+    /// Or: an STM32C011's flash and ROM bootloader (issue 25).
+    pub rom: Option<crate::firmware::SimRom>,
 }
 
 impl SimRecord {
@@ -97,6 +99,12 @@ impl AddressRecord for SimRecord {
     }
 
     fn enter_update(&mut self) -> Result<(), StoreError> {
+        if let Some(rom) = &self.rom {
+            // The C011 image's System 12: a jump into the ROM bootloader (at the reset that
+            // follows the reply).
+            rom.0.borrow_mut().enter_rom();
+            return Ok(());
+        }
         match &self.firmware {
             None => Err(StoreError::NoRecord),
             Some(f) if f.enter_update() => Ok(()),
@@ -290,6 +298,38 @@ impl DbBoard {
             if moved {
                 config.reset_reason = ResetReason::Software;
             }
+            if let Some(rom) = &self.record.rom {
+                // A power cut (not the restart after System 12 or Go): the C0 boots again,
+                // the ROM bootloader if the first word of flash is erased.
+                if !moved {
+                    rom.0.borrow_mut().power_on();
+                }
+                if rom.boot() == x10_stmboot::model::Boot::Rom {
+                    bus.set_node_address(node, Some(Address::STM32_BOOTLOADER));
+                    let end =
+                        select(self.rom(&bus, node, rom), bus.wait_reset(node, generation)).await;
+                    let text = match end {
+                        Either::First(()) => {
+                            bus.restart_node(node);
+                            moved = true;
+                            "ROM bootloader: Go, restarting".to_string()
+                        }
+                        Either::Second(()) => {
+                            moved = false;
+                            "reset in the ROM bootloader".to_string()
+                        }
+                    };
+                    notes.push(TraceLine::new(
+                        clock.now_ns(),
+                        Severity::Info,
+                        self.name.clone(),
+                        text,
+                    ));
+                    continue;
+                }
+                config.firmware = rom.version();
+                config.board = BoardKind::C011;
+            }
             if let Some(fw) = &self.record.firmware {
                 // The bootloader first: the swap (or revert) costs its flash time.
                 let (mode, spent) = fw.start();
@@ -367,6 +407,49 @@ impl DbBoard {
 }
 
 impl DbBoard {
+    /// The board in its ROM bootloader: the model answers at 0x64 until `Go` (the return).
+    /// Each transfer's bytes go to the model at the simulator's time; a read gets as many
+    /// bytes as the model's protocol says the client reads.
+    async fn rom(&self, bus: &SimBus, node: NodeId, rom: &crate::firmware::SimRom) {
+        use x10_hal::bus::{Incoming, MultiMaster};
+        let clock = bus.clock().clone();
+        let mut port = bus.port(node);
+        let mut rx = [0u8; 2 * x10_microcode::MAX_FRAME_LEN];
+        let mut tx = [0u8; 2 * x10_microcode::MAX_FRAME_LEN];
+        loop {
+            if port.addressed().await.is_err() {
+                continue;
+            }
+            let incoming = port.listen(&mut rx).await;
+            let reply = {
+                let mut m = rom.0.borrow_mut();
+                m.catch_up_ns(clock.now_ns());
+                let (written, read) = match incoming {
+                    Ok(Incoming::Write(n)) => (n, false),
+                    Ok(Incoming::WriteRead(n)) => (n, true),
+                    Ok(Incoming::Read) => (0, true),
+                    Err(_) => continue,
+                };
+                if written > 0 {
+                    let _ = m.write(rx.get(..written).unwrap_or(&[]));
+                }
+                if read {
+                    let k = m.next_read_len().min(tx.len());
+                    let _ = m.read(&mut tx[..k]);
+                    Some(k)
+                } else {
+                    None
+                }
+            };
+            if let Some(k) = reply {
+                let _ = port.respond(&tx[..k]).await;
+            }
+            if rom.boot() == x10_stmboot::model::Boot::Flash {
+                return;
+            }
+        }
+    }
+
     /// The board in update mode: x10-boot's session on its port until `commit` or `leave`
     /// (the exit), deaf while it works its flash.
     async fn bootloader(

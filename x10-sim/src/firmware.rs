@@ -194,3 +194,131 @@ impl SimFirmware {
         x10_boot::confirm_firmware(&mut st).is_ok()
     }
 }
+
+/// An STM32C011 board's flash and ROM bootloader (issue 25): `x10_stmboot::model::RomModel`,
+/// kept across the board's resets. The board runs the image its flash holds (a fake: the
+/// version at bytes 4..7, as [`fake_image`] writes it); System 12 jumps into the ROM, which
+/// answers AN4221 at 0x64 until `Go`; a power cut with the first word erased starts the ROM
+/// again (the C0's empty check). Cloning shares it.
+#[derive(Clone)]
+pub struct SimRom(pub Rc<RefCell<x10_stmboot::model::RomModel>>);
+
+impl std::fmt::Debug for SimRom {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "SimRom({:?}, {:?})", self.version(), self.boot())
+    }
+}
+
+impl SimRom {
+    /// A C011 flashed (by a probe) with a fake image of `version`, 20 000 bytes.
+    pub fn new(version: Version) -> SimRom {
+        let img = fake_image(version, 20_000);
+        SimRom(Rc::new(RefCell::new(x10_stmboot::model::RomModel::c011(
+            &img,
+        ))))
+    }
+
+    /// The version the image in flash reports.
+    pub fn version(&self) -> Version {
+        let m = self.0.borrow();
+        let f = m.flash();
+        [f[4], f[5], f[6]]
+    }
+
+    /// What the chip runs.
+    pub fn boot(&self) -> x10_stmboot::model::Boot {
+        self.0.borrow().boot()
+    }
+
+    /// Whether the flash holds `image` and nothing else.
+    pub fn holds(&self, image: &[u8]) -> bool {
+        self.0.borrow().holds(image)
+    }
+
+    /// Counts of the ROM's bus and flash work so far.
+    pub fn stats(&self) -> x10_stmboot::model::Stats {
+        self.0.borrow().stats()
+    }
+}
+
+/// What the motherboard would update in `world`, one line per daughterboard, in words: the
+/// decision is `firmware_mb::update::decide`'s, the one the motherboard's updater takes, for
+/// each board's kind (as its chip reports it), version ([`crate::world::Board::firmware_version`])
+/// and unique ID, with the images the world says the motherboard carries (`[[image]]`) and the
+/// boards it pins (`update = false`). `x10 plan` prints it.
+pub fn update_plan(world: &crate::world::World) -> Vec<String> {
+    use firmware_mb::update::{decide, DbImage, Decision, UpdatePolicy};
+    let images: Vec<DbImage> = world
+        .images()
+        .iter()
+        .map(|i| DbImage {
+            kind: i.kind.wire_kind(),
+            version: i.version,
+            // The decision reads kind and version only.
+            bytes: &[],
+            crc32: 0,
+        })
+        .collect();
+    let boards: Vec<_> = world
+        .boards()
+        .into_iter()
+        .filter(|b| !b.is_internal())
+        .collect();
+    // `UpdatePolicy::Except` takes a list that lives as long as the motherboard's program.
+    let pinned: &'static [x10_microcode::Uid] = Box::leak(
+        boards
+            .iter()
+            .filter(|b| b.is_pinned())
+            .map(|b| b.unique_id())
+            .collect::<Vec<_>>()
+            .into_boxed_slice(),
+    );
+    let v = |v: Version| format!("{}.{}.{}", v[0], v[1], v[2]);
+    let mut out = Vec::new();
+    if images.is_empty() {
+        out.push(
+            "the motherboard carries no daughterboard images: no board is updated".to_string(),
+        );
+    } else {
+        let carried: Vec<String> = world
+            .images()
+            .iter()
+            .map(|i| format!("{} {}", i.kind.label(), v(i.version)))
+            .collect();
+        out.push(format!(
+            "the motherboard carries {} (fakes of the right length and CRC in the simulator)",
+            carried.join(", ")
+        ));
+    }
+    for b in &boards {
+        let who = match (b.is_unaddressed(), b.alias()) {
+            (true, Some(n)) => format!("board \"{n}\" (no address yet)"),
+            (false, Some(n)) => format!("board 0x{:02x} \"{n}\"", b.address()),
+            _ => format!("board 0x{:02x}", b.address()),
+        };
+        let kind = b.kind().label();
+        let runs = v(b.firmware_version());
+        let line = match decide(
+            &images,
+            UpdatePolicy::Except(pinned),
+            b.unique_id(),
+            b.wire_kind(),
+            b.firmware_version(),
+        ) {
+            Decision::Update(i) => format!(
+                "{who} ({kind}) runs {runs}, the motherboard carries {}: it will be updated",
+                v(i.version)
+            ),
+            Decision::UpToDate(_) => format!("{who} ({kind}) runs {runs}: up to date, not updated"),
+            Decision::Pinned => {
+                format!("{who} ({kind}) runs {runs}: pinned (update = false), not updated")
+            }
+            Decision::NoImage => format!(
+                "{who} ({kind}) runs {runs}: the motherboard carries no {kind} image, not updated"
+            ),
+            Decision::Never => format!("{who} ({kind}) runs {runs}: updates are off, not updated"),
+        };
+        out.push(line);
+    }
+    out
+}

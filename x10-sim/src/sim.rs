@@ -801,6 +801,17 @@ impl Sim {
         self
     }
 
+    /// Makes board `name` an STM32C011 (kind 5) with its flash and ROM bootloader (issue 25):
+    /// it reports the version its flash holds and is updated through the ROM at 0x64; `rom`
+    /// is shared, so the caller sees what the flash holds after the run.
+    pub fn with_rom(mut self, name: &str, rom: crate::firmware::SimRom) -> Sim {
+        if let Some(b) = self.board_mut(name) {
+            b.record.rom = Some(rom);
+            b.config.board = x10_microcode::BoardKind::C011;
+        }
+        self
+    }
+
     /// The board called `name`, to change its configuration.
     pub fn board_mut(&mut self, name: &str) -> Option<&mut DbBoard> {
         self.boards.iter_mut().find(|b| b.name == name)

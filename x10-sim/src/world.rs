@@ -74,6 +74,19 @@ enum Item {
     Sensor(usize),
     Thermal(usize),
     Servo(usize),
+    Image(usize),
+}
+
+/// A daughterboard image the motherboard carries (`[[image]]`): its board kind (the port
+/// counts of a `simulated` kind do not matter) and its version. In the simulator it is a fake
+/// of the right length and CRC (`x10_sim::firmware::fake_image`): the board model runs
+/// whatever its flash says, the image only carries the version.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct CarriedImage {
+    /// The board kind it is built for.
+    pub kind: BoardKind,
+    /// Its version.
+    pub version: x10_microcode::Version,
 }
 
 /// The boards and devices a robot program runs against.
@@ -85,6 +98,8 @@ pub struct World {
     physics: crate::physics::Physics,
     /// Line of each (item, field) in the file the world came from.
     lines: HashMap<(Item, &'static str), usize>,
+    /// The daughterboard images the motherboard carries (`[[image]]`).
+    images: Vec<CarriedImage>,
 }
 
 /// Two worlds are equal when they have the same boards and the same devices on the same
@@ -107,6 +122,7 @@ impl PartialEq for World {
         self.boards() == other.boards()
             && resolved(self) == resolved(other)
             && self.physics == other.physics
+            && self.images == other.images
     }
 }
 
@@ -129,6 +145,17 @@ impl World {
             board.address = board::UNADDRESSED_KEY.saturating_add(u8::try_from(k).unwrap_or(0x7f));
         }
         self.boards.push(board);
+    }
+
+    /// Adds an image the motherboard carries.
+    pub fn carries(mut self, image: CarriedImage) -> World {
+        self.images.push(image);
+        self
+    }
+
+    /// The images the motherboard carries.
+    pub fn images(&self) -> &[CarriedImage] {
+        &self.images
     }
 
     /// Adds a device.
@@ -668,6 +695,15 @@ impl World {
             })?;
             let ports = self.ports_for(&sim, b, engine);
             sim = sim.with_board(address, ports);
+        }
+        // Boards whose firmware version the world gives run it (a flash of A/B slots holding
+        // a fake image of that version: `crate::firmware`).
+        for b in boards
+            .iter()
+            .filter(|b| !b.is_internal() && b.has_firmware())
+        {
+            let fw = crate::firmware::SimFirmware::new(b.firmware_version());
+            sim = sim.with_firmware(&b.log_name(), fw);
         }
         Ok(sim)
     }

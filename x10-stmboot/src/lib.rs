@@ -121,6 +121,15 @@ pub const C011: Target = Target {
 };
 
 impl Target {
+    /// The target of an X10 board kind (`x10_microcode::BoardKind`'s code) updated through
+    /// the ROM bootloader: 5, the STM32C011 ([`C011`]). `None` for every other kind.
+    pub const fn for_board_kind(kind: u8) -> Option<Target> {
+        match kind {
+            5 => Some(C011),
+            _ => None,
+        }
+    }
+
     /// Number of erase pages of main flash.
     pub const fn pages(&self) -> u16 {
         (self.flash_size / self.page_size) as u16
@@ -182,10 +191,17 @@ pub fn data_frame<'a>(data: &[u8], buf: &'a mut [u8; MAX_BLOCK + 2]) -> Option<&
 /// multiples of [`MAX_BLOCK`] from the start of flash, each `(offset, length)` with the
 /// length rounded up to a whole double word (the part past the image is padded with 0xFF).
 pub fn blocks(image_len: usize) -> impl Iterator<Item = (usize, usize)> {
+    blocks_of(image_len, MAX_BLOCK)
+}
+
+/// [`blocks`] cut at multiples of `block` bytes instead (a multiple of [`DOUBLE_WORD`] up to
+/// [`MAX_BLOCK`]; [`Client::block`]).
+pub fn blocks_of(image_len: usize, block: usize) -> impl Iterator<Item = (usize, usize)> {
+    let block = block.clamp(DOUBLE_WORD, MAX_BLOCK) / DOUBLE_WORD * DOUBLE_WORD;
     let end = image_len.div_ceil(DOUBLE_WORD) * DOUBLE_WORD;
-    (0..end.div_ceil(MAX_BLOCK)).filter_map(move |i| {
-        let start = (i * MAX_BLOCK).max(DOUBLE_WORD);
-        let stop = ((i + 1) * MAX_BLOCK).min(end);
+    (0..end.div_ceil(block)).filter_map(move |i| {
+        let start = (i * block).max(DOUBLE_WORD);
+        let stop = ((i + 1) * block).min(end);
         (start < stop).then_some((start, stop - start))
     })
 }
@@ -292,6 +308,10 @@ pub struct Client<I, D> {
     /// Microseconds of [`BUSY`] answers after which a command fails with
     /// [`Error::StillBusy`].
     pub busy_timeout_us: u32,
+    /// Bytes [`update`] writes and reads back per Write Memory and Read Memory: a multiple of
+    /// [`DOUBLE_WORD`] up to [`MAX_BLOCK`] (the default). A bus whose transfers are shorter
+    /// (the motherboard's: 24 bytes) sets it lower.
+    pub block: usize,
     no_stretch: bool,
     busy_polls: u32,
 }
@@ -307,6 +327,7 @@ impl<I: I2c, D: DelayNs> Client<I, D> {
             address: ROM_ADDRESS,
             poll_us: 500,
             busy_timeout_us: 2_000_000,
+            block: MAX_BLOCK,
             no_stretch: false,
             busy_polls: 0,
         }
@@ -520,7 +541,7 @@ pub async fn update<I: I2c, D: DelayNs>(
     let mut written = 0u32;
     let mut skipped = 0u32;
     let mut block = [0xFFu8; MAX_BLOCK];
-    for (offset, len) in blocks(image.len()) {
+    for (offset, len) in blocks_of(image.len(), client.block) {
         let b = fill(&mut block, image, offset, len);
         if b.iter().all(|&x| x == 0xFF) {
             skipped += 1;
@@ -529,7 +550,7 @@ pub async fn update<I: I2c, D: DelayNs>(
         client.write_memory(base + offset as u32, b).await?;
         written += len as u32;
     }
-    for (offset, len) in blocks(image.len()) {
+    for (offset, len) in blocks_of(image.len(), client.block) {
         let b = fill(&mut block, image, offset, len);
         let mut want = [0u8; MAX_BLOCK];
         want[..len].copy_from_slice(b);
@@ -604,5 +625,10 @@ mod tests {
         assert_eq!(b[0], (8, 248));
         assert_eq!(b[127], (32 * 1024 - 256, 256));
         assert_eq!(C011.pages(), 16);
+        let b: Vec<_> = blocks_of(60, 24).collect();
+        assert_eq!(b, [(8, 16), (24, 24), (48, 16)]);
+        assert_eq!(blocks_of(32 * 1024, 24).count(), 1366);
+        assert_eq!(Target::for_board_kind(5), Some(C011));
+        assert_eq!(Target::for_board_kind(3), None);
     }
 }

@@ -79,7 +79,11 @@ enum Proto {
 
 #[derive(Clone, Copy, Debug)]
 enum Out {
+    /// An answer byte: ACK or NACK.
     Byte(u8),
+    /// A data byte (Get Version's, Get ID's, Read Memory's): the client reads a command's
+    /// data bytes in one read.
+    Data(u8),
     /// A status byte ready at a time: before it, [`BUSY`] (no-stretch) or a stretched read.
     Status {
         byte: u8,
@@ -172,6 +176,34 @@ impl RomModel {
     /// The model's clock: nanoseconds since it was made.
     pub fn now_ns(&self) -> u64 {
         self.now_ns
+    }
+
+    /// Moves the model's clock on by `ns` (time spent elsewhere: the rest of the bus, the
+    /// motherboard's pauses).
+    pub fn advance_ns(&mut self, ns: u64) {
+        self.now_ns += ns;
+    }
+
+    /// Moves the model's clock on to `ns` unless it is there already (a bus whose own clock
+    /// counted the wire time: the simulator's).
+    pub fn catch_up_ns(&mut self, ns: u64) {
+        self.now_ns = self.now_ns.max(ns);
+    }
+
+    /// How many bytes the client's next read takes, by AN4221's order: one for an answer
+    /// (ACK, NACK or BUSY), else the data bytes before the next answer (Get Version's
+    /// version, Get ID's three, Read Memory's block). For a target on a bus that does not
+    /// tell it the read's length (the simulator's).
+    pub fn next_read_len(&self) -> usize {
+        match self.out.front() {
+            None => 0,
+            Some(Out::Status { .. } | Out::Byte(_)) => 1,
+            Some(Out::Data(_)) => self
+                .out
+                .iter()
+                .take_while(|o| matches!(o, Out::Data(_)))
+                .count(),
+        }
     }
 
     /// Steps so far (bus transactions, page erases, double-word programs).
@@ -319,11 +351,13 @@ impl RomModel {
             cmd::GET_VERSION => {
                 let v = self.version;
                 self.out
-                    .extend([Out::Byte(ACK), Out::Byte(v), Out::Byte(ACK)]);
+                    .extend([Out::Byte(ACK), Out::Data(v), Out::Byte(ACK)]);
             }
             cmd::GET_ID => {
                 let [hi, lo] = self.pid.to_be_bytes();
-                self.out.extend([ACK, 1, hi, lo, ACK].map(Out::Byte));
+                self.out.push_back(Out::Byte(ACK));
+                self.out.extend([1, hi, lo].map(Out::Data));
+                self.out.push_back(Out::Byte(ACK));
             }
             cmd::READ_MEMORY | cmd::GO | cmd::WRITE_MEMORY | cmd::NO_STRETCH_WRITE_MEMORY => {
                 self.out.push_back(Out::Byte(ACK));
@@ -371,7 +405,7 @@ impl RomModel {
         }
         self.out.push_back(Out::Byte(ACK));
         for i in start..start + n {
-            self.out.push_back(Out::Byte(self.flash[i]));
+            self.out.push_back(Out::Data(self.flash[i]));
         }
         self.proto = Proto::Idle;
     }
@@ -469,7 +503,7 @@ impl RomModel {
         for b in buf.iter_mut() {
             *b = match self.out.front().copied() {
                 None => return Err(ModelError::Protocol),
-                Some(Out::Byte(x)) => {
+                Some(Out::Byte(x) | Out::Data(x)) => {
                     self.out.pop_front();
                     x
                 }

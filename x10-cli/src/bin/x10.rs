@@ -39,6 +39,9 @@ enum Command {
     /// Print what a world gives each board's sensor ports over time, as JSON lines (for rigs
     /// that drive real or emulated boards from the same world as the simulator).
     Signals(x10_cli::cli_sim::SignalsArgs),
+    /// Print what the motherboard would update in a world (the images it carries, each
+    /// board's firmware version), before any run.
+    Plan(x10_cli::cli_sim::PlanArgs),
     /// Create a robot crate of your own (program, world, simulator command, host test,
     /// Pico and STM32G431 images) in PATH, outside this repository.
     New(NewArgs),
@@ -446,6 +449,7 @@ fn main() -> ExitCode {
         Command::Sim(args) => x10_cli::cli_sim::sim_main(args),
         Command::Report(args) => x10_cli::cli_sim::report_main(args),
         Command::Signals(args) => x10_cli::cli_sim::signals_main(args),
+        Command::Plan(args) => x10_cli::cli_sim::plan_main(args),
         Command::New(args) => new_main(args),
         Command::Soak(args) => x10_cli::soak::soak_main(&args),
         Command::Uf2(args) => uf2_main(args),

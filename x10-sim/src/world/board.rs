@@ -65,6 +65,15 @@ impl BoardKind {
         }
     }
 
+    /// The board kind the chip reports on the bus (`identify`, `boot`).
+    pub const fn wire_kind(self) -> x10_microcode::BoardKind {
+        match self {
+            BoardKind::Pico => x10_microcode::BoardKind::PICO,
+            BoardKind::G431 => x10_microcode::BoardKind::G431,
+            BoardKind::Simulated { .. } => x10_microcode::BoardKind::SIMULATED,
+        }
+    }
+
     /// `pico`, `g431` or `simulated`, as a world file spells it.
     pub const fn label(self) -> &'static str {
         match self {
@@ -90,6 +99,11 @@ pub struct Board {
     pub(super) unaddressed: bool,
     /// Its unique ID, when the world gives one (otherwise made from its name).
     pub(super) uid: Option<Uid>,
+    /// The firmware version it runs, when the world gives one (`firmware = "0.1.0"`;
+    /// otherwise the simulator's own, `firmware_db::FIRMWARE_VERSION`).
+    pub(super) firmware: Option<x10_microcode::Version>,
+    /// Pinned to the firmware it runs: the motherboard does not update it (`update = false`).
+    pub(super) pinned: bool,
 }
 
 /// The first key [`Board::address`] holds for boards without an address.
@@ -123,6 +137,8 @@ impl Board {
             adc_bits: None,
             unaddressed: false,
             uid: None,
+            firmware: None,
+            pinned: false,
         }
     }
 
@@ -139,6 +155,46 @@ impl Board {
     pub fn uid(mut self, uid: Uid) -> Board {
         self.uid = Some(uid);
         self
+    }
+
+    /// The firmware version it runs (see [`Board::firmware_version`]).
+    pub fn firmware(mut self, version: x10_microcode::Version) -> Board {
+        self.firmware = Some(version);
+        self
+    }
+
+    /// Pins it to the firmware it runs: the motherboard does not update it.
+    pub fn pinned(mut self) -> Board {
+        self.pinned = true;
+        self
+    }
+
+    /// The firmware version it runs: the world's, else the simulator's own.
+    pub fn firmware_version(&self) -> x10_microcode::Version {
+        self.firmware.unwrap_or(firmware_db::FIRMWARE_VERSION)
+    }
+
+    /// True when the world gives its firmware version.
+    pub fn has_firmware(&self) -> bool {
+        self.firmware.is_some()
+    }
+
+    /// True when it is pinned to the firmware it runs.
+    pub fn is_pinned(&self) -> bool {
+        self.pinned
+    }
+
+    /// Its unique ID: the world's, else the one made from its log name (as the simulator's
+    /// board reports it).
+    pub fn unique_id(&self) -> Uid {
+        self.uid
+            .unwrap_or_else(|| crate::board::uid_of_name(&self.log_name()))
+    }
+
+    /// The board kind it reports on the bus as the chip it stands for: `pico` 3, `g431` 4,
+    /// `simulated` 1 (`x10_microcode::BoardKind`).
+    pub fn wire_kind(&self) -> x10_microcode::BoardKind {
+        self.kind.wire_kind()
     }
 
     /// True for a board without an address.

@@ -28,6 +28,17 @@ struct RawWorld {
     thermal: Vec<Spanned<super::arena::RawThermal>>,
     #[serde(default)]
     servo: Vec<Spanned<super::arena::RawServo>>,
+    // The daughterboard images the motherboard carries (issue 25).
+    #[serde(default)]
+    image: Vec<Spanned<RawImage>>,
+}
+
+/// One `[[image]]`: a daughterboard image the motherboard carries (`kind`, `version`).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawImage {
+    kind: Spanned<String>,
+    version: Spanned<String>,
 }
 
 /// One `[[board]]`.
@@ -41,6 +52,10 @@ struct RawBoard {
     sensor_ports: Option<Spanned<i64>>,
     actuator_ports: Option<Spanned<i64>>,
     adc_bits: Option<Spanned<i64>>,
+    /// The firmware version it runs (`"0.1.0"`).
+    firmware: Option<Spanned<String>>,
+    /// `false`: pinned to the firmware it runs, never updated.
+    update: Option<Spanned<bool>>,
 }
 
 /// One `[[device]]`: every field any kind takes; which apply is checked per kind.
@@ -132,6 +147,8 @@ pub(super) fn parse(text: &str) -> Result<World, WorldError> {
                 b.actuator_ports.as_ref().map(Spanned::span),
             ),
             ("adc_bits", b.adc_bits.as_ref().map(Spanned::span)),
+            ("firmware", b.firmware.as_ref().map(Spanned::span)),
+            ("update", b.update.as_ref().map(Spanned::span)),
         ] {
             if let Some(s) = v {
                 world.lines.insert((item, field), line(&s));
@@ -150,6 +167,19 @@ pub(super) fn parse(text: &str) -> Result<World, WorldError> {
         let device = device(d).map_err(|(field, kind)| world.at(item, field, kind))?;
         world.devices.push(device);
     }
+    for (i, m) in raw.image.iter().enumerate() {
+        let item = Item::Image(i);
+        world.lines.insert((item, ""), lines.of(m.span().start));
+        let m = m.get_ref();
+        world
+            .lines
+            .insert((item, "kind"), lines.of(m.kind.span().start));
+        world
+            .lines
+            .insert((item, "version"), lines.of(m.version.span().start));
+        let image = image(i, m).map_err(|(field, kind)| world.at(item, field, kind))?;
+        world.images.push(image);
+    }
     let models = super::arena::RawModels {
         physics: raw.physics.as_ref(),
         chassis: raw.chassis.as_ref(),
@@ -163,6 +193,52 @@ pub(super) fn parse(text: &str) -> Result<World, WorldError> {
 }
 
 type FieldError = (&'static str, WorldErrorKind);
+
+/// A version written `major.minor.patch`, each 0 to 255.
+pub(super) fn parse_version(text: &str) -> Option<x10_microcode::Version> {
+    let mut parts = text.split('.').map(|p| p.parse::<u8>().ok());
+    let v = [parts.next()??, parts.next()??, parts.next()??];
+    parts.next().is_none().then_some(v)
+}
+
+fn version_field(
+    label: &str,
+    field: &'static str,
+    text: &str,
+) -> Result<x10_microcode::Version, FieldError> {
+    parse_version(text).ok_or((
+        field,
+        super::bad(
+            label.to_string(),
+            field,
+            format!("is \"{text}\": major.minor.patch, each 0 to 255 (\"0.1.0\")"),
+        ),
+    ))
+}
+
+fn image(i: usize, m: &RawImage) -> Result<super::CarriedImage, FieldError> {
+    let label = format!("image {}", i + 1);
+    let kind = match m.kind.get_ref().as_str() {
+        "pico" => BoardKind::Pico,
+        "g431" => BoardKind::G431,
+        "simulated" => BoardKind::Simulated {
+            sensor_ports: 0,
+            actuator_ports: 0,
+        },
+        other => {
+            return Err((
+                "kind",
+                super::bad(
+                    label,
+                    "kind",
+                    format!("is \"{other}\": \"pico\", \"g431\" or \"simulated\""),
+                ),
+            ))
+        }
+    };
+    let version = version_field(&label, "version", m.version.get_ref())?;
+    Ok(super::CarriedImage { kind, version })
+}
 
 fn board(b: &RawBoard) -> Result<Board, FieldError> {
     // No address: plug and play (named by its `name`, checked with the other boards).
@@ -279,6 +355,12 @@ fn board(b: &RawBoard) -> Result<Board, FieldError> {
     board.uid = uid;
     if let Some(n) = &b.name {
         board = board.named(n.get_ref());
+    }
+    if let Some(v) = &b.firmware {
+        board = board.firmware(version_field(&label, "firmware", v.get_ref())?);
+    }
+    if b.update.as_ref().is_some_and(|u| !*u.get_ref()) {
+        board = board.pinned();
     }
     if let Some(bits) = &b.adc_bits {
         let bits = u8::try_from(*bits.get_ref())
