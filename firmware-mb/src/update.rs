@@ -474,8 +474,41 @@ async fn transfer<L: UpdateLink>(
     let commit = UpdateOp::Commit.to_op(&mut buf);
     match call_retrying(link, cfg, db, commit, stats).await {
         Ok(_) => Ok(true),
-        Err(e) => refused(e),
+        // No answer after the tries, or an application's `unsupported`: the board may have
+        // taken the commit and reset into its swap, the `ok` lost on the way. What it runs
+        // next says (`update_marked`).
+        Err(LinkError::Status(Status::Unsupported)) => Ok(true),
+        Err(LinkError::Status(s)) => refused(LinkError::Status(s)),
+        Err(_) => Ok(true),
     }
+}
+
+/// What a board that was sent `commit` does next.
+enum After {
+    /// It runs an image of this version (it answered `identify`).
+    Runs(Version),
+    /// Its bootloader answers, without a committed image: the commit did not arrive.
+    NotCommitted,
+}
+
+/// Waits until the board answers `identify` (the new image, or the old one rolled back),
+/// or its bootloader answers `status` without a committed image; `None` after
+/// [`UpdateConfig::boot_wait_us`].
+async fn after_commit<L: UpdateLink>(link: &L, cfg: &UpdateConfig, db: Address) -> Option<After> {
+    let mut buf = [0u8; MAX_REQUEST_DATA];
+    let status = UpdateOp::Status.to_op(&mut buf);
+    wait_for(link, cfg, cfg.boot_wait_us, async || {
+        if let Ok(p) = link.call(db, Op::Identify).await {
+            return Identity::parse(&p).ok().map(|id| After::Runs(id.firmware));
+        }
+        // Committed: the bootloader resets into the swap any moment now.
+        let p = link.call(db, status).await.ok()?;
+        UpdateReport::parse(&p)
+            .ok()
+            .filter(|r| r.state != x10_microcode::UpdateState::Committed)
+            .map(|_| After::NotCommitted)
+    })
+    .await
 }
 
 /// Updates the board at `db` to `image`: `enter_update`; waits until its bootloader answers
@@ -535,7 +568,7 @@ async fn update_marked<L: UpdateLink>(
             .map_err(UpdateError::Enter)?;
     }
     let mut restarts = 0u8;
-    loop {
+    let version = loop {
         let up = wait_for(link, cfg, cfg.bootloader_wait_us, async || {
             let p = link.call(db, status).await.ok()?;
             UpdateReport::parse(&p).ok()
@@ -545,22 +578,20 @@ async fn update_marked<L: UpdateLink>(
             return Err(UpdateError::NoBootloader);
         }
         if transfer(link, cfg, db, image, stats).await? {
-            break;
+            // The board resets, embassy-boot swaps the slots, the new image starts (its
+            // `boot` event reaches the directory) and answers `identify`.
+            match after_commit(link, cfg, db).await {
+                Some(After::Runs(v)) => break v,
+                Some(After::NotCommitted) => {}
+                None => return Err(UpdateError::NotBack),
+            }
         }
         restarts += 1;
         stats.restarts = stats.restarts.saturating_add(1);
         if restarts > cfg.tries {
             return Err(UpdateError::Refused(Status::NoSession));
         }
-    }
-    // The board resets, embassy-boot swaps the slots, the new image starts (its `boot`
-    // event reaches the directory) and answers `identify`.
-    let version = wait_for(link, cfg, cfg.boot_wait_us, async || {
-        let p = link.call(db, Op::Identify).await.ok()?;
-        Identity::parse(&p).ok().map(|id| id.firmware)
-    })
-    .await
-    .ok_or(UpdateError::NotBack)?;
+    };
     if version != image.version {
         return Err(UpdateError::RolledBack(version));
     }

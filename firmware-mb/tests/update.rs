@@ -137,6 +137,10 @@ struct Board {
     starts: Cell<u32>,
     /// Busy with flash work after its last reply until then (ns): it does not answer.
     deaf_until: Cell<u64>,
+    /// Commits whose reply is lost on the way back (the board executed them).
+    lose_commit_replies: Cell<u8>,
+    /// Commits lost on the way (the board never sees them).
+    lose_commits: Cell<u8>,
 }
 
 impl Board {
@@ -153,6 +157,8 @@ impl Board {
             cut_in_swap: Cell::new(false),
             starts: Cell::new(0),
             deaf_until: Cell::new(0),
+            lose_commit_replies: Cell::new(0),
+            lose_commits: Cell::new(0),
         }
     }
 
@@ -316,6 +322,12 @@ impl UpdateLink for Bus {
             self.spend_wire(0, 0);
             return Err(LinkError::Nack);
         }
+        let commit = matches!(op, Op::Update(f) if f.op() == UpdateOp::Commit);
+        if commit && b.lose_commits.get() > 0 {
+            b.lose_commits.set(b.lose_commits.get() - 1);
+            self.spend_wire(n, 0);
+            return Err(LinkError::Nack);
+        }
         let read = 3 + op.reply_capacity() + 1;
         self.spend_wire(n, read);
         let (status, payload, reset) = {
@@ -345,6 +357,10 @@ impl UpdateLink for Bus {
         };
         if reset {
             b.reset(self.now.get());
+        }
+        if commit && b.lose_commit_replies.get() > 0 {
+            b.lose_commit_replies.set(b.lose_commit_replies.get() - 1);
+            return Err(LinkError::BadReply);
         }
         match status {
             Status::Ok => Ok(Payload::from_slice(&payload).unwrap()),
@@ -412,6 +428,41 @@ fn an_update_end_to_end() {
     bus.board.poll_up(&bus.now);
     assert_eq!(bus.board.version(), NEW);
     assert!(matches!(*bus.board.mode.borrow(), Mode::App));
+}
+
+#[test]
+fn a_commit_whose_reply_is_lost_is_confirmed_all_the_same() {
+    let new = db_image(image(ACTIVE, NEW, true, 2));
+    let board = Board::new(0x2a, image(20_000, OLD, true, 1));
+    // The board takes the commit and resets into its swap; the `ok` never reaches the
+    // motherboard, whose tries of the commit again find the board deaf.
+    board.lose_commit_replies.set(1);
+    let bus = Bus::new(board, 400_000);
+    let (r, stats) = update(&bus, &new);
+    assert_eq!(r, Ok(()));
+    assert_eq!(bus.board.version(), NEW);
+    assert_eq!((stats.done, stats.restarts), (1, 0), "{stats:?}");
+    // Confirmed: a reset keeps it.
+    bus.board.reset(bus.now.get());
+    bus.now.set(bus.now.get() + BOOT_NS);
+    bus.board.poll_up(&bus.now);
+    assert_eq!(bus.board.version(), NEW);
+}
+
+#[test]
+fn a_commit_that_never_arrives_is_found_out_and_the_transfer_done_again() {
+    let new = db_image(image(ACTIVE, NEW, true, 2));
+    let board = Board::new(0x2a, image(20_000, OLD, true, 1));
+    // The commit and all its tries are lost: the board is still in its bootloader, its
+    // transfer whole but not committed.
+    board
+        .lose_commits
+        .set(1 + UpdateConfig::DEFAULT.chunk_retries);
+    let bus = Bus::new(board, 400_000);
+    let (r, stats) = update(&bus, &new);
+    assert_eq!(r, Ok(()));
+    assert_eq!(bus.board.version(), NEW);
+    assert_eq!((stats.done, stats.restarts), (1, 1), "{stats:?}");
 }
 
 #[test]
