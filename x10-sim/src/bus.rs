@@ -520,10 +520,21 @@ impl Node {
             w.wake();
         }
     }
+
+    /// Wakes the waiters at `at` (now if that has passed): what they wait for is theirs from
+    /// `at` on (a delivery ready then, a reply whose STOP ends then), so they are polled then
+    /// and not also now only to start sleeping until `at`.
+    fn wake_at(&mut self, clock: &SimClock, at: Nanos) {
+        for w in self.waiters.drain(..) {
+            clock.wake_at(at, w);
+        }
+    }
 }
 
 struct BusInner {
     cfg: BusConfig,
+    /// The bus's clock (a finished request wakes its caller when its result is due).
+    clock: SimClock,
     timing: Timing,
     nodes: Vec<Node>,
     requests: BTreeMap<u64, Request>,
@@ -562,8 +573,9 @@ impl BusInner {
     fn finish(&mut self, id: u64, result: Result<Vec<u8>, BusError>, at: Nanos) {
         if let Some(r) = self.requests.get_mut(&id) {
             r.state = ReqState::Done { result, at };
+            // The caller sleeps until `at` once it has its result: it is woken then.
             if let Some(w) = r.waker.take() {
-                w.wake();
+                self.clock.wake_at(at, w);
             }
         }
     }
@@ -759,6 +771,7 @@ impl SimBus {
         SimBus {
             inner: Rc::new(RefCell::new(BusInner {
                 cfg,
+                clock: clock.clone(),
                 timing: cfg.speed.timing(),
                 nodes: Vec::new(),
                 requests: BTreeMap::new(),
@@ -1167,7 +1180,7 @@ impl SimBus {
                 bytes,
                 ready_at,
             });
-            n.wake();
+            n.wake_at(&self.clock, ready_at);
         }
     }
 
@@ -1716,8 +1729,11 @@ impl SimBus {
         if let Some(n) = b.nodes.get_mut(target) {
             if matches!(&n.respond, RespondState::Given { txn: x, .. } if *x == txn) {
                 n.respond = RespondState::Done { txn, at: end };
+                // `respond` sleeps until the end of STOP once it sees this: it is woken then.
+                n.wake_at(&self.clock, end);
+            } else {
+                n.wake();
             }
-            n.wake();
         }
     }
 }
@@ -1903,8 +1919,9 @@ impl SimPort {
                 let cap = alive.then_some(buf.len());
                 let newly_armed = n.listen_cap.is_none() && cap.is_some();
                 n.listen_cap = cap;
-                if newly_armed {
-                    // Tell a stretching engine that a listener is here.
+                if newly_armed && n.addressed {
+                    // Tell the engine, stretching the clock for this node's listener, that
+                    // it is here (its other waits do not look at listeners).
                     b.wake_engine();
                 }
                 let Some(n) = b.nodes.get_mut(node) else {

@@ -66,10 +66,9 @@ impl TimeState {
         }
     }
 
-    /// Removes and returns every waker due by `now`: sleepers in deadline order, then
+    /// Moves every waker due by `now` into `due`: sleepers in deadline order, then
     /// embassy-time's in the order they were scheduled.
-    fn take_due(&mut self, now: Nanos) -> Vec<Waker> {
-        let mut due = Vec::new();
+    fn take_due(&mut self, now: Nanos, due: &mut Vec<Waker>) {
         while let Some(entry) = self.timers.first_entry() {
             if entry.key().0 > now {
                 break;
@@ -87,7 +86,6 @@ impl TimeState {
             }
             self.embassy = keep;
         }
-        due
     }
 
     fn schedule_embassy(&mut self, at: Nanos, waker: &Waker) {
@@ -201,6 +199,22 @@ impl SimClock {
             at,
             key: None,
         }
+    }
+
+    /// Wakes `waker` at `at` nanoseconds (at once if that has passed): a timer that nothing
+    /// cancels. The simulated bus hands a result that a task would only sleep on until `at`
+    /// this way, so the task is polled once, at `at`, instead of once now to start its sleep
+    /// and once at `at`.
+    pub fn wake_at(&self, at: Nanos, waker: Waker) {
+        let mut st = self.core.state.borrow_mut();
+        if at <= st.now {
+            drop(st);
+            waker.wake();
+            return;
+        }
+        let key = (at, st.next_timer);
+        st.next_timer += 1;
+        st.timers.insert(key, waker);
     }
 
     /// Sleeps for `ns` nanoseconds.
@@ -611,6 +625,8 @@ impl<'a> Executor<'a> {
         keep_going: &dyn Fn() -> bool,
     ) -> Result<RunStats, RunError> {
         set_current_time(Some(self.time.clone()));
+        // The wakers due at each instant, in a vector kept across instants.
+        let mut due: Vec<Waker> = Vec::new();
         loop {
             let (polls, spun) = self.run_instant()?;
             self.polls.set(self.polls.get() + polls);
@@ -620,7 +636,7 @@ impl<'a> Executor<'a> {
             if !keep_going() {
                 break;
             }
-            let due: Vec<Waker> = {
+            {
                 let mut st = self.time.state.borrow_mut();
                 let Some(deadline) = st.next_deadline() else {
                     break;
@@ -631,9 +647,9 @@ impl<'a> Executor<'a> {
                 }
                 st.now = st.now.max(deadline);
                 let now = st.now;
-                st.take_due(now)
-            };
-            for w in due {
+                st.take_due(now, &mut due);
+            }
+            for w in due.drain(..) {
                 w.wake();
             }
         }
