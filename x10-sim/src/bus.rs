@@ -1118,7 +1118,9 @@ impl SimBus {
         others_result: BusError,
     ) -> Nanos {
         let t = self.inner.borrow().timing;
-        rec.wire.push((stop_at, WireSym::Stop));
+        if self.inner.borrow().cfg.record_wire || !rec.wire.is_empty() {
+            rec.wire.push((stop_at, WireSym::Stop));
+        }
         let end = stop_at + t.stop_ns();
         rec.end_ns = end;
         let mut b = self.inner.borrow_mut();
@@ -1232,7 +1234,8 @@ impl SimBus {
             master: first.node,
             addr: first.addr,
             target: None,
-            written: first.write.clone(),
+            // The winner's, once arbitration has chosen it (the first's for a stuck line).
+            written: Vec::new(),
             received: Vec::new(),
             is_read: first.read_len.is_some(),
             read: Vec::new(),
@@ -1240,7 +1243,12 @@ impl SimBus {
             losers: Vec::new(),
             stretch_ns: 0,
             faults: Vec::new(),
-            wire: vec![(t0, WireSym::Start)],
+            // The waveform's symbols, when one is kept (the record drops them otherwise).
+            wire: if wire_on {
+                vec![(t0, WireSym::Start)]
+            } else {
+                Vec::new()
+            },
         };
 
         // Faults rolled at START, in a fixed order; those of the options from the second
@@ -1326,6 +1334,7 @@ impl SimBus {
                 format!("{name} stuck low {} us", faults.stuck_ns / 1000),
             );
             rec.wire = vec![(t0, sym)];
+            rec.written = first.write.clone();
             rec.outcome = outcome;
             rec.end_ns = until;
             let mut b = self.inner.borrow_mut();
@@ -1358,7 +1367,6 @@ impl SimBus {
         };
         rec.master = winner.node;
         rec.addr = winner.addr;
-        rec.written = winner.write.clone();
         rec.is_read = winner.read_len.is_some();
         // Outside the scope, the rolled NACK, corruption and address flip are dropped.
         let in_scope = in_window && scoped(&winner);
@@ -1408,6 +1416,7 @@ impl SimBus {
             write,
             read_len,
         } = winner;
+        rec.written.clone_from(&write);
         let plain_read = write.is_empty() && read_len.is_some();
         // The address the targets see (one bit flipped by an injected fault).
         let seen_addr = flip.map_or(addr, |bit| addr ^ (1 << bit));
@@ -1541,9 +1550,11 @@ impl SimBus {
         let corrupt = corrupt_roll.and_then(|r| {
             (data_len > 0).then(|| ((r % data_len as u64) as usize, ((r >> 32) % 8) as u8))
         });
-        let mut mask = vec![0u8; data_len];
+        // Empty (no byte flipped) unless a corruption was rolled.
+        let mut mask = Vec::new();
         let mut burst_note = None;
         if let Some((k, bit)) = corrupt {
+            mask = vec![0u8; data_len];
             let len = burst_mask(&mut mask, k, bit, faults.burst_bits, ext.burst);
             if faults.burst_bits > 1 {
                 let flipped: u32 = mask.iter().map(|m| m.count_ones()).sum();
@@ -1641,7 +1652,9 @@ impl SimBus {
 
         // Read phase: repeated START and address+R (unless it is a plain read).
         if !plain_read {
-            rec.wire.push((cursor, WireSym::RepeatedStart));
+            if wire_on {
+                rec.wire.push((cursor, WireSym::RepeatedStart));
+            }
             cursor += t.repeated_start_ns();
             push_byte(wire_on, &mut rec.wire, &mut cursor, (seen_addr << 1) | 1, t);
             if self.inner.borrow().is_deaf(target, cursor) {
