@@ -523,10 +523,11 @@ impl Node {
 
     /// Wakes the waiters at `at` (now if that has passed): what they wait for is theirs from
     /// `at` on (a delivery ready then, a reply whose STOP ends then), so they are polled then
-    /// and not also now only to start sleeping until `at`.
+    /// and not also now only to start sleeping until `at`. They stay registered meanwhile:
+    /// a reset before `at` ([`BusInner::restart`]) still wakes them at once.
     fn wake_at(&mut self, clock: &SimClock, at: Nanos) {
-        for w in self.waiters.drain(..) {
-            clock.wake_at(at, w);
+        for w in &self.waiters {
+            clock.wake_at(at, w.clone());
         }
     }
 }
@@ -1033,6 +1034,8 @@ impl SimBus {
         deadline: Nanos,
         mut cond: impl FnMut(&mut BusInner) -> bool,
     ) -> bool {
+        // One timer for the whole wait, however often the engine is woken before it.
+        let mut timeout = std::pin::pin!(self.clock.sleep_until_ns(deadline));
         loop {
             if cond(&mut self.inner.borrow_mut()) {
                 return true;
@@ -1047,7 +1050,7 @@ impl SimBus {
             if deadline == Nanos::MAX {
                 notified.await;
             } else {
-                select(self.clock.sleep_until_ns(deadline), notified).await;
+                select(timeout.as_mut(), notified).await;
             }
         }
     }

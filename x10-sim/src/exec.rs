@@ -893,6 +893,77 @@ mod tests {
     }
 
     #[test]
+    fn cancelled_timers_neither_wake_nor_hold_time_and_their_slots_are_reused() {
+        let log = RefCell::new(Vec::new());
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        let (c1, c2) = (clock.clone(), clock.clone());
+        let l = &log;
+        ex.spawn("x", async move {
+            // The 1 ms sleep is dropped when the 10 ns one ends: cancelled in the heap.
+            embassy_futures::select::select(c1.sleep_ns(10), c1.sleep_ns(1_000_000)).await;
+            l.borrow_mut().push(("x", c1.now_ns()));
+        });
+        ex.spawn("y", async move {
+            // Made after the first timers fired: they take their slots again.
+            for _ in 0..3 {
+                c2.sleep_ns(15).await;
+                l.borrow_mut().push(("y", c2.now_ns()));
+            }
+        });
+        let s = ex.run_until_ns(u64::MAX).unwrap();
+        assert_eq!(
+            *log.borrow(),
+            vec![("x", 10), ("y", 15), ("y", 30), ("y", 45)]
+        );
+        // Time stops at the last live timer, not at the cancelled 1 ms one.
+        assert_eq!((s.end_ns, s.polls, s.finished), (45, 6, 2));
+    }
+
+    #[test]
+    fn wake_at_polls_the_task_once_at_that_instant() {
+        let seen = RefCell::new(Vec::new());
+        let again = Cell::new(0u32);
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        let c = clock.clone();
+        let s = &seen;
+        let mut armed = false;
+        ex.spawn(
+            "waiter",
+            std::future::poll_fn(move |cx: &mut Context<'_>| {
+                s.borrow_mut().push(c.now_ns());
+                if armed {
+                    return Poll::Ready(());
+                }
+                armed = true;
+                c.wake_at(700, cx.waker().clone());
+                Poll::Pending
+            }),
+        );
+        let stats = ex.run_until_ns(10_000).unwrap();
+        assert_eq!(*seen.borrow(), vec![0, 700]);
+        assert_eq!((stats.polls, stats.end_ns), (2, 700));
+        // A time already passed wakes at once.
+        let a = &again;
+        let c = clock.clone();
+        ex.spawn(
+            "late",
+            std::future::poll_fn(move |cx: &mut Context<'_>| {
+                a.set(a.get() + 1);
+                if a.get() > 1 {
+                    return Poll::Ready(());
+                }
+                c.wake_at(5, cx.waker().clone());
+                Poll::Pending
+            }),
+        );
+        let stats = ex.run_until_ns(20_000).unwrap();
+        // No timer is left: time stays at the last wake-up.
+        assert_eq!((again.get(), stats.end_ns), (2, 700));
+    }
+
+    #[test]
     fn livelock_is_reported() {
         let mut ex = Executor::new();
         ex.spawn(
