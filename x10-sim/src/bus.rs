@@ -520,10 +520,22 @@ impl Node {
             w.wake();
         }
     }
+
+    /// Wakes the waiters at `at` (now if that has passed): what they wait for is theirs from
+    /// `at` on (a delivery ready then, a reply whose STOP ends then), so they are polled then
+    /// and not also now only to start sleeping until `at`. They stay registered meanwhile:
+    /// a reset before `at` ([`BusInner::restart`]) still wakes them at once.
+    fn wake_at(&mut self, clock: &SimClock, at: Nanos) {
+        for w in &self.waiters {
+            clock.wake_at(at, w.clone());
+        }
+    }
 }
 
 struct BusInner {
     cfg: BusConfig,
+    /// The bus's clock (a finished request wakes its caller when its result is due).
+    clock: SimClock,
     timing: Timing,
     nodes: Vec<Node>,
     requests: BTreeMap<u64, Request>,
@@ -562,8 +574,9 @@ impl BusInner {
     fn finish(&mut self, id: u64, result: Result<Vec<u8>, BusError>, at: Nanos) {
         if let Some(r) = self.requests.get_mut(&id) {
             r.state = ReqState::Done { result, at };
+            // The caller sleeps until `at` once it has its result: it is woken then.
             if let Some(w) = r.waker.take() {
-                w.wake();
+                self.clock.wake_at(at, w);
             }
         }
     }
@@ -759,6 +772,7 @@ impl SimBus {
         SimBus {
             inner: Rc::new(RefCell::new(BusInner {
                 cfg,
+                clock: clock.clone(),
                 timing: cfg.speed.timing(),
                 nodes: Vec::new(),
                 requests: BTreeMap::new(),
@@ -1020,6 +1034,8 @@ impl SimBus {
         deadline: Nanos,
         mut cond: impl FnMut(&mut BusInner) -> bool,
     ) -> bool {
+        // One timer for the whole wait, however often the engine is woken before it.
+        let mut timeout = std::pin::pin!(self.clock.sleep_until_ns(deadline));
         loop {
             if cond(&mut self.inner.borrow_mut()) {
                 return true;
@@ -1034,7 +1050,7 @@ impl SimBus {
             if deadline == Nanos::MAX {
                 notified.await;
             } else {
-                select(self.clock.sleep_until_ns(deadline), notified).await;
+                select(timeout.as_mut(), notified).await;
             }
         }
     }
@@ -1105,7 +1121,9 @@ impl SimBus {
         others_result: BusError,
     ) -> Nanos {
         let t = self.inner.borrow().timing;
-        rec.wire.push((stop_at, WireSym::Stop));
+        if self.inner.borrow().cfg.record_wire || !rec.wire.is_empty() {
+            rec.wire.push((stop_at, WireSym::Stop));
+        }
         let end = stop_at + t.stop_ns();
         rec.end_ns = end;
         let mut b = self.inner.borrow_mut();
@@ -1167,7 +1185,7 @@ impl SimBus {
                 bytes,
                 ready_at,
             });
-            n.wake();
+            n.wake_at(&self.clock, ready_at);
         }
     }
 
@@ -1219,7 +1237,8 @@ impl SimBus {
             master: first.node,
             addr: first.addr,
             target: None,
-            written: first.write.clone(),
+            // The winner's, once arbitration has chosen it (the first's for a stuck line).
+            written: Vec::new(),
             received: Vec::new(),
             is_read: first.read_len.is_some(),
             read: Vec::new(),
@@ -1227,7 +1246,12 @@ impl SimBus {
             losers: Vec::new(),
             stretch_ns: 0,
             faults: Vec::new(),
-            wire: vec![(t0, WireSym::Start)],
+            // The waveform's symbols, when one is kept (the record drops them otherwise).
+            wire: if wire_on {
+                vec![(t0, WireSym::Start)]
+            } else {
+                Vec::new()
+            },
         };
 
         // Faults rolled at START, in a fixed order; those of the options from the second
@@ -1313,6 +1337,7 @@ impl SimBus {
                 format!("{name} stuck low {} us", faults.stuck_ns / 1000),
             );
             rec.wire = vec![(t0, sym)];
+            rec.written = first.write.clone();
             rec.outcome = outcome;
             rec.end_ns = until;
             let mut b = self.inner.borrow_mut();
@@ -1345,7 +1370,6 @@ impl SimBus {
         };
         rec.master = winner.node;
         rec.addr = winner.addr;
-        rec.written = winner.write.clone();
         rec.is_read = winner.read_len.is_some();
         // Outside the scope, the rolled NACK, corruption and address flip are dropped.
         let in_scope = in_window && scoped(&winner);
@@ -1395,6 +1419,7 @@ impl SimBus {
             write,
             read_len,
         } = winner;
+        rec.written.clone_from(&write);
         let plain_read = write.is_empty() && read_len.is_some();
         // The address the targets see (one bit flipped by an injected fault).
         let seen_addr = flip.map_or(addr, |bit| addr ^ (1 << bit));
@@ -1528,9 +1553,11 @@ impl SimBus {
         let corrupt = corrupt_roll.and_then(|r| {
             (data_len > 0).then(|| ((r % data_len as u64) as usize, ((r >> 32) % 8) as u8))
         });
-        let mut mask = vec![0u8; data_len];
+        // Empty (no byte flipped) unless a corruption was rolled.
+        let mut mask = Vec::new();
         let mut burst_note = None;
         if let Some((k, bit)) = corrupt {
+            mask = vec![0u8; data_len];
             let len = burst_mask(&mut mask, k, bit, faults.burst_bits, ext.burst);
             if faults.burst_bits > 1 {
                 let flipped: u32 = mask.iter().map(|m| m.count_ones()).sum();
@@ -1628,7 +1655,9 @@ impl SimBus {
 
         // Read phase: repeated START and address+R (unless it is a plain read).
         if !plain_read {
-            rec.wire.push((cursor, WireSym::RepeatedStart));
+            if wire_on {
+                rec.wire.push((cursor, WireSym::RepeatedStart));
+            }
             cursor += t.repeated_start_ns();
             push_byte(wire_on, &mut rec.wire, &mut cursor, (seen_addr << 1) | 1, t);
             if self.inner.borrow().is_deaf(target, cursor) {
@@ -1716,8 +1745,11 @@ impl SimBus {
         if let Some(n) = b.nodes.get_mut(target) {
             if matches!(&n.respond, RespondState::Given { txn: x, .. } if *x == txn) {
                 n.respond = RespondState::Done { txn, at: end };
+                // `respond` sleeps until the end of STOP once it sees this: it is woken then.
+                n.wake_at(&self.clock, end);
+            } else {
+                n.wake();
             }
-            n.wake();
         }
     }
 }
@@ -1903,8 +1935,9 @@ impl SimPort {
                 let cap = alive.then_some(buf.len());
                 let newly_armed = n.listen_cap.is_none() && cap.is_some();
                 n.listen_cap = cap;
-                if newly_armed {
-                    // Tell a stretching engine that a listener is here.
+                if newly_armed && n.addressed {
+                    // Tell the engine, stretching the clock for this node's listener, that
+                    // it is here (its other waits do not look at listeners).
                     b.wake_engine();
                 }
                 let Some(n) = b.nodes.get_mut(node) else {

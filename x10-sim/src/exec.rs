@@ -21,7 +21,8 @@
 //! thread (0 before any).
 
 use std::cell::{Cell, RefCell};
-use std::collections::BTreeMap;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 use std::future::Future;
 use std::pin::Pin;
 use std::rc::Rc;
@@ -44,10 +45,27 @@ pub const MAX_POLLS_PER_INSTANT: u64 = 2_000_000;
 /// timer with the spinning tasks still ready, and counts it in [`RunStats::spins`].
 pub const SPIN_POLLS: u64 = 2_000;
 
+/// A sleeper's timer: its deadline, its sequence number (timers due at one instant wake in the
+/// order they were made) and its slot in [`TimeState::slots`].
+type TimerKey = (Nanos, u64, usize);
+
+/// The waker of one timer, or none once the timer was cancelled; `seq` tells whose it is (a
+/// slot is reused once its timer has left the heap).
+struct Slot {
+    seq: u64,
+    waker: Option<Waker>,
+}
+
 #[derive(Default)]
 struct TimeState {
     now: Nanos,
-    timers: BTreeMap<(Nanos, u64), Waker>,
+    /// The sleepers' deadlines, earliest first (a binary heap: no allocation per timer once
+    /// it has grown). A cancelled timer stays in the heap until it comes first, then is
+    /// dropped without waking anything.
+    timers: BinaryHeap<Reverse<TimerKey>>,
+    /// The wakers, by slot; `free` lists the slots no timer in the heap uses.
+    slots: Vec<Slot>,
+    free: Vec<usize>,
     next_timer: u64,
     /// embassy-time's wake-ups: one entry per waker (the earliest asked for), as embassy's
     /// own timer queues keep them. A task whose timer was dropped is woken once more for
@@ -56,9 +74,67 @@ struct TimeState {
 }
 
 impl TimeState {
+    /// A timer waking `waker` at `at`; its key.
+    fn add_timer(&mut self, at: Nanos, waker: Waker) -> TimerKey {
+        let seq = self.next_timer;
+        self.next_timer += 1;
+        let slot = match self.free.pop() {
+            Some(i) => {
+                if let Some(s) = self.slots.get_mut(i) {
+                    *s = Slot {
+                        seq,
+                        waker: Some(waker),
+                    };
+                }
+                i
+            }
+            None => {
+                self.slots.push(Slot {
+                    seq,
+                    waker: Some(waker),
+                });
+                self.slots.len() - 1
+            }
+        };
+        let key = (at, seq, slot);
+        self.timers.push(Reverse(key));
+        key
+    }
+
+    /// The waker slot of the live timer `key` (none once it has fired).
+    fn timer_slot(&mut self, key: TimerKey) -> Option<&mut Option<Waker>> {
+        self.slots
+            .get_mut(key.2)
+            .filter(|s| s.seq == key.1 && s.waker.is_some())
+            .map(|s| &mut s.waker)
+    }
+
+    /// Cancels the timer `key` (nothing if it has fired).
+    fn cancel_timer(&mut self, key: TimerKey) {
+        if let Some(w) = self.timer_slot(key) {
+            *w = None;
+        }
+    }
+
+    /// Drops the cancelled timers at the head of the heap, so that the head is a live one.
+    fn skip_cancelled(&mut self) {
+        while let Some(&Reverse((_, seq, slot))) = self.timers.peek() {
+            let live = self
+                .slots
+                .get(slot)
+                .is_some_and(|s| s.seq == seq && s.waker.is_some());
+            if live {
+                return;
+            }
+            self.timers.pop();
+            self.free.push(slot);
+        }
+    }
+
     /// The earliest deadline of any sleeper.
-    fn next_deadline(&self) -> Option<Nanos> {
-        let sleep = self.timers.first_key_value().map(|(&(at, _), _)| at);
+    fn next_deadline(&mut self) -> Option<Nanos> {
+        self.skip_cancelled();
+        let sleep = self.timers.peek().map(|&Reverse((at, _, _))| at);
         let embassy = self.embassy.iter().map(|&(at, _)| at).min();
         match (sleep, embassy) {
             (Some(a), Some(b)) => Some(a.min(b)),
@@ -66,15 +142,20 @@ impl TimeState {
         }
     }
 
-    /// Removes and returns every waker due by `now`: sleepers in deadline order, then
+    /// Moves every waker due by `now` into `due`: sleepers in deadline order, then
     /// embassy-time's in the order they were scheduled.
-    fn take_due(&mut self, now: Nanos) -> Vec<Waker> {
-        let mut due = Vec::new();
-        while let Some(entry) = self.timers.first_entry() {
-            if entry.key().0 > now {
+    fn take_due(&mut self, now: Nanos, due: &mut Vec<Waker>) {
+        while let Some(&Reverse((at, seq, slot))) = self.timers.peek() {
+            if at > now {
                 break;
             }
-            due.push(entry.remove());
+            self.timers.pop();
+            if let Some(s) = self.slots.get_mut(slot).filter(|s| s.seq == seq) {
+                if let Some(w) = s.waker.take() {
+                    due.push(w);
+                }
+            }
+            self.free.push(slot);
         }
         if self.embassy.iter().any(|&(at, _)| at <= now) {
             let mut keep = Vec::with_capacity(self.embassy.len());
@@ -87,7 +168,6 @@ impl TimeState {
             }
             self.embassy = keep;
         }
-        due
     }
 
     fn schedule_embassy(&mut self, at: Nanos, waker: &Waker) {
@@ -203,6 +283,20 @@ impl SimClock {
         }
     }
 
+    /// Wakes `waker` at `at` nanoseconds (at once if that has passed): a timer that nothing
+    /// cancels. The simulated bus hands a result that a task would only sleep on until `at`
+    /// this way, so the task is polled once, at `at`, instead of once now to start its sleep
+    /// and once at `at`.
+    pub fn wake_at(&self, at: Nanos, waker: Waker) {
+        let mut st = self.core.state.borrow_mut();
+        if at <= st.now {
+            drop(st);
+            waker.wake();
+            return;
+        }
+        st.add_timer(at, waker);
+    }
+
     /// Sleeps for `ns` nanoseconds.
     pub fn sleep_ns(&self, ns: Nanos) -> Sleep {
         self.sleep_until_ns(self.now_ns().saturating_add(ns))
@@ -223,7 +317,7 @@ impl Clock for SimClock {
 pub struct Sleep {
     core: Rc<TimeCore>,
     at: Nanos,
-    key: Option<(Nanos, u64)>,
+    key: Option<TimerKey>,
 }
 
 impl Future for Sleep {
@@ -234,29 +328,20 @@ impl Future for Sleep {
         let mut st = this.core.state.borrow_mut();
         if st.now >= this.at {
             if let Some(key) = this.key.take() {
-                st.timers.remove(&key);
+                st.cancel_timer(key);
             }
             return Poll::Ready(());
         }
-        let key = match this.key {
-            Some(key) => key,
-            None => {
-                let key = (this.at, st.next_timer);
-                st.next_timer += 1;
-                this.key = Some(key);
-                key
-            }
-        };
-        match st.timers.entry(key) {
-            std::collections::btree_map::Entry::Occupied(mut e) => {
-                if !e.get().will_wake(cx.waker()) {
-                    e.insert(cx.waker().clone());
+        if let Some(key) = this.key {
+            if let Some(w) = st.timer_slot(key) {
+                if !w.as_ref().is_some_and(|w| w.will_wake(cx.waker())) {
+                    *w = Some(cx.waker().clone());
                 }
-            }
-            std::collections::btree_map::Entry::Vacant(e) => {
-                e.insert(cx.waker().clone());
+                return Poll::Pending;
             }
         }
+        // First poll, or polled again after its timer fired early (never: it fires at `at`).
+        this.key = Some(st.add_timer(this.at, cx.waker().clone()));
         Poll::Pending
     }
 }
@@ -265,7 +350,7 @@ impl Drop for Sleep {
     fn drop(&mut self) {
         if let Some(key) = self.key.take() {
             if let Ok(mut st) = self.core.state.try_borrow_mut() {
-                st.timers.remove(&key);
+                st.cancel_timer(key);
             }
         }
     }
@@ -572,7 +657,7 @@ impl<'a> Executor<'a> {
             if !progressed {
                 return Ok((polls_here, false));
             }
-            if polls_here > SPIN_POLLS && self.time.state.borrow().next_deadline().is_some() {
+            if polls_here > SPIN_POLLS && self.time.state.borrow_mut().next_deadline().is_some() {
                 return Ok((polls_here, true));
             }
             if polls_here > MAX_POLLS_PER_INSTANT {
@@ -611,6 +696,8 @@ impl<'a> Executor<'a> {
         keep_going: &dyn Fn() -> bool,
     ) -> Result<RunStats, RunError> {
         set_current_time(Some(self.time.clone()));
+        // The wakers due at each instant, in a vector kept across instants.
+        let mut due: Vec<Waker> = Vec::new();
         loop {
             let (polls, spun) = self.run_instant()?;
             self.polls.set(self.polls.get() + polls);
@@ -620,7 +707,7 @@ impl<'a> Executor<'a> {
             if !keep_going() {
                 break;
             }
-            let due: Vec<Waker> = {
+            {
                 let mut st = self.time.state.borrow_mut();
                 let Some(deadline) = st.next_deadline() else {
                     break;
@@ -631,9 +718,9 @@ impl<'a> Executor<'a> {
                 }
                 st.now = st.now.max(deadline);
                 let now = st.now;
-                st.take_due(now)
-            };
-            for w in due {
+                st.take_due(now, &mut due);
+            }
+            for w in due.drain(..) {
                 w.wake();
             }
         }
@@ -803,6 +890,77 @@ mod tests {
         let s = ex.run_until_ns(u64::MAX).unwrap();
         // The long sleep was dropped: time stops at the short one.
         assert_eq!(s.end_ns, 10);
+    }
+
+    #[test]
+    fn cancelled_timers_neither_wake_nor_hold_time_and_their_slots_are_reused() {
+        let log = RefCell::new(Vec::new());
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        let (c1, c2) = (clock.clone(), clock.clone());
+        let l = &log;
+        ex.spawn("x", async move {
+            // The 1 ms sleep is dropped when the 10 ns one ends: cancelled in the heap.
+            embassy_futures::select::select(c1.sleep_ns(10), c1.sleep_ns(1_000_000)).await;
+            l.borrow_mut().push(("x", c1.now_ns()));
+        });
+        ex.spawn("y", async move {
+            // Made after the first timers fired: they take their slots again.
+            for _ in 0..3 {
+                c2.sleep_ns(15).await;
+                l.borrow_mut().push(("y", c2.now_ns()));
+            }
+        });
+        let s = ex.run_until_ns(u64::MAX).unwrap();
+        assert_eq!(
+            *log.borrow(),
+            vec![("x", 10), ("y", 15), ("y", 30), ("y", 45)]
+        );
+        // Time stops at the last live timer, not at the cancelled 1 ms one.
+        assert_eq!((s.end_ns, s.polls, s.finished), (45, 6, 2));
+    }
+
+    #[test]
+    fn wake_at_polls_the_task_once_at_that_instant() {
+        let seen = RefCell::new(Vec::new());
+        let again = Cell::new(0u32);
+        let mut ex = Executor::new();
+        let clock = ex.clock();
+        let c = clock.clone();
+        let s = &seen;
+        let mut armed = false;
+        ex.spawn(
+            "waiter",
+            std::future::poll_fn(move |cx: &mut Context<'_>| {
+                s.borrow_mut().push(c.now_ns());
+                if armed {
+                    return Poll::Ready(());
+                }
+                armed = true;
+                c.wake_at(700, cx.waker().clone());
+                Poll::Pending
+            }),
+        );
+        let stats = ex.run_until_ns(10_000).unwrap();
+        assert_eq!(*seen.borrow(), vec![0, 700]);
+        assert_eq!((stats.polls, stats.end_ns), (2, 700));
+        // A time already passed wakes at once.
+        let a = &again;
+        let c = clock.clone();
+        ex.spawn(
+            "late",
+            std::future::poll_fn(move |cx: &mut Context<'_>| {
+                a.set(a.get() + 1);
+                if a.get() > 1 {
+                    return Poll::Ready(());
+                }
+                c.wake_at(5, cx.waker().clone());
+                Poll::Pending
+            }),
+        );
+        let stats = ex.run_until_ns(20_000).unwrap();
+        // No timer is left: time stays at the last wake-up.
+        assert_eq!((again.get(), stats.end_ns), (2, 700));
     }
 
     #[test]
