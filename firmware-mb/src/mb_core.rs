@@ -304,7 +304,8 @@ impl MbCore {
                 }
             }
             let timeout_us = timeout_us.unwrap_or_else(|| self.timeout_us(&op));
-            self.call_inner(db, op, timeout_us).await
+            let inner = core::pin::pin!(self.call_inner(db, op, timeout_us));
+            poll_outlined(inner).await
         };
         if let (Some(observer), Some(started)) = (self.observer, started) {
             observer.observe(&CallRecord {
@@ -654,4 +655,20 @@ impl MbCore {
         }
         (frame, on)
     }
+}
+
+/// Waits for `fut`, polling it through [`poll_once`]: one copy of its state machine in the
+/// image however many callers' futures embed it (see `MbCore::call_with`).
+async fn poll_outlined<F: Future>(mut fut: core::pin::Pin<&mut F>) -> F::Output {
+    core::future::poll_fn(|cx| poll_once(fut.as_mut(), cx)).await
+}
+
+/// `fut.poll(cx)`, never inlined: LLVM inlines a future's poll into every caller's poll
+/// otherwise, and `call_inner`'s is 2 KiB (issue 26, docs/boards.md "What the link costs").
+#[inline(never)]
+fn poll_once<F: Future>(
+    fut: core::pin::Pin<&mut F>,
+    cx: &mut core::task::Context<'_>,
+) -> Poll<F::Output> {
+    fut.poll(cx)
 }
