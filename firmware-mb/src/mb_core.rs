@@ -290,6 +290,20 @@ impl MbCore {
         op: Op<'_>,
         timeout_us: Option<u64>,
     ) -> Result<Payload, LinkError> {
+        // Every caller's future embeds this one, and LLVM would inline its 2 KiB poll into
+        // each caller's poll: the robot tasks' (x10-devices' `PortLink::call`) and the USB
+        // link's request server made two copies (issue 26). Polled through one function
+        // instead, it is in the image once.
+        poll_outlined(core::pin::pin!(self.call_body(db, op, timeout_us))).await
+    }
+
+    /// [`MbCore::call_with`]'s work.
+    async fn call_body(
+        &self,
+        db: Address,
+        op: Op<'_>,
+        timeout_us: Option<u64>,
+    ) -> Result<Payload, LinkError> {
         let started = self.observer.map(|_| now());
         let result = 'call: {
             if let Some(board) = self.direct_board(db, &op) {
@@ -654,4 +668,20 @@ impl MbCore {
         }
         (frame, on)
     }
+}
+
+/// Waits for `fut`, polling it through [`poll_once`]: one copy of its state machine's poll
+/// in the image however many callers' futures embed it (see `MbCore::call_with`).
+async fn poll_outlined<F: Future>(mut fut: core::pin::Pin<&mut F>) -> F::Output {
+    core::future::poll_fn(|cx| poll_once(fut.as_mut(), cx)).await
+}
+
+/// `fut.poll(cx)`, never inlined: LLVM inlines a future's poll into every caller's poll
+/// otherwise, and a call's is 2 KiB (issue 26, docs/boards.md "What the link costs").
+#[inline(never)]
+fn poll_once<F: Future>(
+    fut: core::pin::Pin<&mut F>,
+    cx: &mut core::task::Context<'_>,
+) -> Poll<F::Output> {
+    fut.poll(cx)
 }
