@@ -15,6 +15,11 @@ use crate::event::OutEvent;
 use crate::record::AddressRecord;
 use x10_hal::ports::{EdgeCount, PortError, Ports};
 
+/// With neither the failsafe nor a staged output due, the failsafe loop looks again after
+/// this many ms (a minute).
+#[cfg(feature = "together")]
+const IDLE_RECHECK_MS: u64 = 60_000;
+
 impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// Runs the board's background work; never returns. Call once, next to the transport.
     ///
@@ -46,7 +51,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     ///   [`Ports::safe_state`], `failsafe_trips` is counted and a `failsafe_tripped` event
     ///   (payload: timeout in ms, u16 LE) is queued, once per silence.
     pub async fn run_background<C: Clock>(&self, clock: C) -> ! {
-        self.apply_safe_state().await;
+        self.apply_safe_state();
         self.push_event(
             if self.is_unaddressed() {
                 EventKind::Announce
@@ -73,8 +78,9 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
 
     /// Puts every actuator port into its safe state: PWM duty of pins A and B, then the
     /// levels of digital pins A and B. Port errors are skipped so one bad pin does not keep
-    /// the others from their safe state.
-    pub async fn apply_safe_state(&self) {
+    /// the others from their safe state. Synchronous, as the port calls are (an `async fn`
+    /// here cost its state machine at both callers).
+    pub fn apply_safe_state(&self) {
         let n = self.ports().actuator_ports().min(Port::MAX_PORTS);
         for number in 1..=n {
             let Ok(port) = Port::actuator(number) else {
@@ -110,7 +116,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 }
                 Either::Second(()) => {
                     tripped = true;
-                    self.trip(timeout_ms).await;
+                    self.trip(timeout_ms);
                 }
             }
         }
@@ -118,7 +124,9 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
 
     /// The failsafe, and the timeout of staged outputs: what a `stage` holds is dropped
     /// [`STAGE_TIMEOUT_MS`] after it (each `stage` is heard: the time starts then) unless an
-    /// `apply` took it.
+    /// `apply` took it. One wait, for a transaction or the earlier deadline; with neither
+    /// due, the loop looks again after [`IDLE_RECHECK_MS`] (one await point instead of two:
+    /// smaller images).
     #[cfg(feature = "together")]
     async fn failsafe_loop<C: Clock>(&self, clock: &C) -> ! {
         let mut last = clock.now();
@@ -126,8 +134,9 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         // Far in the future while nothing is staged.
         let mut stage_until = Instant(u64::MAX);
         loop {
+            let now = clock.now();
             if self.with(|s| core::mem::take(&mut s.stage_fresh)) {
-                stage_until = clock.now().plus_ms(u64::from(STAGE_TIMEOUT_MS));
+                stage_until = now.plus_ms(u64::from(STAGE_TIMEOUT_MS));
             }
             let timeout_ms = self.failsafe_timeout_ms();
             let failsafe_at = if timeout_ms == 0 || tripped {
@@ -135,41 +144,34 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             } else {
                 last.plus_ms(u64::from(timeout_ms))
             };
-            let deadline = if stage_until < failsafe_at {
-                stage_until
-            } else {
-                failsafe_at
-            };
-            let woke = if deadline == Instant(u64::MAX) {
-                self.heard.wait().await;
-                Either::First(())
-            } else {
-                select(self.heard.wait(), clock.sleep_until(deadline)).await
-            };
-            match woke {
+            let deadline = stage_until
+                .min(failsafe_at)
+                .min(now.plus_ms(IDLE_RECHECK_MS));
+            match select(self.heard.wait(), clock.sleep_until(deadline)).await {
                 Either::First(()) => {
                     last = clock.now();
                     tripped = false;
                 }
                 Either::Second(()) => {
-                    if clock.now() >= stage_until {
+                    let now = clock.now();
+                    if now >= stage_until {
                         stage_until = Instant(u64::MAX);
                         self.drop_stage(true);
                     }
-                    if clock.now() >= failsafe_at {
+                    if now >= failsafe_at {
                         tripped = true;
-                        self.trip(timeout_ms).await;
+                        self.trip(timeout_ms);
                     }
                 }
             }
         }
     }
 
-    async fn trip(&self, timeout_ms: u16) {
+    fn trip(&self, timeout_ms: u16) {
         // Staged outputs never move an actuator the failsafe stopped.
         #[cfg(feature = "together")]
         self.drop_stage(false);
-        self.apply_safe_state().await;
+        self.apply_safe_state();
         self.with(|s| bump(&mut s.diag.failsafe_trips));
         self.push_event(
             EventKind::FailsafeTripped,

@@ -479,32 +479,24 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// length. With no reply held the answer is status `no_request` with sequence number 0
     /// (counted in `no_request_reads`). The reply is given once.
     pub fn take_reply(&self, buf: &mut [u8]) -> usize {
-        // The held reply is copied out under the lock, straight from where it was encoded.
-        let taken = self.with(|s| {
-            let len = usize::from(s.reply_len.take()?);
-            let n = len.min(buf.len());
+        // The held reply is copied out under the lock, straight from where it was encoded;
+        // with none held, the `no_request` answer is encoded there first (one copy path).
+        let n = self.with(|s| {
+            let len = match s.reply_len.take() {
+                Some(len) => len,
+                None => {
+                    bump(&mut s.diag.no_request_reads);
+                    let check = if s.pec { Check::ByLength } else { Check::None };
+                    // At most REPLY_BUF_LEN (34) bytes.
+                    self.encode_reply(&mut s.reply, 0, Status::NoRequest, &[], check) as u8
+                }
+            };
+            let n = usize::from(len).min(buf.len());
             if let (Some(dst), Some(src)) = (buf.get_mut(..n), s.reply.get(..n)) {
                 dst.copy_from_slice(src);
             }
-            Some(n)
+            n
         });
-        let n = match taken {
-            Some(n) => n,
-            None => {
-                let pec_on = self.with(|s| {
-                    bump(&mut s.diag.no_request_reads);
-                    s.pec
-                });
-                let check = if pec_on { Check::ByLength } else { Check::None };
-                let mut frame = [0u8; REPLY_BUF_LEN];
-                let len = self.encode_reply(&mut frame, 0, Status::NoRequest, &[], check);
-                let n = len.min(buf.len());
-                if let (Some(dst), Some(src)) = (buf.get_mut(..n), frame.get(..n)) {
-                    dst.copy_from_slice(src);
-                }
-                n
-            }
-        };
         self.heard.signal(());
         n
     }
