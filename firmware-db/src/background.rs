@@ -15,11 +15,6 @@ use crate::event::OutEvent;
 use crate::record::AddressRecord;
 use x10_hal::ports::{EdgeCount, PortError, Ports};
 
-/// With neither the failsafe nor a staged output due, the failsafe loop looks again after
-/// this many ms (a minute).
-#[cfg(feature = "together")]
-const IDLE_RECHECK_MS: u64 = 60_000;
-
 impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// Runs the board's background work; never returns. Call once, next to the transport.
     ///
@@ -124,9 +119,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
 
     /// The failsafe, and the timeout of staged outputs: what a `stage` holds is dropped
     /// [`STAGE_TIMEOUT_MS`] after it (each `stage` is heard: the time starts then) unless an
-    /// `apply` took it. One wait, for a transaction or the earlier deadline; with neither
-    /// due, the loop looks again after [`IDLE_RECHECK_MS`] (one await point instead of two:
-    /// smaller images).
+    /// `apply` took it.
     #[cfg(feature = "together")]
     async fn failsafe_loop<C: Clock>(&self, clock: &C) -> ! {
         let mut last = clock.now();
@@ -135,19 +128,24 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         let mut stage_until = Instant(u64::MAX);
         loop {
             let now = clock.now();
-            if self.with(|s| core::mem::take(&mut s.stage_fresh)) {
+            let (fresh, timeout_ms) =
+                self.with(|s| (core::mem::take(&mut s.stage_fresh), s.failsafe_ms));
+            if fresh {
                 stage_until = now.plus_ms(u64::from(STAGE_TIMEOUT_MS));
             }
-            let timeout_ms = self.failsafe_timeout_ms();
             let failsafe_at = if timeout_ms == 0 || tripped {
                 Instant(u64::MAX)
             } else {
                 last.plus_ms(u64::from(timeout_ms))
             };
-            let deadline = stage_until
-                .min(failsafe_at)
-                .min(now.plus_ms(IDLE_RECHECK_MS));
-            match select(self.heard.wait(), clock.sleep_until(deadline)).await {
+            let deadline = stage_until.min(failsafe_at);
+            let woke = if deadline == Instant(u64::MAX) {
+                self.heard.wait().await;
+                Either::First(())
+            } else {
+                select(self.heard.wait(), clock.sleep_until(deadline)).await
+            };
+            match woke {
                 Either::First(()) => {
                     last = clock.now();
                     tripped = false;
@@ -156,7 +154,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                     let now = clock.now();
                     if now >= stage_until {
                         stage_until = Instant(u64::MAX);
-                        self.drop_stage(true);
+                        self.drop_stage();
                     }
                     if now >= failsafe_at {
                         tripped = true;
@@ -168,11 +166,13 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     }
 
     fn trip(&self, timeout_ms: u16) {
-        // Staged outputs never move an actuator the failsafe stopped.
-        #[cfg(feature = "together")]
-        self.drop_stage(false);
+        self.with(|s| {
+            // Staged outputs never move an actuator the failsafe stopped.
+            #[cfg(feature = "together")]
+            let _ = s.drop_staged();
+            bump(&mut s.diag.failsafe_trips);
+        });
         self.apply_safe_state();
-        self.with(|s| bump(&mut s.diag.failsafe_trips));
         self.push_event(
             EventKind::FailsafeTripped,
             PinRef::from_byte(0),

@@ -169,6 +169,19 @@ pub(crate) struct State {
     pub(crate) stage_fresh: bool,
 }
 
+impl State {
+    /// Drops what a `stage` held (the failsafe's trip, the stage timeout): the `stage`'s
+    /// sequence number, `None` when nothing was held.
+    #[cfg(feature = "together")]
+    pub(crate) fn drop_staged(&mut self) -> Option<u8> {
+        if self.staged.is_empty() {
+            return None;
+        }
+        self.staged.clear();
+        Some(self.stage_seq)
+    }
+}
+
 /// What the header of a request says, as far as it could be read.
 /// The check a reply ends in.
 #[derive(Clone, Copy)]
@@ -958,16 +971,13 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// Drops held outputs no `apply` took (see [`sweep::STAGE_TIMEOUT_MS`]): counted as a
     /// `timeout` and reported in a `rejected` event with the `stage`'s sequence number.
     #[cfg(feature = "together")]
-    pub(crate) fn drop_stage(&self, report: bool) {
+    pub(crate) fn drop_stage(&self) {
         let seq = self.with(|s| {
-            if s.staged.is_empty() {
-                return None;
-            }
-            s.staged.clear();
-            Some(s.stage_seq)
+            let seq = s.drop_staged()?;
+            count_status(&mut s.diag, Status::Timeout);
+            Some(seq)
         });
-        if let (Some(seq), true) = (seq, report) {
-            self.with(|s| count_status(&mut s.diag, Status::Timeout));
+        if let Some(seq) = seq {
             self.push_event(
                 EventKind::Rejected,
                 PinRef::from_byte(0),
