@@ -1044,7 +1044,8 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 return Status::Busy;
             }
             if self.jobs.try_send(job).is_err() {
-                s.pulse_pins.retain(|p| *p != pin);
+                // The pin pushed just above is the last one.
+                s.pulse_pins.pop();
                 return Status::Busy;
             }
             Status::Pending
@@ -1059,14 +1060,17 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             ..ScanResult::default()
         };
         for i in 0..n {
-            let Ok(port) = Port::sensor(i + 1) else {
-                return Err(Status::PortOutOfRange);
-            };
-            for (bit, pin) in [(0, x10_microcode::Pin::A), (1, x10_microcode::Pin::B)] {
-                match self.ports.digital_read(port.pin(pin)) {
+            // Sensor port i + 1 (byte 2: bit 7 sensor, bits 1-6 the index, bit 0 the pin;
+            // at most 8 ports here).
+            let port = Port::from_byte(0x80 | (i << 1));
+            for bit in 0..2u8 {
+                match self
+                    .ports
+                    .digital_read(PinRef::from_byte(0x80 | (i << 1) | bit))
+                {
                     Ok(level) => {
                         if level.is_high() {
-                            r.digital |= 1 << (2 * u32::from(i) + bit);
+                            r.digital |= 1 << (2 * u32::from(i) + u32::from(bit));
                         }
                     }
                     Err(e) => return Err(port_status(e)),
