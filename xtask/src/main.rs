@@ -107,7 +107,8 @@ const IMAGES: &[Image] = &[
         bin: "db-pico",
         package: "x10-boards",
         target: "thumbv6m-none-eabi",
-        features: "rp2040,daughterboard",
+        // `together` (issue 27): general calls, `sample`, `stage`, `apply`.
+        features: "rp2040,daughterboard,together",
         daughterboard: true,
         chip: None,
         chip_flash: 2048 * 1024 - 256,
