@@ -299,9 +299,7 @@ impl MbCore {
         // (issue 27's target: 600 for an output).
         if self.observer.is_none() {
             if let Some(board) = self.direct_board(db, &op) {
-                if let Err(e) = self.check(db, &op) {
-                    return Err(e);
-                }
+                self.check(db, &op)?;
                 // Other tasks run first: a loop of such calls cannot starve them.
                 embassy_futures::yield_now().await;
                 let mut value = Payload::new();
