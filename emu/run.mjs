@@ -30,8 +30,6 @@ const mbDoorbellElf = opt('--mb-doorbell');
 const fwFlashElf = opt('--fw-flash');
 // Plug and play: db-pico without an address override, and the motherboard that drives two.
 const dbPnpElf = opt('--db-pnp');
-// db-pico with the `together` feature (issue 27: general calls, sample, stage, apply).
-const dbTogetherElf = opt('--db-together');
 const mbPnpElf = opt('--mb-pnp');
 // The Pico's bootloader (boot-pico) and db-pico built into its ACTIVE slot, as 0.1.0 and 2.0.0.
 const bootElf = opt('--boot');
@@ -57,7 +55,7 @@ if (list) {
   process.exit(0);
 }
 if (!mbElf || !dbElf) {
-  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--fw-flash ELF] [--db-pnp ELF] [--mb-pnp ELF] [--db-together ELF] [--boot ELF --db-slot ELF --db-slot-v2 ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
+  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--fw-flash ELF] [--db-pnp ELF] [--mb-pnp ELF] [--boot ELF --db-slot ELF --db-slot-v2 ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
   process.exit(2);
 }
 const wanted = args.filter((a) => !a.startsWith('--'));
@@ -165,7 +163,7 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   const figures = [];
   const rigs = [];
   const ctx = {
-    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf, dbPnpElf, mbPnpElf, dbTogetherElf, bootElf, dbSlotElf, dbSlotV2Elf, out,
+    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf, dbPnpElf, mbPnpElf, bootElf, dbSlotElf, dbSlotV2Elf, out,
     rig(options = {}) { const r = new Rig(options); rigs.push(r); return r; },
     check(name, ok, detail = '') { checks.push({ name, ok: !!ok, detail }); },
     figure(name, value) { figures.push({ name, value }); },

@@ -1,9 +1,8 @@
 // Boards that act together (issue 27 items 3 and 4) on the emulated Pico pair: two db-pico
 // (DB 9 and 10) against the scripted motherboard (lib/vmb.js), which writes the general calls
 // (`sample`, `apply`, always with their check over the address byte 0x00) and does the plain
-// reads, as firmware-mb's sweep and together do. They run db-pico built with `together`
-// (`cargo xtask emu` builds it: target/emu/db-pico-together); the shipping db-pico, without it
-// (it does not fit 32 KiB yet), must ignore general calls and refuse a stage.
+// reads, as firmware-mb's sweep and together do. They run the shipping db-pico, which is
+// built with `together` (`cargo xtask size`'s build).
 import { VirtualMb, request, actuator, parseReply } from '../lib/vmb.js';
 
 const JUMPERS_OPEN = { 20: 1, 21: 1, 22: 1 };
@@ -72,23 +71,9 @@ const busTime = (vmb, from) => vmb.rig.bus.transfers.filter((t) => t.t0 >= from)
 export default [
   {
     name: 'sweep',
-    about: 'db-pico without `together` (the shipping image) ignores a general call and refuses a stage; with it, DB 9 and DB 10 sample their sensor ports on one general call (`sample`), then each is read with a plain read: its reply (CRC-16, the sample\'s sequence number) holds what a `scan` of the same board reads',
+    about: 'DB 9 and DB 10 (the shipping db-pico) sample their sensor ports on one general call (`sample`), then each is read with a plain read: its reply (CRC-16, the sample\'s sequence number) holds what a `scan` of the same board reads',
     run(ctx) {
-      {
-        // The shipping image (no `together`): no board takes the general call, a stage is
-        // refused (`unsupported`), so the MB scans each board and `together` moves nothing.
-        const { vmb } = setup(ctx, 100000, ctx.dbElf);
-        const g = vmb.transact(0x00, general(0x80, vmb.nextSeq()));
-        ctx.check('without `together`: the general call is not acknowledged', g && !g.ok, JSON.stringify(g));
-        const q = vmb.nextSeq();
-        const r = parseReply(vmb.ask(request(0x90, 9, 0, q, [0x12, actuator(1, 'A'), 0x00]), 3));
-        ctx.check('without `together`: a stage is refused (unsupported)', r && r.seq === q && r.status === 0x0a, JSON.stringify(r));
-      }
-      if (!ctx.dbTogetherElf) {
-        ctx.check('db-pico with `together` was given (--db-together)', false);
-        return;
-      }
-      const { rig, vmb } = setup(ctx, 100000, ctx.dbTogetherElf);
+      const { rig, vmb } = setup(ctx, 100000, ctx.dbElf);
       const t0 = rig.now();
       const seq = vmb.nextSeq();
       const s = vmb.transact(0x00, general(0x80, seq));
@@ -127,11 +112,7 @@ export default [
     name: 'together',
     about: 'HIGH on A1.A staged on DB 9 and DB 10 (read back ok), then one general-call `apply`: both pins rise within 50 µs of each other, and each board confirms with its status reply; a stage that never gets its apply is dropped after 100 ms with a `rejected` event (timeout)',
     run(ctx) {
-      if (!ctx.dbTogetherElf) {
-        ctx.check('db-pico with `together` was given (--db-together)', false);
-        return;
-      }
-      const { rig, vmb, dbs } = setup(ctx, 400000, ctx.dbTogetherElf);
+      const { rig, vmb, dbs } = setup(ctx, 400000, ctx.dbElf);
       const item = [0x12, actuator(1, 'A'), 0x00];
       const staged = [9, 10].map((db) => {
         const q = vmb.nextSeq();

@@ -46,7 +46,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     ///   [`Ports::safe_state`], `failsafe_trips` is counted and a `failsafe_tripped` event
     ///   (payload: timeout in ms, u16 LE) is queued, once per silence.
     pub async fn run_background<C: Clock>(&self, clock: C) -> ! {
-        self.apply_safe_state().await;
+        self.apply_safe_state();
         self.push_event(
             if self.is_unaddressed() {
                 EventKind::Announce
@@ -73,8 +73,9 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
 
     /// Puts every actuator port into its safe state: PWM duty of pins A and B, then the
     /// levels of digital pins A and B. Port errors are skipped so one bad pin does not keep
-    /// the others from their safe state.
-    pub async fn apply_safe_state(&self) {
+    /// the others from their safe state. Synchronous, as the port calls are (an `async fn`
+    /// here cost its state machine at both callers).
+    pub fn apply_safe_state(&self) {
         let n = self.ports().actuator_ports().min(Port::MAX_PORTS);
         for number in 1..=n {
             let Ok(port) = Port::actuator(number) else {
@@ -110,7 +111,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 }
                 Either::Second(()) => {
                     tripped = true;
-                    self.trip(timeout_ms).await;
+                    self.trip(timeout_ms);
                 }
             }
         }
@@ -126,20 +127,18 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         // Far in the future while nothing is staged.
         let mut stage_until = Instant(u64::MAX);
         loop {
-            if self.with(|s| core::mem::take(&mut s.stage_fresh)) {
-                stage_until = clock.now().plus_ms(u64::from(STAGE_TIMEOUT_MS));
+            let now = clock.now();
+            let (fresh, timeout_ms) =
+                self.with(|s| (core::mem::take(&mut s.stage_fresh), s.failsafe_ms));
+            if fresh {
+                stage_until = now.plus_ms(u64::from(STAGE_TIMEOUT_MS));
             }
-            let timeout_ms = self.failsafe_timeout_ms();
             let failsafe_at = if timeout_ms == 0 || tripped {
                 Instant(u64::MAX)
             } else {
                 last.plus_ms(u64::from(timeout_ms))
             };
-            let deadline = if stage_until < failsafe_at {
-                stage_until
-            } else {
-                failsafe_at
-            };
+            let deadline = stage_until.min(failsafe_at);
             let woke = if deadline == Instant(u64::MAX) {
                 self.heard.wait().await;
                 Either::First(())
@@ -152,25 +151,28 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                     tripped = false;
                 }
                 Either::Second(()) => {
-                    if clock.now() >= stage_until {
+                    let now = clock.now();
+                    if now >= stage_until {
                         stage_until = Instant(u64::MAX);
-                        self.drop_stage(true);
+                        self.drop_stage();
                     }
-                    if clock.now() >= failsafe_at {
+                    if now >= failsafe_at {
                         tripped = true;
-                        self.trip(timeout_ms).await;
+                        self.trip(timeout_ms);
                     }
                 }
             }
         }
     }
 
-    async fn trip(&self, timeout_ms: u16) {
-        // Staged outputs never move an actuator the failsafe stopped.
-        #[cfg(feature = "together")]
-        self.drop_stage(false);
-        self.apply_safe_state().await;
-        self.with(|s| bump(&mut s.diag.failsafe_trips));
+    fn trip(&self, timeout_ms: u16) {
+        self.with(|s| {
+            // Staged outputs never move an actuator the failsafe stopped.
+            #[cfg(feature = "together")]
+            let _ = s.drop_staged();
+            bump(&mut s.diag.failsafe_trips);
+        });
+        self.apply_safe_state();
         self.push_event(
             EventKind::FailsafeTripped,
             PinRef::from_byte(0),

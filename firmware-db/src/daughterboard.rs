@@ -169,6 +169,19 @@ pub(crate) struct State {
     pub(crate) stage_fresh: bool,
 }
 
+impl State {
+    /// Drops what a `stage` held (the failsafe's trip, the stage timeout): the `stage`'s
+    /// sequence number, `None` when nothing was held.
+    #[cfg(feature = "together")]
+    pub(crate) fn drop_staged(&mut self) -> Option<u8> {
+        if self.staged.is_empty() {
+            return None;
+        }
+        self.staged.clear();
+        Some(self.stage_seq)
+    }
+}
+
 /// What the header of a request says, as far as it could be read.
 /// The check a reply ends in.
 #[derive(Clone, Copy)]
@@ -424,16 +437,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         if self.is_unaddressed() {
             // Nothing is read at 0x77 and nothing is reported from there but `announce`.
         } else if head.expects_reply || read_follows {
-            // In the PEC mode the board has now: the reply to a `set_pec` the board applied
-            // is sent in the new mode, so that a motherboard reading it back knows the
-            // switch happened (with PEC on: a reply with a valid PEC byte). The reply to a
-            // general call (`sample`, `apply`, held for a plain read) always has its check.
-            let check = match (self.pec_enabled() || broadcast, head.crc16_reply) {
-                (false, _) => Check::None,
-                (true, false) => Check::ByLength,
-                (true, true) => Check::Crc16,
-            };
-            self.store_reply(head.seq, status, &value, check);
+            self.store_reply(head.seq, status, &value, broadcast, head.crc16_reply);
         } else if !matches!(status, Status::Ok | Status::Pending) && !broadcast {
             // A general call is answered by no event (every board would send one).
             self.push_event(
@@ -488,32 +492,24 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// length. With no reply held the answer is status `no_request` with sequence number 0
     /// (counted in `no_request_reads`). The reply is given once.
     pub fn take_reply(&self, buf: &mut [u8]) -> usize {
-        // The held reply is copied out under the lock, straight from where it was encoded.
-        let taken = self.with(|s| {
-            let len = usize::from(s.reply_len.take()?);
-            let n = len.min(buf.len());
+        // The held reply is copied out under the lock, straight from where it was encoded;
+        // with none held, the `no_request` answer is encoded there first (one copy path).
+        let n = self.with(|s| {
+            let len = match s.reply_len.take() {
+                Some(len) => len,
+                None => {
+                    bump(&mut s.diag.no_request_reads);
+                    let check = if s.pec { Check::ByLength } else { Check::None };
+                    // At most REPLY_BUF_LEN (34) bytes.
+                    self.encode_reply(&mut s.reply, 0, Status::NoRequest, &[], check) as u8
+                }
+            };
+            let n = usize::from(len).min(buf.len());
             if let (Some(dst), Some(src)) = (buf.get_mut(..n), s.reply.get(..n)) {
                 dst.copy_from_slice(src);
             }
-            Some(n)
+            n
         });
-        let n = match taken {
-            Some(n) => n,
-            None => {
-                let pec_on = self.with(|s| {
-                    bump(&mut s.diag.no_request_reads);
-                    s.pec
-                });
-                let check = if pec_on { Check::ByLength } else { Check::None };
-                let mut frame = [0u8; REPLY_BUF_LEN];
-                let len = self.encode_reply(&mut frame, 0, Status::NoRequest, &[], check);
-                let n = len.min(buf.len());
-                if let (Some(dst), Some(src)) = (buf.get_mut(..n), frame.get(..n)) {
-                    dst.copy_from_slice(src);
-                }
-                n
-            }
-        };
         self.heard.signal(());
         n
     }
@@ -603,8 +599,18 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     }
 
     /// Encodes the reply to hold in place, where [`Daughterboard::take_reply`] copies it from.
-    fn store_reply(&self, seq: u8, status: Status, value: &[u8], check: Check) {
+    /// Its check: in the PEC mode the board has now (read under the same lock), so the reply
+    /// to a `set_pec` the board applied is sent in the new mode and a motherboard reading it
+    /// back knows the switch happened (with PEC on: a reply with a valid PEC byte); always
+    /// for the reply to a general call (`general`: `sample`, `apply`, held for a plain read);
+    /// a CRC-16 for a reply whose length varies (`varies`).
+    fn store_reply(&self, seq: u8, status: Status, value: &[u8], general: bool, varies: bool) {
         self.with(|s| {
+            let check = match (s.pec || general, varies) {
+                (false, _) => Check::None,
+                (true, false) => Check::ByLength,
+                (true, true) => Check::Crc16,
+            };
             let len = self.encode_reply(&mut s.reply, seq, status, value, check);
             // At most REPLY_BUF_LEN (34) bytes.
             s.reply_len = Some(len as u8);
@@ -743,7 +749,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             return (head, status);
         }
         head.expects_reply = op.expects_reply();
-        head.crc16_reply = !op.reply_len().is_exact();
+        head.crc16_reply = op.reply_len_varies();
         let status = match op {
             Op::Batch(b) => self.execute_batch(head.seq, b, value),
             op => self.execute_op(head.seq, &op, value),
@@ -753,21 +759,6 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
 
     fn has(&self, bits: u16) -> bool {
         self.config.capabilities.has(bits)
-    }
-
-    /// The capability an operation needs, if any.
-    fn required_capability(op: &Op<'_>) -> Option<u16> {
-        match op {
-            Op::PulseIn { .. } => Some(Capabilities::PULSE_IN),
-            Op::EventEnable(..) => Some(Capabilities::EVENTS),
-            Op::SetPec(true) => Some(Capabilities::PEC),
-            Op::SetFailsafe { .. } => Some(Capabilities::FAILSAFE),
-            Op::Batch(_) => Some(Capabilities::BATCH),
-            Op::Scan | Op::Sample => Some(Capabilities::SCAN),
-            Op::PwmFrequency(..) => Some(Capabilities::PWM_FREQUENCY),
-            Op::PwmPulseWidth(..) => Some(Capabilities::PWM_PULSE_WIDTH),
-            _ => None,
-        }
     }
 
     /// Port range check: the port must exist on this board for its kind.
@@ -781,6 +772,27 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
         } else {
             Err(Status::PortOutOfRange)
         }
+    }
+
+    /// `run()` when the board has the capability `bits` (0: none needed), else
+    /// `unsupported`.
+    #[inline(always)]
+    fn needs(&self, bits: u16, run: impl FnOnce() -> Status) -> Status {
+        if bits == 0 || self.has(bits) {
+            run()
+        } else {
+            Status::Unsupported
+        }
+    }
+
+    /// `run()` when the board has the capability `bits` (0: none needed) and the port
+    /// `port`, else `unsupported` or `port_out_of_range`, in that order.
+    #[inline(always)]
+    fn on_port(&self, bits: u16, port: Port, run: impl FnOnce() -> Status) -> Status {
+        self.needs(bits, || match self.check_port(port) {
+            Ok(()) => run(),
+            Err(s) => s,
+        })
     }
 
     fn execute_batch(&self, seq: u8, batch: Batch<'_>, value: &mut Value) -> Status {
@@ -810,56 +822,69 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
 
     /// Executes one operation (a request's, or one item of a batch): its status; its value
     /// in `value` (left empty unless `ok`).
+    ///
+    /// One `match` on the operation: each arm checks what its operation needs (a capability,
+    /// then the port), where a capability match and a port match before it were two more
+    /// jump tables (384 B of them in all on db-pico) and two more dispatches per request
+    /// (issue 27).
     fn execute_op(&self, seq: u8, op: &Op<'_>, value: &mut Value) -> Status {
-        if let Some(bits) = Self::required_capability(op) {
-            if !self.has(bits) {
-                return Status::Unsupported;
-            }
-        }
-        if let Some(pin) = op.pin_ref() {
-            if let Err(s) = self.check_port(pin.port) {
-                return s;
-            }
-        }
         let p = &self.ports;
         match *op {
             Op::Ping | Op::Heartbeat => Status::Ok,
             Op::Identify => set_value(value, &self.identity().to_bytes()),
-            Op::SetFailsafe { timeout_ms } => {
+            Op::SetFailsafe { timeout_ms } => self.needs(Capabilities::FAILSAFE, || {
                 self.with(|s| s.failsafe_ms = timeout_ms);
                 Status::Ok
-            }
-            Op::EventEnable(pin, cfg) => self.enable_events(pin, cfg),
+            }),
+            Op::EventEnable(pin, cfg) => self.on_port(Capabilities::EVENTS, pin.port, || {
+                self.enable_events(pin, cfg)
+            }),
             Op::ReadDiagnostics => set_value(value, &self.diagnostics().to_bytes()),
             Op::ClearDiagnostics => {
                 self.with(|s| s.diag = Diagnostics::default());
                 Status::Ok
             }
-            Op::SetPec(on) => {
+            Op::SetPec(on) => self.needs(if on { Capabilities::PEC } else { 0 }, || {
                 self.with(|s| s.pec = on);
                 Status::Ok
-            }
-            Op::DigitalRead(pin) => match p.digital_read(pin) {
+            }),
+            Op::DigitalRead(pin) => self.on_port(0, pin.port, || match p.digital_read(pin) {
                 Ok(l) => set_value(value, &[l.is_high() as u8]),
                 Err(e) => port_status(e),
-            },
-            Op::DigitalWrite(pin, level) => port_done(p.digital_write(pin, level)),
+            }),
+            Op::DigitalWrite(pin, level) => {
+                self.on_port(0, pin.port, || port_done(p.digital_write(pin, level)))
+            }
             Op::PulseIn {
                 pin,
                 edge,
                 timeout_ms,
-            } => self.start_pulse(seq, pin, edge, timeout_ms),
-            Op::PwmDuty(pin, duty) => port_done(p.pwm_duty(pin, duty)),
-            Op::PwmFrequency(port, hz) => port_done(p.pwm_frequency(port, hz)),
-            Op::PwmPulseWidth(pin, us) => port_done(p.pwm_pulse_width(pin, us)),
-            Op::AnalogRead(port) => match p.analog_read(port) {
+            } => self.on_port(Capabilities::PULSE_IN, pin.port, || {
+                self.start_pulse(seq, pin, edge, timeout_ms)
+            }),
+            Op::PwmDuty(pin, duty) => {
+                self.on_port(0, pin.port, || port_done(p.pwm_duty(pin, duty)))
+            }
+            Op::PwmFrequency(port, hz) => self.on_port(Capabilities::PWM_FREQUENCY, port, || {
+                port_done(p.pwm_frequency(port, hz))
+            }),
+            Op::PwmPulseWidth(pin, us) => {
+                self.on_port(Capabilities::PWM_PULSE_WIDTH, pin.port, || {
+                    port_done(p.pwm_pulse_width(pin, us))
+                })
+            }
+            Op::AnalogRead(port) => self.on_port(0, port, || match p.analog_read(port) {
                 Ok(v) => set_value(value, &v.to_le_bytes()),
                 Err(e) => port_status(e),
-            },
-            Op::SerialWrite(..) | Op::SerialRead(..) | Op::SerialConfig(..) => Status::Unsupported,
-            // A batch cannot hold a batch (the parser refuses it). An `assign` reaches only
-            // unaddressed boards (`execute_frame`): a board with an address ignores it.
-            Op::Batch(_) | Op::Assign { .. } => Status::BadArgument,
+            }),
+            Op::SerialWrite(port, _) | Op::SerialRead(port, _) | Op::SerialConfig(port, _) => {
+                self.on_port(0, port, || Status::Unsupported)
+            }
+            // A batch cannot hold a batch (the parser refuses it).
+            Op::Batch(_) => self.needs(Capabilities::BATCH, || Status::BadArgument),
+            // An `assign` reaches only unaddressed boards (`execute_frame`): a board with an
+            // address ignores it.
+            Op::Assign { .. } => Status::BadArgument,
             Op::SetAddress(a) => self.keep_address(a),
             Op::EnterUpdate => self.firmware(true),
             Op::ConfirmFirmware => self.firmware(false),
@@ -879,7 +904,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             // A `sample` reads what a `scan` does, its values packed in 12 bits (one above:
             // `unsupported`, the MB scans that board instead).
             #[cfg(feature = "together")]
-            Op::Scan | Op::Sample => match self.read_sensors() {
+            Op::Scan | Op::Sample => self.needs(Capabilities::SCAN, || match self.read_sensors() {
                 Ok(r) => {
                     let mut buf = [0u8; MAX_PAYLOAD];
                     let n = if matches!(op, Op::Sample) {
@@ -893,9 +918,9 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                     }
                 }
                 Err(s) => s,
-            },
+            }),
             #[cfg(not(feature = "together"))]
-            Op::Scan => match self.read_sensors() {
+            Op::Scan => self.needs(Capabilities::SCAN, || match self.read_sensors() {
                 Ok(r) => {
                     let mut buf = [0u8; MAX_PAYLOAD];
                     match r.emit(&mut buf) {
@@ -904,7 +929,7 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                     }
                 }
                 Err(s) => s,
-            },
+            }),
             #[cfg(feature = "together")]
             Op::Stage(b) => self.stage(seq, b),
             #[cfg(feature = "together")]
@@ -946,16 +971,13 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
     /// Drops held outputs no `apply` took (see [`sweep::STAGE_TIMEOUT_MS`]): counted as a
     /// `timeout` and reported in a `rejected` event with the `stage`'s sequence number.
     #[cfg(feature = "together")]
-    pub(crate) fn drop_stage(&self, report: bool) {
+    pub(crate) fn drop_stage(&self) {
         let seq = self.with(|s| {
-            if s.staged.is_empty() {
-                return None;
-            }
-            s.staged.clear();
-            Some(s.stage_seq)
+            let seq = s.drop_staged()?;
+            count_status(&mut s.diag, Status::Timeout);
+            Some(seq)
         });
-        if let (Some(seq), true) = (seq, report) {
-            self.with(|s| count_status(&mut s.diag, Status::Timeout));
+        if let Some(seq) = seq {
             self.push_event(
                 EventKind::Rejected,
                 PinRef::from_byte(0),
@@ -1022,7 +1044,8 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
                 return Status::Busy;
             }
             if self.jobs.try_send(job).is_err() {
-                s.pulse_pins.retain(|p| *p != pin);
+                // The pin pushed just above is the last one.
+                s.pulse_pins.pop();
                 return Status::Busy;
             }
             Status::Pending
@@ -1037,14 +1060,17 @@ impl<M: RawMutex, P: Ports, R: AddressRecord> Daughterboard<M, P, R> {
             ..ScanResult::default()
         };
         for i in 0..n {
-            let Ok(port) = Port::sensor(i + 1) else {
-                return Err(Status::PortOutOfRange);
-            };
-            for (bit, pin) in [(0, x10_microcode::Pin::A), (1, x10_microcode::Pin::B)] {
-                match self.ports.digital_read(port.pin(pin)) {
+            // Sensor port i + 1 (byte 2: bit 7 sensor, bits 1-6 the index, bit 0 the pin;
+            // at most 8 ports here).
+            let port = Port::from_byte(0x80 | (i << 1));
+            for bit in 0..2u8 {
+                match self
+                    .ports
+                    .digital_read(PinRef::from_byte(0x80 | (i << 1) | bit))
+                {
                     Ok(level) => {
                         if level.is_high() {
-                            r.digital |= 1 << (2 * u32::from(i) + bit);
+                            r.digital |= 1 << (2 * u32::from(i) + u32::from(bit));
                         }
                     }
                     Err(e) => return Err(port_status(e)),

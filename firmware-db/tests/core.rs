@@ -379,6 +379,49 @@ fn capabilities_switched_off_answer_unsupported() {
     assert_eq!(exchange(&db, &[0x00, 0x09, 0x00, 0x05]), [0x05, 0x00, 0x00]); // ping
 }
 
+/// Each operation is checked for its capability first, then for its port: a board without
+/// the capability answers `unsupported` whatever the port, one with it `port_out_of_range`
+/// for a port it does not have (2 sensor and 2 actuator ports here).
+#[test]
+fn capability_before_port_and_every_port_operation_checks_its_port() {
+    let clock = TestClock::new();
+    let mut cfg = DbConfig::new(Address::external(9).unwrap(), BoardKind::SIMULATED);
+    cfg.capabilities = x10_microcode::Capabilities(0);
+    let bare: Db = Daughterboard::new(FakePorts::new(clock, 2, 2), cfg);
+    let db = board();
+    // pulse-in on S3.A, PWM frequency 10 kHz on A3 (byte 2: bit 7 sensor, bits 1-6 the
+    // port's index, bit 0 pin B)
+    let pulse = [0x13, 0x09, 0x84, 0x01];
+    let freq = [0x21, 0x09, 0x04, 0x02, 0x10, 0x27];
+    assert_eq!(exchange(&bare, &pulse), [0x01, 0x0A, 0x00]);
+    assert_eq!(exchange(&db, &pulse), [0x01, 0x05, 0x00]);
+    assert_eq!(exchange(&bare, &freq), [0x02, 0x0A, 0x00]);
+    assert_eq!(exchange(&db, &freq), [0x02, 0x05, 0x00]);
+    // high on A3.A, analog read of S3, duty on A4.A, input on S4.B
+    assert_eq!(exchange(&db, &[0x12, 0x09, 0x04, 0x03]), [0x03, 0x05, 0x00]);
+    assert_eq!(exchange(&db, &[0x30, 0x09, 0x84, 0x04]), [0x04, 0x05, 0x00]);
+    assert_eq!(
+        exchange(&db, &[0x20, 0x09, 0x06, 0x05, 9]),
+        [0x05, 0x05, 0x00]
+    );
+    assert_eq!(exchange(&db, &[0x10, 0x09, 0x87, 0x06]), [0x06, 0x05, 0x00]);
+    // serial: no such port first, then unsupported (no serial on these boards)
+    assert_eq!(
+        exchange(&db, &[0x40, 0x09, 0x84, 0x07, 0x41]),
+        [0x07, 0x05, 0x00]
+    );
+    assert_eq!(
+        exchange(&db, &[0x40, 0x09, 0x80, 0x08, 0x41]),
+        [0x08, 0x0A, 0x00]
+    );
+    // the ports it has work
+    assert_eq!(exchange(&db, &[0x12, 0x09, 0x01, 0x09]), [0x09, 0x00, 0x00]);
+    assert_eq!(
+        exchange(&db, &[0x30, 0x09, 0x82, 0x0A]),
+        [0x0A, 0x00, 0x02, 0, 0]
+    );
+}
+
 #[test]
 fn event_enable_checks_kind_and_capacity() {
     let db = board();

@@ -294,6 +294,20 @@ impl MbCore {
         // each caller's poll: the robot tasks' (x10-devices' `PortLink::call`) and the USB
         // link's request server made two copies (issue 26). Polled through one function
         // instead, it is in the image once.
+        // The direct path (a port call to the internal board, no observer) before it: the
+        // outlined poll's two extra polls cost a SELF call about 60 instructions on the M0
+        // (issue 27's target: 600 for an output).
+        if self.observer.is_none() {
+            if let Some(board) = self.direct_board(db, &op) {
+                self.check(db, &op)?;
+                // Other tasks run first: a loop of such calls cannot starve them.
+                embassy_futures::yield_now().await;
+                let mut value = Payload::new();
+                if let Some(status) = board.execute(&op, &mut value) {
+                    return self.direct_outcome(&op, status, value);
+                }
+            }
+        }
         poll_outlined(core::pin::pin!(self.call_body(db, op, timeout_us))).await
     }
 

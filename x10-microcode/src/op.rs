@@ -772,6 +772,18 @@ impl<'a> Op<'a> {
         )
     }
 
+    /// True when the length of this operation's `ok` reply varies (scan, sample, serial
+    /// read, batch): [`Op::reply_len`] is not [`ReplyLen::Exact`], and its reply always ends
+    /// in a CRC-16 when checked. What `!self.reply_len().is_exact()` says, without building
+    /// the [`ReplyLen`] (a batch's capacity is worked out for it): the daughterboard asks it
+    /// of every request (`tests/reply_len.rs` holds the two together).
+    pub const fn reply_len_varies(&self) -> bool {
+        matches!(
+            self,
+            Op::SerialRead(..) | Op::Scan | Op::Batch(_) | Op::Sample
+        )
+    }
+
     /// Largest payload the reply to this operation can carry: how many bytes the MB reads
     /// (plus the reply header and PEC).
     pub fn reply_capacity(&self) -> usize {

@@ -85,6 +85,7 @@ fn every_operation_has_its_reply_length() {
     assert_eq!(ops.len(), 20);
     for (op, want) in ops {
         assert_eq!(op.reply_len(), want, "{op:?}");
+        assert_eq!(op.reply_len_varies(), !want.is_exact(), "{op:?}");
         // The MB reads as much as the longest allowed reply.
         assert_eq!(
             usize::from(op.reply_len().max()),
@@ -224,4 +225,17 @@ fn an_operation_without_a_reply_fits_an_empty_answer_whatever_its_status() {
     // Heartbeat, set_failsafe, event_enable, clear_diagnostics, set_pec, digital write,
     // three PWM settings, serial write and config.
     assert_eq!(without, 11);
+}
+
+/// The sweep's operations (issue 27), outside the table above: a `sample`'s reply varies
+/// with the board's sensor ports, `stage` and `apply` answer no value.
+#[test]
+fn the_sweeps_replies_vary_as_their_lengths_say() {
+    let mut buf = [0u8; 28];
+    let b = batch(&mut buf);
+    for op in [Op::Sample, Op::Apply, Op::Stage(b)] {
+        assert_eq!(op.reply_len_varies(), !op.reply_len().is_exact(), "{op:?}");
+    }
+    assert!(Op::Sample.reply_len_varies());
+    assert!(!Op::Apply.reply_len_varies());
 }

@@ -131,7 +131,6 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
     let mut elfs = Vec::new();
     let mut fast = Vec::new();
     let mut pnp_elf = None;
-    let mut together_elf = None;
     for name in ["mb-pico", "db-pico"] {
         let image = IMAGES
             .iter()
@@ -157,23 +156,13 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
                 std::fs::copy(&elf, &copy).map_err(Error::Run)?;
                 fast.push(format!("{hz}={}", copy.display()));
             }
-            // db-pico with the `together` feature (issue 27; not in the 32 KiB image yet),
-            // for the `sweep` and `together` scenarios.
-            let with = crate::Image {
-                features: "rp2040,daughterboard,together",
-                ..*image
-            };
-            build_at(&cargo, &with, None)?;
-            let copy = out.join("db-pico-together");
-            std::fs::copy(&elf, &copy).map_err(Error::Run)?;
-            together_elf = Some(copy);
         }
         if name == "db-pico" {
             // db-pico built into the bootloader's ACTIVE slot (plug and play), as this
             // version and as 2.0.0 (`X10_FW_VERSION`), each copied aside, and the bootloader:
             // the `bootloader` scenario.
             let slot = crate::Image {
-                features: "daughterboard,active-slot",
+                features: "daughterboard,active-slot,together",
                 ..*image
             };
             for (version, copy) in [(None, "db-pico-slot"), (Some("2.0.0"), "db-pico-slot-v2")] {
@@ -257,10 +246,6 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
     ] {
         a.push(flag.into());
         a.push(path.display().to_string());
-    }
-    if let Some(p) = together_elf {
-        a.push("--db-together".into());
-        a.push(p.display().to_string());
     }
     a.extend(args.iter().cloned());
     node(&emu, &a)
