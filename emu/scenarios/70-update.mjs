@@ -40,25 +40,46 @@ function image(elf) {
   return out;
 }
 
-/** The parts written on the bus by `master` to `addr` (each `{ t, bytes, ack }`). */
-const writes = (rig, master, addr) => rig.bus.transfers
-  .filter((tr) => tr.master === master)
-  .flatMap((tr) => tr.parts.filter((p) => p.dir !== 'r' && p.addr === addr && p.bytes.length).map((p) => ({ t: tr.t0, bytes: p.bytes, ack: p.ack })));
+/**
+ * What the bus carried so far, read incrementally (the stop conditions run every quantum: a
+ * scan of every transfer there would cost more than the chips): the board's `boot` events to
+ * the MB (`{ t, v: "a.b.c" }`) and the MB's acknowledged requests to the board by first byte.
+ */
+class Watch {
+  constructor(rig) { this.rig = rig; this.seen = 0; this.boots = []; this.sent = new Map(); }
 
-/** The firmware versions of the board's `boot` events to the MB, in order ("a.b.c"), with their times. */
-const boots = (rig) => writes(rig, 'db', MB)
-  .filter((w) => w.bytes[0] === ADDRESS && w.bytes[1] === 0x07)
-  .map((w) => ({ t: w.t, v: w.bytes.slice(7, 10).join('.') }));
+  update() {
+    const trs = this.rig.bus.transfers;
+    for (; this.seen < trs.length; this.seen++) {
+      const tr = trs[this.seen];
+      for (const p of tr.parts) {
+        if (p.dir === 'r' || !p.bytes.length) continue;
+        if (tr.master === 'db' && p.addr === MB && p.bytes[0] === ADDRESS && p.bytes[1] === 0x07) {
+          this.boots.push({ t: tr.t0, v: p.bytes.slice(7, 10).join('.') });
+        }
+        if (tr.master === 'mb' && p.addr === ADDRESS && p.ack) {
+          const op = p.bytes[0];
+          if (!this.sent.has(op)) this.sent.set(op, []);
+          this.sent.get(op).push({ t: tr.t0, bytes: p.bytes });
+        }
+      }
+    }
+    return this;
+  }
 
-/** The MB's requests to the board whose first byte is `op`, acknowledged. */
-const sent = (rig, op) => writes(rig, 'mb', ADDRESS).filter((w) => w.bytes[0] === op && w.ack);
+  /** The MB's requests whose first byte is `op`. */
+  of(op) { return this.update().sent.get(op) ?? []; }
+
+  /** The board's boot events, in order. */
+  booted() { return this.update().boots; }
+}
 
 function setup(ctx) {
   const rig = ctx.rig();
   const mb = rig.addChip('mb', ctx.mbCarryElf, {});
   const db = rig.addChip('db', ctx.dbSlotElf, { boot: ctx.bootElf });
   db.nor.data.set(slot(ADDRESS, 0), RECORD);
-  return { rig, mb, nor: db.nor };
+  return { rig, mb, nor: db.nor, w: new Watch(rig) };
 }
 
 const same = (a, b) => Buffer.compare(Buffer.from(a), Buffer.from(b)) === 0;
@@ -77,24 +98,24 @@ export default [
       const v2 = image(readElf(ctx.dbSlotV2Elf));
       const chunks = Math.ceil(v2.length / CHUNK);
       const wall0 = Date.now();
-      let { rig, mb, nor } = setup(ctx);
+      let { rig, mb, nor, w } = setup(ctx);
       const mbLog = () => ctx.defmt(mb).map((l) => l.text).join('\n');
       // Until 2.0.0 has booted and the MB has sent confirm_firmware (or 30 virtual s).
-      const confirmed = () => boots(rig).some((b) => b.v === '2.0.0') && sent(rig, CONFIRM).length > 0;
-      rig.run(30000e6, () => confirmed() && rig.now() > sent(rig, CONFIRM)[0].t + 5e6);
+      const confirmed = () => w.booted().some((b) => b.v === '2.0.0') && w.of(CONFIRM).length > 0;
+      rig.run(30000e6, () => confirmed() && rig.now() > w.of(CONFIRM)[0].t + 5e6);
       const log = mbLog();
       ctx.check('mb-pico carries db-pico 2.0.0 (its log: kind 3, 2.0.0, the slot\'s bytes)',
         log.includes(`carries board kind 3 firmware 2.0.0, ${v2.length} B`), log.split('\n').filter((l) => /carries/.test(l)).join('; '));
-      const b = boots(rig);
+      const b = w.booted();
       ctx.check('db-pico 0.1.0 starts under boot-pico (first boot event 0.1.0)', b[0]?.v === '0.1.0', JSON.stringify(b.map((x) => x.v)));
-      const enter = sent(rig, ENTER), begin = sent(rig, BEGIN), chunk = sent(rig, CHUNK_OP), commit = sent(rig, COMMIT);
+      const enter = w.of(ENTER), begin = w.of(BEGIN), chunk = w.of(CHUNK_OP), commit = w.of(COMMIT);
       ctx.check('the MB sends enter_update once, then begin, every chunk and commit to the bootloader at 0x20',
         enter.length === 1 && begin.length === 1 && commit.length >= 1 && new Set(chunk.map((w) => w.bytes.slice(4, 8).join(','))).size === chunks,
         JSON.stringify({ enter: enter.length, begin: begin.length, chunks: chunk.length, distinct: chunks, commit: commit.length }));
       ctx.check('after the swap 2.0.0 boots (its boot event says 2.0.0) and ACTIVE holds the carried image',
         b.length >= 2 && b[b.length - 1].v === '2.0.0' && same(nor.data.slice(ACTIVE, ACTIVE + v2.length), v2), JSON.stringify(b.map((x) => x.v)));
       ctx.check('the MB confirms it (confirm_firmware; STATE holds the boot mark) and logs the update done',
-        sent(rig, CONFIRM).length === 1 && nor.data[STATE] === BOOT_MAGIC && /update: board 32 done/.test(log),
+        w.of(CONFIRM).length === 1 && nor.data[STATE] === BOOT_MAGIC && /update: board 32 done/.test(log),
         `STATE ${nor.data[STATE].toString(16)}; ${log.split('\n').filter((l) => /update:/.test(l)).join('; ')}`);
       const tEnter = enter[0]?.t ?? NaN, tBoot = b[b.length - 1]?.t ?? NaN;
       ctx.figure('update by mb-pico at 100 kHz: enter_update to 2.0.0\'s boot event (s, virtual)', ((tBoot - tEnter) / 1e9).toFixed(2));
@@ -105,30 +126,30 @@ export default [
       const t4 = rig.now();
       rig.chips[1].rp.sysResetRequested = { t: t4 };
       rig.run(t4 + 300e6);
-      const after = boots(rig).filter((x) => x.t > t4);
+      const after = w.booted().filter((x) => x.t > t4);
       ctx.check('confirmed, 2.0.0 is kept at the next reset (boot event 2.0.0) and the MB sends no second enter_update',
-        after.length === 1 && after[0].v === '2.0.0' && sent(rig, ENTER).length === 1 && same(nor.data.slice(ACTIVE, ACTIVE + v2.length), v2),
-        JSON.stringify({ boots: after.map((x) => x.v), enter: sent(rig, ENTER).length }));
+        after.length === 1 && after[0].v === '2.0.0' && w.of(ENTER).length === 1 && same(nor.data.slice(ACTIVE, ACTIVE + v2.length), v2),
+        JSON.stringify({ boots: after.map((x) => x.v), enter: w.of(ENTER).length }));
 
       // The power cut in the middle of the transfer.
       const simFirst = rig.now();
-      ({ rig, mb, nor } = setup(ctx));
+      ({ rig, mb, nor, w } = setup(ctx));
       const half = Math.floor(chunks / 2);
-      rig.run(30000e6, () => sent(rig, CHUNK_OP).length >= half);
+      rig.run(30000e6, () => w.of(CHUNK_OP).length >= half);
       const chip = rig.chips[1];
       chip.readRtt();
       const tCut = rig.now();
       const fresh = rig.powerCycle(chip);
       fresh.defmt = chip.defmt;
-      ctx.check('the power is cut after half the chunks, ACTIVE still 0.1.0', sent(rig, CHUNK_OP).length >= half && same(nor.data.slice(ACTIVE, ACTIVE + v1.length), v1),
-        `${sent(rig, CHUNK_OP).length} chunks at ${(tCut / 1e9).toFixed(2)} s`);
-      rig.run(tCut + 30000e6, () => confirmed() && rig.now() > sent(rig, CONFIRM)[0].t + 5e6);
-      const b2 = boots(rig);
+      ctx.check('the power is cut after half the chunks, ACTIVE still 0.1.0', w.of(CHUNK_OP).length >= half && same(nor.data.slice(ACTIVE, ACTIVE + v1.length), v1),
+        `${w.of(CHUNK_OP).length} chunks at ${(tCut / 1e9).toFixed(2)} s`);
+      rig.run(tCut + 30000e6, () => confirmed() && rig.now() > w.of(CONFIRM)[0].t + 5e6);
+      const b2 = w.booted();
       const log2 = ctx.defmt(mb).map((l) => l.text).join('\n');
       ctx.check('the MB begins again and finishes: 2.0.0 boots, is confirmed, ACTIVE holds the carried image',
-        sent(rig, BEGIN).length >= 2 && b2[b2.length - 1]?.v === '2.0.0' && sent(rig, CONFIRM).length === 1 && nor.data[STATE] === BOOT_MAGIC
+        w.of(BEGIN).length >= 2 && b2[b2.length - 1]?.v === '2.0.0' && w.of(CONFIRM).length === 1 && nor.data[STATE] === BOOT_MAGIC
           && same(nor.data.slice(ACTIVE, ACTIVE + v2.length), v2) && /update: board 32 done/.test(log2),
-        JSON.stringify({ begins: sent(rig, BEGIN).length, boots: b2.map((x) => x.v), log: log2.split('\n').filter((l) => /update:/.test(l)) }));
+        JSON.stringify({ begins: w.of(BEGIN).length, boots: b2.map((x) => x.v), log: log2.split('\n').filter((l) => /update:/.test(l)) }));
       ctx.figure('update by mb-pico, power cut after half the chunks: the cut to 2.0.0\'s boot event (s, virtual)',
         (((b2[b2.length - 1]?.t ?? NaN) - tCut) / 1e9).toFixed(2));
       ctx.figure('simulated s per wall s (update)', (((simFirst + rig.now()) / 1e9) / ((Date.now() - wall0) / 1000)).toFixed(2));
