@@ -42,9 +42,11 @@ macro_rules! mb_image {
         #[cfg(x10_carry)]
         #[embassy_executor::task]
         async fn updater(x10: x10::X10, policy: x10_boards::start::UpdatePolicy) -> ! {
+            // The gap between chunks scaled to this image's bus clock (at most half of
+            // the bus for the update).
             x10_boards::start::run_updates(
                 x10,
-                x10_boards::start::UpdateConfig::DEFAULT,
+                x10_boards::start::UpdateConfig::for_bus_hz(x10_boards::BUS_HZ),
                 CARRIED,
                 policy,
             )
