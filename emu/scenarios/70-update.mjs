@@ -100,9 +100,10 @@ export default [
       const wall0 = Date.now();
       let { rig, mb, nor, w } = setup(ctx);
       const mbLog = () => ctx.defmt(mb).map((l) => l.text).join('\n');
-      // Until 2.0.0 has booted and the MB has sent confirm_firmware (or 30 virtual s).
+      // Until 2.0.0 has booted and 200 ms after the MB sent confirm_firmware (the board writes
+      // embassy-boot's state after its reply: a sector erase and a program), or 30 virtual s.
       const confirmed = () => w.booted().some((b) => b.v === '2.0.0') && w.of(CONFIRM).length > 0;
-      rig.run(30000e6, () => confirmed() && rig.now() > w.of(CONFIRM)[0].t + 5e6);
+      rig.run(30000e6, () => confirmed() && rig.now() > w.of(CONFIRM)[0].t + 200e6);
       const log = mbLog();
       ctx.check('mb-pico carries db-pico 2.0.0 (its log: kind 3, 2.0.0, the slot\'s bytes)',
         log.includes(`carries board kind 3 firmware 2.0.0, ${v2.length} B`), log.split('\n').filter((l) => /carries/.test(l)).join('; '));
@@ -143,7 +144,7 @@ export default [
       fresh.defmt = chip.defmt;
       ctx.check('the power is cut after half the chunks, ACTIVE still 0.1.0', w.of(CHUNK_OP).length >= half && same(nor.data.slice(ACTIVE, ACTIVE + v1.length), v1),
         `${w.of(CHUNK_OP).length} chunks at ${(tCut / 1e9).toFixed(2)} s`);
-      rig.run(tCut + 30000e6, () => confirmed() && rig.now() > w.of(CONFIRM)[0].t + 5e6);
+      rig.run(tCut + 30000e6, () => confirmed() && rig.now() > w.of(CONFIRM)[0].t + 200e6);
       const b2 = w.booted();
       const log2 = ctx.defmt(mb).map((l) => l.text).join('\n');
       ctx.check('the MB begins again and finishes: 2.0.0 boots, is confirmed, ACTIVE holds the carried image',

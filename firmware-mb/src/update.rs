@@ -599,7 +599,9 @@ async fn update_marked<L: UpdateLink>(
     if version != image.version {
         return Err(UpdateError::RolledBack(version));
     }
-    link.call(db, Op::ConfirmFirmware)
+    // Tried again when its reply is lost: the board may write its bootloader's state (a
+    // sector erase) before the reply is read, and a repeated confirm is answered `ok`.
+    call_retrying(link, cfg, db, Op::ConfirmFirmware, stats)
         .await
         .map_err(UpdateError::Link)?;
     Ok(())
