@@ -115,8 +115,8 @@ export default [
         JSON.stringify({ enter: enter.length, begin: begin.length, chunks: chunk.length, distinct: chunks, commit: commit.length }));
       ctx.check('after the swap 2.0.0 boots (its boot event says 2.0.0) and ACTIVE holds the carried image',
         b.length >= 2 && b[b.length - 1].v === '2.0.0' && same(nor.data.slice(ACTIVE, ACTIVE + v2.length), v2), JSON.stringify(b.map((x) => x.v)));
-      ctx.check('the MB confirms it (confirm_firmware; STATE holds the boot mark) and logs the update done',
-        w.of(CONFIRM).length === 1 && nor.data[STATE] === BOOT_MAGIC && /update: board 32 done/.test(log),
+      ctx.check('the MB confirms it (confirm_firmware, sent again while its reply is lost; STATE holds the boot mark) and logs the update done',
+        w.of(CONFIRM).length >= 1 && nor.data[STATE] === BOOT_MAGIC && /update: board 32 done/.test(log),
         `STATE ${nor.data[STATE].toString(16)}; ${log.split('\n').filter((l) => /update:/.test(l)).join('; ')}`);
       const tEnter = enter[0]?.t ?? NaN, tBoot = b[b.length - 1]?.t ?? NaN;
       ctx.figure('update by mb-pico at 100 kHz: enter_update to 2.0.0\'s boot event (s, virtual)', ((tBoot - tEnter) / 1e9).toFixed(2));
@@ -148,7 +148,7 @@ export default [
       const b2 = w.booted();
       const log2 = ctx.defmt(mb).map((l) => l.text).join('\n');
       ctx.check('the MB begins again and finishes: 2.0.0 boots, is confirmed, ACTIVE holds the carried image',
-        w.of(BEGIN).length >= 2 && b2[b2.length - 1]?.v === '2.0.0' && w.of(CONFIRM).length === 1 && nor.data[STATE] === BOOT_MAGIC
+        w.of(BEGIN).length >= 2 && b2[b2.length - 1]?.v === '2.0.0' && w.of(CONFIRM).length >= 1 && nor.data[STATE] === BOOT_MAGIC
           && same(nor.data.slice(ACTIVE, ACTIVE + v2.length), v2) && /update: board 32 done/.test(log2),
         JSON.stringify({ begins: w.of(BEGIN).length, boots: b2.map((x) => x.v), log: log2.split('\n').filter((l) => /update:/.test(l)) }));
       ctx.figure('update by mb-pico, power cut after half the chunks: the cut to 2.0.0\'s boot event (s, virtual)',
