@@ -35,6 +35,8 @@ const mbPnpElf = opt('--mb-pnp');
 const bootElf = opt('--boot');
 const dbSlotElf = opt('--db-slot');
 const dbSlotV2Elf = opt('--db-slot-v2');
+// mb-pico carrying db-pico 2.0.0 (X10_CARRY): the `update` scenario.
+const mbCarryElf = opt('--mb-carry');
 // db-pico built for faster buses: --db-at HZ=ELF, any number of times.
 const dbAt = {};
 for (let v = opt('--db-at'); v; v = opt('--db-at')) {
@@ -55,7 +57,7 @@ if (list) {
   process.exit(0);
 }
 if (!mbElf || !dbElf) {
-  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--fw-flash ELF] [--db-pnp ELF] [--mb-pnp ELF] [--boot ELF --db-slot ELF --db-slot-v2 ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
+  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--fw-flash ELF] [--db-pnp ELF] [--mb-pnp ELF] [--boot ELF --db-slot ELF --db-slot-v2 ELF --mb-carry ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
   process.exit(2);
 }
 const wanted = args.filter((a) => !a.startsWith('--'));
@@ -163,7 +165,7 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   const figures = [];
   const rigs = [];
   const ctx = {
-    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf, dbPnpElf, mbPnpElf, bootElf, dbSlotElf, dbSlotV2Elf, out,
+    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf, dbPnpElf, mbPnpElf, bootElf, dbSlotElf, dbSlotV2Elf, mbCarryElf, out,
     rig(options = {}) { const r = new Rig(options); rigs.push(r); return r; },
     check(name, ok, detail = '') { checks.push({ name, ok: !!ok, detail }); },
     figure(name, value) { figures.push({ name, value }); },

@@ -229,6 +229,8 @@ export class Bus {
 
   writeByteEnd() {
     const c = this.cur;
+    // The transfer ended (its STOP) while this byte was on its way: nothing left to clock.
+    if (!c) return;
     const m = c.master;
     const t = c.target;
     const byte = c.cmd & 0xff;
@@ -298,6 +300,9 @@ export class Bus {
         if (sees) n.raise(1 << 9);
       }
       this.cur = null;
+      // What this transfer still had scheduled (a byte its controller queued after the abort
+      // that sent this STOP) is dropped with it, never clocked into the next transfer.
+      this.gen++;
       this.state = 'idle';
       this.freeAt = this.now() + (m.sclPeriodNs - m.sclHighNs);
       // A controller with more commands queued starts again.

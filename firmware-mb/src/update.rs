@@ -563,9 +563,13 @@ async fn update_marked<L: UpdateLink>(
     let status = UpdateOp::Status.to_op(&mut buf);
     let in_bootloader = link.call(db, status).await.is_ok();
     if !in_bootloader {
-        link.call(db, Op::EnterUpdate)
-            .await
-            .map_err(UpdateError::Enter)?;
+        // Refused (`unsupported`: no bootloader): the board stays as it is. No reply: the
+        // board may have taken it and written its bootloader's state with the bus unserved (a
+        // 45 ms sector erase on the Pico), then reset; whether its bootloader answers below
+        // tells (`NoBootloader` if not).
+        if let Err(LinkError::Status(s)) = link.call(db, Op::EnterUpdate).await {
+            return Err(UpdateError::Enter(LinkError::Status(s)));
+        }
     }
     let mut restarts = 0u8;
     let version = loop {
@@ -595,7 +599,9 @@ async fn update_marked<L: UpdateLink>(
     if version != image.version {
         return Err(UpdateError::RolledBack(version));
     }
-    link.call(db, Op::ConfirmFirmware)
+    // Tried again when its reply is lost: the board may write its bootloader's state (a
+    // sector erase) before the reply is read, and a repeated confirm is answered `ok`.
+    call_retrying(link, cfg, db, Op::ConfirmFirmware, stats)
         .await
         .map_err(UpdateError::Link)?;
     Ok(())

@@ -276,6 +276,11 @@ struct Bus {
     wire_ns: Cell<u64>,
     transactions: Cell<u64>,
     updating: Cell<Option<Address>>,
+    /// The board takes `enter_update` but its reply never reaches the MB (on the emulated
+    /// Pico it writes embassy-boot's state, a sector erase, before the reply is read).
+    lose_enter_reply: Cell<bool>,
+    /// Likewise the first `confirm_firmware`'s reply (the board writes the state before it).
+    lose_confirm_reply: Cell<bool>,
 }
 
 impl Bus {
@@ -287,6 +292,8 @@ impl Bus {
             wire_ns: Cell::new(0),
             transactions: Cell::new(0),
             updating: Cell::new(None),
+            lose_enter_reply: Cell::new(false),
+            lose_confirm_reply: Cell::new(false),
         }
     }
 
@@ -357,6 +364,13 @@ impl UpdateLink for Bus {
         };
         if reset {
             b.reset(self.now.get());
+        }
+        if self.lose_enter_reply.get() && op == Op::EnterUpdate {
+            return Err(LinkError::Timeout);
+        }
+        if self.lose_confirm_reply.get() && op == Op::ConfirmFirmware {
+            self.lose_confirm_reply.set(false);
+            return Err(LinkError::Timeout);
         }
         if commit && b.lose_commit_replies.get() > 0 {
             b.lose_commit_replies.set(b.lose_commit_replies.get() - 1);
@@ -463,6 +477,32 @@ fn a_commit_that_never_arrives_is_found_out_and_the_transfer_done_again() {
     assert_eq!(r, Ok(()));
     assert_eq!(bus.board.version(), NEW);
     assert_eq!((stats.done, stats.restarts), (1, 1), "{stats:?}");
+}
+
+#[test]
+fn an_enter_update_whose_reply_is_lost_goes_on_when_the_bootloader_answers() {
+    let new = db_image(image(ACTIVE, NEW, true, 2));
+    let bus = Bus::new(Board::new(0x2a, image(20_000, OLD, true, 1)), 400_000);
+    bus.lose_enter_reply.set(true);
+    let (r, stats) = update(&bus, &new);
+    assert_eq!(r, Ok(()));
+    assert_eq!(bus.board.version(), NEW);
+    assert_eq!((stats.done, stats.failed, stats.restarts), (1, 0, 0));
+}
+
+#[test]
+fn a_confirm_whose_reply_is_lost_is_sent_again() {
+    let new = db_image(image(ACTIVE, NEW, true, 2));
+    let bus = Bus::new(Board::new(0x2a, image(20_000, OLD, true, 1)), 400_000);
+    bus.lose_confirm_reply.set(true);
+    let (r, stats) = update(&bus, &new);
+    assert_eq!(r, Ok(()));
+    assert_eq!((stats.done, stats.failed), (1, 0));
+    // Confirmed: a reset keeps it.
+    bus.board.reset(bus.now.get());
+    bus.now.set(bus.now.get() + BOOT_NS);
+    bus.board.poll_up(&bus.now);
+    assert_eq!(bus.board.version(), NEW);
 }
 
 #[test]

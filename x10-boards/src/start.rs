@@ -14,6 +14,10 @@
 
 use x10_microcode::Address;
 
+/// Firmware over the bus (issue 25): what a motherboard image that carries daughterboard
+/// images names (`x10-boards/carry.rs` generates its `CARRIED`; docs/boards.md "Updating the
+/// boards"). An image that carries none does not name [`run_updates`], and does not link it.
+pub use firmware_mb::update::{run_updates, DbImage, UpdateConfig, UpdatePolicy};
 pub use firmware_mb::{MbConfig, X10};
 
 /// How many boards the motherboard images know by their unique ID at once (plug and play's

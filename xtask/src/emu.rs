@@ -4,7 +4,9 @@
 //! image; db-pico with the address override `X10_DB_ADDR=9`: DB 10 is the same image with
 //! jumper 0 fitted; db-pico without it, plug and play, as `target/emu/db-pico-pnp`; db-pico
 //! built into the bootloader's ACTIVE slot as `target/emu/db-pico-slot` and, as 2.0.0,
-//! `db-pico-slot-v2`, with `boot-pico`; db-pico also for 400 kHz and 1 MHz buses, `X10_BUS_HZ`, copied to
+//! `db-pico-slot-v2`, with `boot-pico`, and mb-pico carrying `db-pico-slot-v2`'s slot bytes as
+//! 2.0.0 (`X10_CARRY`), `target/emu/mb-pico-carry`; db-pico (without the bootloader: the
+//! standalone build, not `cargo db-pico`'s ACTIVE-slot one) also for 400 kHz and 1 MHz buses, `X10_BUS_HZ`, copied to
 //! `target/emu/db-pico-HZ`), the flash path's test image `emu/fw-flash` (its own workspace) and
 //! the host `x10` tool, installs the rig's Node packages from `emu/package-lock.json`
 //! with `npm ci` when `emu/node_modules` is missing or older than the lock file, then runs
@@ -132,10 +134,17 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
     let mut fast = Vec::new();
     let mut pnp_elf = None;
     for name in ["mb-pico", "db-pico"] {
-        let image = IMAGES
+        let row = IMAGES
             .iter()
             .find(|i| i.bin == name)
             .ok_or_else(|| Error::Usage(format!("no image {name}")))?;
+        // db-pico's row is the ACTIVE-slot build (`cargo db-pico`, under boot-pico); the
+        // scenarios without the bootloader run the standalone build.
+        let standalone = crate::Image {
+            features: STANDALONE_DB_PICO,
+            ..*row
+        };
+        let image = if name == "db-pico" { &standalone } else { row };
         crate::check_targets("cargo xtask emu", &[image.target])?;
         let elf = target_dir(&cargo)?
             .join(image.target)
@@ -163,7 +172,7 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
             // the `bootloader` scenario.
             let slot = crate::Image {
                 features: "daughterboard,active-slot,together",
-                ..*image
+                ..*row
             };
             for (version, copy) in [(None, "db-pico-slot"), (Some("2.0.0"), "db-pico-slot-v2")] {
                 build_slot(&cargo, &slot, version)?;
@@ -181,6 +190,9 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
     let release = target_dir(&cargo)?
         .join("thumbv6m-none-eabi")
         .join("release");
+    // mb-pico carrying db-pico 2.0.0 (the slot build above) for the `update` scenario, copied
+    // aside; then the plain mb-pico again, which the other scenarios run from `release`.
+    let carry_mb = build_carrying(&cargo, &out, &out.join("db-pico-slot-v2"), "2.0.0")?;
     // The doorbell example's motherboard image: a DB event waking an MB task.
     let mb = IMAGES
         .iter()
@@ -225,6 +237,8 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
         "--out".into(),
         out.display().to_string(),
     ];
+    a.push("--mb-carry".into());
+    a.push(carry_mb.display().to_string());
     a.push("--mb-doorbell".into());
     a.push(doorbell_elf.display().to_string());
     a.push("--fw-flash".into());
@@ -280,6 +294,50 @@ fn build_fw_flash(cargo: &str, root: &Path) -> Result<std::path::PathBuf, Error>
     Ok(target.join(TARGET).join("release").join("x10-emu-fw-flash"))
 }
 
+/// Builds mb-pico carrying the slot image of the db-pico ELF `slot_elf` as `version`
+/// (`X10_CARRY`), copies it to `out/mb-pico-carry`, then builds the plain mb-pico again (the
+/// ELF in the target directory is the plain one after); the copy's path.
+///
+/// # Errors
+/// Build, ELF and slot errors.
+fn build_carrying(
+    cargo: &str,
+    out: &Path,
+    slot_elf: &Path,
+    version: &str,
+) -> Result<std::path::PathBuf, Error> {
+    let carry = &crate::MB_PICO_CARRIES[0];
+    let segments = crate::loaded_segments(slot_elf)?;
+    let parts: Vec<(u64, &[u8])> = segments.iter().map(|(a, b)| (*a, b.as_slice())).collect();
+    let bytes = crate::slot_image(&parts, carry.slot, carry.slot_len)
+        .map_err(|e| Error::Usage(format!("{}: {e}", slot_elf.display())))?;
+    let bin = out.join("db-pico-slot-v2.bin");
+    std::fs::write(&bin, bytes).map_err(|e| Error::Io(bin.clone(), e))?;
+    let mb = IMAGES
+        .iter()
+        .find(|i| i.bin == "mb-pico")
+        .ok_or_else(|| Error::Usage("no image mb-pico".into()))?;
+    let mut c = crate::build_command(cargo, mb);
+    c.env_remove("X10_BUS_HZ").env_remove("X10_DB_ADDR").env(
+        "X10_CARRY",
+        format!("{}@{version}={}", carry.kind, bin.display()),
+    );
+    if !c.status().map_err(Error::Run)?.success() {
+        return Err(Error::Build("mb-pico (carrying db-pico)"));
+    }
+    let elf = target_dir(cargo)?
+        .join(mb.target)
+        .join("release")
+        .join(mb.bin);
+    let copy = out.join("mb-pico-carry");
+    std::fs::copy(&elf, &copy).map_err(Error::Run)?;
+    build_at(cargo, mb, None)?;
+    Ok(copy)
+}
+
+/// db-pico's features without the bootloader (its row in [`IMAGES`] is the ACTIVE slot's).
+const STANDALONE_DB_PICO: &str = "rp2040,daughterboard,together";
+
 /// The bus frequencies, besides the default 100 kHz, that the `event-latency` scenario
 /// measures with a db-pico built for them.
 const FAST_BUSES: [u32; 2] = [400_000, 1_000_000];
@@ -299,6 +357,8 @@ fn build_with(cargo: &str, image: &crate::Image, hz: Option<u32>, at_9: bool) ->
         Some(hz) => c.env("X10_BUS_HZ", hz.to_string()),
         None => c.env_remove("X10_BUS_HZ"),
     };
+    // The motherboard images the scenarios run carry nothing (but `mb-pico-carry`).
+    c.env_remove("X10_CARRY");
     if at_9 {
         c.env("X10_DB_ADDR", "9");
     } else {
