@@ -7,13 +7,12 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use embedded_storage::nor_flash::ReadNorFlash;
-use firmware_mb::update::{update_pass, DbImage, UpdateConfig, UpdatePolicy, UpdateState};
-use firmware_mb::KnownBoard;
+use firmware_mb::update::{UpdateConfig, UpdatePolicy};
 use x10_devices::LinkError;
 use x10_microcode::{Address, BoardKind, Level, Op, Pin, Port};
 use x10_sim::board::uid_of_name;
 use x10_sim::bus::FaultConfig;
-use x10_sim::firmware::{fake_image, SimFirmware};
+use x10_sim::firmware::{carried, update_until, SimFirmware};
 use x10_sim::sim::{task, Sim, SimConfig};
 
 const MS: u64 = 1_000_000;
@@ -41,13 +40,8 @@ struct Seen {
 }
 
 fn run(seed: u64) {
-    let image: &'static [u8] = Box::leak(fake_image(NEW, 24 * 1024).into_boxed_slice());
-    let images: &'static [DbImage] = Box::leak(Box::new([DbImage {
-        kind: BoardKind::SIMULATED,
-        version: NEW,
-        bytes: image,
-        crc32: x10_microcode::image_crc32(image),
-    }]));
+    let images = carried(BoardKind::SIMULATED, NEW, 24 * 1024);
+    let image = images[0].bytes;
     let fws = [SimFirmware::new(OLD), SimFirmware::new(OLD)];
     let old_image = active(&fws[0], 20_000);
     let config = SimConfig {
@@ -84,35 +78,26 @@ fn run(seed: u64) {
             Box::pin(async move {
                 let x10 = ctx.handle();
                 ctx.clock.sleep_ns(500 * MS).await;
-                let mut state = UpdateState::default();
-                let cfg = UpdateConfig::DEFAULT;
-                for _ in 0..200 {
-                    let mut list = [KnownBoard::EMPTY; 16];
-                    let n = x10.boards(&mut list);
-                    let boards = &list[..n];
-                    let up = boards
-                        .iter()
-                        .filter(|b| b.kind == BoardKind::SIMULATED && b.firmware == NEW)
-                        .count();
-                    if up == 2 {
-                        break;
-                    }
-                    update_pass(
-                        &x10,
-                        &cfg,
-                        images,
-                        UpdatePolicy::Except(pinned),
-                        boards,
-                        &mut state,
-                        |b, _, r| {
-                            if let Err(e) = r {
-                                println!("update of {} failed: {e:?}", b.address.get())
-                            }
-                        },
-                    )
-                    .await;
-                    ctx.clock.sleep_ns(100 * MS).await;
-                }
+                let state = update_until(
+                    &x10,
+                    &UpdateConfig::DEFAULT,
+                    images,
+                    UpdatePolicy::Except(pinned),
+                    200,
+                    |boards| {
+                        boards
+                            .iter()
+                            .filter(|b| b.kind == BoardKind::SIMULATED && b.firmware == NEW)
+                            .count()
+                            == 2
+                    },
+                    |b, _, r| {
+                        if let Err(e) = r {
+                            println!("update of {} failed: {e:?}", b.address.get())
+                        }
+                    },
+                )
+                .await;
                 s1.borrow_mut().stats = Some(state.stats);
                 d1.set(true);
             })

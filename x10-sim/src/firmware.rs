@@ -322,3 +322,60 @@ pub fn update_plan(world: &crate::world::World) -> Vec<String> {
     }
     out
 }
+
+/// A carried image for a simulated motherboard: [`fake_image`] of `len` bytes for `kind` and
+/// `version`, with its CRC-32, kept for the rest of the run.
+pub fn carried(
+    kind: x10_microcode::BoardKind,
+    version: Version,
+    len: usize,
+) -> &'static [firmware_mb::update::DbImage] {
+    let bytes: &'static [u8] = Box::leak(fake_image(version, len).into_boxed_slice());
+    Box::leak(Box::new([firmware_mb::update::DbImage {
+        kind,
+        version,
+        bytes,
+        crc32: x10_microcode::image_crc32(bytes),
+    }]))
+}
+
+/// The motherboard's updater as its image runs it (`firmware_mb::update::run_updates`), but
+/// for a test: an `update_pass` over the boards the directory knows, every 100 ms, until
+/// `done` says so of the boards or after `passes` passes; `on_result` hears every update's end.
+/// Returns what the updater remembers (its counters).
+pub async fn update_until(
+    x10: &firmware_mb::X10,
+    cfg: &firmware_mb::update::UpdateConfig,
+    images: &[firmware_mb::update::DbImage],
+    policy: firmware_mb::update::UpdatePolicy,
+    passes: usize,
+    done: impl Fn(&[firmware_mb::KnownBoard]) -> bool,
+    mut on_result: impl FnMut(
+        &firmware_mb::KnownBoard,
+        &firmware_mb::update::DbImage,
+        &Result<(), firmware_mb::update::UpdateError>,
+    ),
+) -> firmware_mb::update::UpdateState {
+    use firmware_mb::update::UpdateLink;
+    let mut state = firmware_mb::update::UpdateState::default();
+    for _ in 0..passes {
+        let mut list = [firmware_mb::KnownBoard::EMPTY; 16];
+        let n = x10.boards(&mut list);
+        let boards = list.get(..n).unwrap_or(&[]);
+        if done(boards) {
+            break;
+        }
+        firmware_mb::update::update_pass(
+            x10,
+            cfg,
+            images,
+            policy,
+            boards,
+            &mut state,
+            &mut on_result,
+        )
+        .await;
+        x10.pause(firmware_mb::update::UPDATE_POLL_US).await;
+    }
+    state
+}

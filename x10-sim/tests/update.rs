@@ -8,12 +8,11 @@
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
-use firmware_mb::update::{update_pass, DbImage, UpdateConfig, UpdatePolicy, UpdateState};
-use firmware_mb::KnownBoard;
+use firmware_mb::update::{UpdateConfig, UpdatePolicy};
 use x10_devices::LinkError;
 use x10_microcode::{Address, BoardKind, Level, Op, Pin, Port};
 use x10_sim::board::uid_of_name;
-use x10_sim::firmware::{fake_image, SimFirmware};
+use x10_sim::firmware::{carried, update_until, SimFirmware};
 use x10_sim::sim::{task, Sim, SimConfig};
 
 const MS: u64 = 1_000_000;
@@ -57,13 +56,7 @@ fn power_cuts_mid_update_are_recovered() {
 fn updates(setup: impl FnOnce(Sim) -> Sim) -> (u16, u32) {
     let fw20 = SimFirmware::new(OLD);
     let fw21 = SimFirmware::new(OLD);
-    let image: &'static [u8] = Box::leak(fake_image(NEW, 32 * 1024).into_boxed_slice());
-    let images: &'static [DbImage] = Box::leak(Box::new([DbImage {
-        kind: BoardKind::SIMULATED,
-        version: NEW,
-        bytes: image,
-        crc32: x10_microcode::image_crc32(image),
-    }]));
+    let images = carried(BoardKind::SIMULATED, NEW, 32 * 1024);
     let config = SimConfig {
         duration_ms: 30_000,
         stop_when_tasks_done: true,
@@ -101,35 +94,27 @@ fn updates(setup: impl FnOnce(Sim) -> Sim) -> (u16, u32) {
                 // The robot runs alone for 2 s first (the rate without an update).
                 ctx.clock.sleep_ns(2_000 * MS).await;
                 r1.borrow_mut().window.0 = ctx.clock.now_ns();
-                let mut state = UpdateState::default();
                 // The gap between chunks scaled to the bus clock (400 kHz), the flash work
                 // waited out.
                 let cfg = UpdateConfig::for_bus_hz(400_000);
-                loop {
-                    let mut list = [KnownBoard::EMPTY; 16];
-                    let n = x10.boards(&mut list);
-                    let boards = &list[..n];
-                    let done = boards
-                        .iter()
-                        .filter(|b| b.kind == BoardKind::SIMULATED && b.firmware == NEW)
-                        .count();
-                    if done == 2 {
-                        break;
-                    }
-                    update_pass(
-                        &x10,
-                        &cfg,
-                        images,
-                        // db30 runs the robot's outputs and has no bootloader: pinned.
-                        UpdatePolicy::Except(pinned),
-                        boards,
-                        &mut state,
-                        |b, _, r| assert_eq!(*r, Ok(()), "board {}", b.address.get()),
-                    )
-                    .await;
-                    ctx.clock.sleep_ns(100 * MS).await;
-                    assert!(state.stats.failed == 0, "{:?}", state.stats);
-                }
+                let state = update_until(
+                    &x10,
+                    &cfg,
+                    images,
+                    // db30 runs the robot's outputs and has no bootloader: pinned.
+                    UpdatePolicy::Except(pinned),
+                    usize::MAX,
+                    |boards| {
+                        boards
+                            .iter()
+                            .filter(|b| b.kind == BoardKind::SIMULATED && b.firmware == NEW)
+                            .count()
+                            == 2
+                    },
+                    |b, _, r| assert_eq!(*r, Ok(()), "board {}", b.address.get()),
+                )
+                .await;
+                assert!(state.stats.failed == 0, "{:?}", state.stats);
                 r1.borrow_mut().window.1 = ctx.clock.now_ns();
                 assert_eq!(state.stats.done, 2);
                 r0.set(state.stats.restarts);

@@ -10,12 +10,9 @@
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
-use firmware_mb::update::{
-    update_pass, DbImage, UpdateConfig, UpdateError, UpdatePolicy, UpdateState,
-};
-use firmware_mb::KnownBoard;
+use firmware_mb::update::{DbImage, UpdateConfig, UpdateError, UpdatePolicy};
 use x10_microcode::{Address, BoardKind, Identity, Level, Op, Pin, Port};
-use x10_sim::firmware::{fake_image, SimRom};
+use x10_sim::firmware::{fake_image, update_until, SimRom};
 use x10_sim::sim::{task, Sim, SimConfig};
 use x10_stmboot::model::Boot;
 
@@ -87,30 +84,20 @@ fn run(
                 let x10 = ctx.handle();
                 ctx.clock.sleep_ns(1_000 * MS).await;
                 o1.borrow_mut().window.0 = ctx.clock.now_ns();
-                let mut state = UpdateState::default();
-                let cfg = UpdateConfig::for_bus_hz(400_000);
-                for _ in 0..passes {
-                    let mut list = [KnownBoard::EMPTY; 16];
-                    let n = x10.boards(&mut list);
-                    let boards = &list[..n];
-                    if boards
-                        .iter()
-                        .any(|b| b.kind == BoardKind::C011 && b.firmware == NEW && b.present)
-                    {
-                        break;
-                    }
-                    update_pass(
-                        &x10,
-                        &cfg,
-                        images,
-                        UpdatePolicy::Auto,
-                        boards,
-                        &mut state,
-                        |_, _, r| o1.borrow_mut().results.push(*r),
-                    )
-                    .await;
-                    ctx.clock.sleep_ns(100 * MS).await;
-                }
+                let state = update_until(
+                    &x10,
+                    &UpdateConfig::for_bus_hz(400_000),
+                    images,
+                    UpdatePolicy::Auto,
+                    passes,
+                    |boards| {
+                        boards
+                            .iter()
+                            .any(|b| b.kind == BoardKind::C011 && b.firmware == NEW && b.present)
+                    },
+                    |_, _, r| o1.borrow_mut().results.push(*r),
+                )
+                .await;
                 let version = x10
                     .call(addr(0x22), Op::Identify)
                     .await
