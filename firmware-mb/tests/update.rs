@@ -13,17 +13,14 @@
 //! the wire-time floor.
 
 use std::cell::{Cell, RefCell};
-use std::rc::Rc;
 
-use embassy_boot::{BlockingFirmwareState, BootLoader, BootLoaderConfig};
-use embedded_storage::nor_flash::{
-    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
-};
+use embassy_boot::BlockingFirmwareState;
 use firmware_mb::update::{
     plan, update_board, update_pass, DbImage, UpdateConfig, UpdateError, UpdateLink, UpdatePolicy,
     UpdateState, UpdateStats,
 };
 use firmware_mb::KnownBoard;
+use x10_boot::model::{Flash, Part, ACTIVE};
 use x10_boot::{BootConfig, Exit, Session, StartMode};
 use x10_devices::LinkError;
 use x10_microcode::{
@@ -31,71 +28,8 @@ use x10_microcode::{
     UpdateOp, Version, PROTOCOL_VERSION,
 };
 
-const ERASE: usize = 4096;
-const ACTIVE: usize = 32 * 1024;
-const DFU: usize = ACTIVE + ERASE;
-const STATE: usize = ERASE;
-/// Flash times (ns), typical, of the Pico's W25Q16JV.
-const ERASE_NS: u64 = 45_000_000;
-const PROGRAM_NS: u64 = 400_000;
 /// The board's start before its image answers (ns).
 const BOOT_NS: u64 = 20_000_000;
-
-#[derive(Debug)]
-struct Err0;
-impl NorFlashError for Err0 {
-    fn kind(&self) -> NorFlashErrorKind {
-        NorFlashErrorKind::Other
-    }
-}
-
-/// A partition of the board's flash; each erase and write adds its time to `busy_ns`.
-struct Part {
-    mem: Rc<RefCell<Vec<u8>>>,
-    base: usize,
-    len: usize,
-    busy_ns: Rc<Cell<u64>>,
-}
-
-impl ErrorType for Part {
-    type Error = Err0;
-}
-
-impl ReadNorFlash for Part {
-    const READ_SIZE: usize = 1;
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), Err0> {
-        let o = self.base + offset as usize;
-        bytes.copy_from_slice(&self.mem.borrow()[o..o + bytes.len()]);
-        Ok(())
-    }
-    fn capacity(&self) -> usize {
-        self.len
-    }
-}
-
-impl NorFlash for Part {
-    const WRITE_SIZE: usize = 1;
-    const ERASE_SIZE: usize = ERASE;
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), Err0> {
-        let (f, t) = (self.base + from as usize, self.base + to as usize);
-        self.mem.borrow_mut()[f..t].fill(0xff);
-        self.busy_ns
-            .set(self.busy_ns.get() + ERASE_NS * ((t - f) / ERASE) as u64);
-        Ok(())
-    }
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), Err0> {
-        let o = self.base + offset as usize;
-        for (m, b) in self.mem.borrow_mut()[o..o + bytes.len()]
-            .iter_mut()
-            .zip(bytes)
-        {
-            *m &= *b;
-        }
-        self.busy_ns
-            .set(self.busy_ns.get() + PROGRAM_NS * bytes.len().div_ceil(256) as u64);
-        Ok(())
-    }
-}
 
 /// A fake image: a header (`X10I`, version, good flag) and filler.
 fn image(len: usize, version: Version, good: bool, seed: u8) -> &'static [u8] {
@@ -126,8 +60,8 @@ enum Mode {
 /// One board: flash, what runs, when it is up again.
 struct Board {
     addr: Address,
-    mem: Rc<RefCell<Vec<u8>>>,
-    busy: Rc<Cell<u64>>,
+    /// Its flash (x10_boot::model: the Pico's layout and flash times), kept across resets.
+    flash: Flash,
     mode: RefCell<Mode>,
     up_at: Cell<u64>,
     /// Resets (power cuts) to inject: at these chunk offsets.
@@ -145,12 +79,9 @@ struct Board {
 
 impl Board {
     fn new(addr: u8, img: &[u8]) -> Board {
-        let mut mem = vec![0xffu8; STATE + ACTIVE + DFU];
-        mem[STATE..STATE + img.len()].copy_from_slice(img);
         Board {
             addr: Address::new(addr).unwrap(),
-            mem: Rc::new(RefCell::new(mem)),
-            busy: Rc::new(Cell::new(0)),
+            flash: Flash::with_active(img),
             mode: RefCell::new(Mode::App),
             up_at: Cell::new(0),
             cut_at_offset: RefCell::new(Vec::new()),
@@ -163,26 +94,15 @@ impl Board {
     }
 
     fn part(&self, which: usize) -> Part {
-        let (base, len) = match which {
-            0 => (0, STATE),
-            1 => (STATE, ACTIVE),
-            _ => (STATE + ACTIVE, DFU),
-        };
-        Part {
-            mem: self.mem.clone(),
-            base,
-            len,
-            busy_ns: self.busy.clone(),
-        }
+        self.flash.part(which)
     }
 
     fn version(&self) -> Version {
-        let m = self.mem.borrow();
-        [m[STATE + 4], m[STATE + 5], m[STATE + 6]]
+        [4, 5, 6].map(|i| self.flash.active_byte(i))
     }
 
     fn good(&self) -> bool {
-        self.mem.borrow()[STATE + 7] == 1
+        self.flash.active_byte(7) == 1
     }
 
     /// The board goes down now and starts at `at`.
@@ -198,16 +118,11 @@ impl Board {
         }
         self.starts.set(self.starts.get() + 1);
         loop {
-            let before = self.busy.get();
-            let mut bl = BootLoader::new(BootLoaderConfig {
-                active: self.part(1),
-                dfu: self.part(2),
-                state: self.part(0),
-            });
+            let before = self.flash.busy_ns();
             let mut buf = [0u8; 256];
-            let state = bl.prepare_boot(&mut buf).unwrap();
-            now.set(now.get() + self.busy.get() - before);
-            if self.cut_in_swap.get() && self.busy.get() > before {
+            let state = self.flash.bootloader().prepare_boot(&mut buf).unwrap();
+            now.set(now.get() + self.flash.busy_ns() - before);
+            if self.cut_in_swap.get() && self.flash.busy_ns() > before {
                 // The power goes in the middle of that swap: undo nothing, start again (the
                 // swap goes on where its progress says).
                 self.cut_in_swap.set(false);
@@ -341,16 +256,17 @@ impl UpdateLink for Bus {
             let mut mode = b.mode.borrow_mut();
             match &mut *mode {
                 Mode::Boot(s) => {
-                    let before = b.busy.get();
+                    let before = b.flash.busy_ns();
                     s.handle_write(&buf[..n]);
                     let mut rx = [0u8; 40];
                     let m = s.take_reply(&mut rx);
                     // Reading back the slot for the CRC at commit, or the final write.
-                    self.now.set(self.now.get() + b.busy.get() - before);
+                    self.now.set(self.now.get() + b.flash.busy_ns() - before);
                     // The flash work after the reply: the board is deaf meanwhile.
-                    let before = b.busy.get();
+                    let before = b.flash.busy_ns();
                     s.work();
-                    b.deaf_until.set(self.now.get() + b.busy.get() - before);
+                    b.deaf_until
+                        .set(self.now.get() + b.flash.busy_ns() - before);
                     let body = pec::strip(db.addr_byte(true), &rx[..m]).unwrap();
                     let r = Reply::parse(body).unwrap();
                     (r.status, r.payload.to_vec(), s.exit() != Exit::Stay)

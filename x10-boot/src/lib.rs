@@ -36,6 +36,9 @@
     )
 )]
 
+#[cfg(feature = "model")]
+pub mod model;
+
 use embassy_boot::{BlockingFirmwareState, FirmwareUpdaterError, State};
 use embedded_storage::nor_flash::NorFlash;
 use x10_microcode::{

@@ -11,25 +11,14 @@
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
-use embassy_boot::{BlockingFirmwareState, BootLoader, BootLoaderConfig, State};
-use embedded_storage::nor_flash::{
-    ErrorType, NorFlash, NorFlashError, NorFlashErrorKind, ReadNorFlash,
-};
+use embassy_boot::{BlockingFirmwareState, State};
+use x10_boot::model::{Flash, SECTOR};
+pub use x10_boot::model::{Part, ACTIVE, DFU, ERASE_NS, PROGRAM_NS, STATE};
 use x10_boot::StartMode;
 use x10_microcode::Version;
 
 /// Sector erase (the Pico's flash).
-pub const ERASE: usize = 4096;
-/// The active slot: a DB image's 32 KiB.
-pub const ACTIVE: usize = 32 * 1024;
-/// The DFU slot: one sector more.
-pub const DFU: usize = ACTIVE + ERASE;
-/// The state partition.
-pub const STATE: usize = ERASE;
-/// Time of a sector erase (ns, typical).
-pub const ERASE_NS: u64 = 45_000_000;
-/// Time of a 256-byte page program (ns, typical).
-pub const PROGRAM_NS: u64 = 400_000;
+pub const ERASE: usize = SECTOR;
 
 /// A fake image of `len` bytes for `version`.
 pub fn fake_image(version: Version, len: usize) -> Vec<u8> {
@@ -43,113 +32,36 @@ pub fn fake_image(version: Version, len: usize) -> Vec<u8> {
     v
 }
 
-/// The flash error (never happens in the simulation).
-#[derive(Debug)]
-pub struct NoError;
-
-impl NorFlashError for NoError {
-    fn kind(&self) -> NorFlashErrorKind {
-        NorFlashErrorKind::Other
-    }
-}
-
-/// One partition of a board's flash.
-pub struct Part {
-    mem: Rc<RefCell<Vec<u8>>>,
-    base: usize,
-    len: usize,
-    busy_ns: Rc<Cell<u64>>,
-}
-
-impl ErrorType for Part {
-    type Error = NoError;
-}
-
-impl ReadNorFlash for Part {
-    const READ_SIZE: usize = 1;
-
-    fn read(&mut self, offset: u32, bytes: &mut [u8]) -> Result<(), NoError> {
-        let o = self.base + offset as usize;
-        bytes.copy_from_slice(&self.mem.borrow()[o..o + bytes.len()]);
-        Ok(())
-    }
-
-    fn capacity(&self) -> usize {
-        self.len
-    }
-}
-
-impl NorFlash for Part {
-    const WRITE_SIZE: usize = 1;
-    const ERASE_SIZE: usize = ERASE;
-
-    fn erase(&mut self, from: u32, to: u32) -> Result<(), NoError> {
-        let (f, t) = (self.base + from as usize, self.base + to as usize);
-        self.mem.borrow_mut()[f..t].fill(0xff);
-        self.busy_ns
-            .set(self.busy_ns.get() + ERASE_NS * ((t - f) / ERASE) as u64);
-        Ok(())
-    }
-
-    fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), NoError> {
-        let o = self.base + offset as usize;
-        for (m, b) in self.mem.borrow_mut()[o..o + bytes.len()]
-            .iter_mut()
-            .zip(bytes)
-        {
-            *m &= *b;
-        }
-        self.busy_ns
-            .set(self.busy_ns.get() + PROGRAM_NS * bytes.len().div_ceil(256) as u64);
-        Ok(())
-    }
-}
-
-/// A board's flash and what it holds. Cloning shares it (it outlives the board's resets).
+/// A board's flash and what it holds (`x10_boot::model::Flash`, with the Pico flash's times).
+/// Cloning shares it (it outlives the board's resets).
 #[derive(Clone, Debug)]
 pub struct SimFirmware {
-    mem: Rc<RefCell<Vec<u8>>>,
-    busy_ns: Rc<Cell<u64>>,
+    flash: Flash,
     updates: Rc<Cell<u32>>,
 }
 
 impl SimFirmware {
     /// A board flashed (by a probe) with a fake image of `version`, 20 000 bytes.
     pub fn new(version: Version) -> SimFirmware {
-        let mut mem = vec![0xffu8; STATE + ACTIVE + DFU];
-        let img = fake_image(version, 20_000);
-        mem[STATE..STATE + img.len()].copy_from_slice(&img);
         SimFirmware {
-            mem: Rc::new(RefCell::new(mem)),
-            busy_ns: Rc::new(Cell::new(0)),
+            flash: Flash::with_active(&fake_image(version, 20_000)),
             updates: Rc::new(Cell::new(0)),
         }
     }
 
     /// A partition: 0 state, 1 active, 2 DFU.
     pub fn part(&self, which: usize) -> Part {
-        let (base, len) = match which {
-            0 => (0, STATE),
-            1 => (STATE, ACTIVE),
-            _ => (STATE + ACTIVE, DFU),
-        };
-        Part {
-            mem: self.mem.clone(),
-            base,
-            len,
-            busy_ns: self.busy_ns.clone(),
-        }
+        self.flash.part(which)
     }
 
     /// The version the active slot's image reports.
     pub fn version(&self) -> Version {
-        let m = self.mem.borrow();
-        [m[STATE + 4], m[STATE + 5], m[STATE + 6]]
+        [4, 5, 6].map(|i| self.flash.active_byte(i))
     }
 
     /// Flash time spent so far (ns).
     pub fn busy_ns(&self) -> u64 {
-        self.busy_ns.get()
+        self.flash.busy_ns()
     }
 
     /// Swaps that brought in a new image so far.
@@ -159,15 +71,14 @@ impl SimFirmware {
 
     /// The bootloader's start: `prepare_boot`, then the mode, and the flash time it took.
     pub fn start(&self) -> (StartMode, u64) {
-        let before = self.busy_ns.get();
-        let mut bl = BootLoader::new(BootLoaderConfig {
-            active: self.part(1),
-            dfu: self.part(2),
-            state: self.part(0),
-        });
+        let before = self.flash.busy_ns();
         let mut buf = [0u8; 256];
-        let state = bl.prepare_boot(&mut buf).unwrap_or(State::Boot);
-        let spent = self.busy_ns.get() - before;
+        let state = self
+            .flash
+            .bootloader()
+            .prepare_boot(&mut buf)
+            .unwrap_or(State::Boot);
+        let spent = self.flash.busy_ns() - before;
         if state == State::Swap && spent > 0 && self.state() == State::Swap {
             self.updates.set(self.updates.get() + 1);
         }
@@ -176,8 +87,7 @@ impl SimFirmware {
 
     /// The state partition's mark.
     pub fn state(&self) -> State {
-        let m = self.mem.borrow();
-        State::from(&m[0..1])
+        self.flash.state()
     }
 
     /// System 12's hook.
