@@ -87,6 +87,18 @@ echo "-- cargo clippy (host and both boards)"
 cargo clippy --all-targets -- -D warnings
 cargo clippy --release --target thumbv6m-none-eabi --features rp2040 --bin mb-pico -- -D warnings
 cargo clippy --release --target thumbv7em-none-eabihf --features stm32g431 --bin mb-g431 -- -D warnings
+echo "-- the update policies src/bin/mb-pico.rs documents (UpdatePolicy::Never, ::Except) compile"
+cp src/bin/mb-pico.rs "$work/mb-pico.rs"
+sed -n 's/^\/\/! `\(, updates: .*)\)`.*$/\1/p' "$work/mb-pico.rs" >"$work/policies"
+test "$(wc -l <"$work/policies")" -eq 2
+while IFS= read -r policy; do
+    # The image's last line, `x10_boards::mb_image!(x10_boards::pico, robot::Robot);`, with it.
+    grep -v '^x10_boards::mb_image!' "$work/mb-pico.rs" >src/bin/mb-pico.rs
+    echo "x10_boards::mb_image!(x10_boards::pico, robot::Robot$policy;" >>src/bin/mb-pico.rs
+    tail -1 src/bin/mb-pico.rs
+    cargo clippy --release --target thumbv6m-none-eabi --features rp2040 --bin mb-pico -- -D warnings
+done <"$work/policies"
+cp "$work/mb-pico.rs" src/bin/mb-pico.rs
 echo "-- section 7: two tasks share the motor through a static Mutex (templates/shared)"
 cp -r "$root"/templates/shared/. .
 cargo sim | tee "$work/shared.out"
