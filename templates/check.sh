@@ -23,6 +23,11 @@ if grep -q "\"$root" "$dir/Cargo.toml" "$dir/build.rs"; then
     exit 1
 fi
 grep -q 'x10 = { path = "\.\./' "$dir/Cargo.toml"
+# The checkout's own target directory (its CARGO_TARGET_DIR, else target/), where `cargo xtask
+# size` has built db-pico and cut its slot bytes into carry/db-pico.bin: the new crate's
+# build script builds its carried images there too (X10_CARRY_TARGET_DIR), reusing that build.
+checkout_target=$(cd "$root" && mkdir -p "${CARGO_TARGET_DIR:-target}" && cd "${CARGO_TARGET_DIR:-target}" && pwd)
+export X10_CARRY_TARGET_DIR="$checkout_target"
 cd "$dir"
 export CARGO_TARGET_DIR="$root/target/template"
 # As the repository's own dev profile (Cargo.toml): line tables only, to keep target/ small.
@@ -54,10 +59,46 @@ cargo build --release --target thumbv6m-none-eabi --features rp2040 --bin mb-pic
 cargo build --release --target thumbv7em-none-eabihf --features stm32g431 --bin mb-g431
 ls -l "$CARGO_TARGET_DIR"/thumbv6m-none-eabi/release/mb-pico "$CARGO_TARGET_DIR"/thumbv7em-none-eabihf/release/mb-g431
 
+echo "-- the Pico image carries the checkout's db-pico and links the updater; the G431 image carries none"
+# Section .x10_carried holds exactly db-pico's slot bytes as the checkout cut them (the same
+# file `cargo xtask size` and the checkout's `cargo mb-pico` embed), and the updater's log line
+# is linked (defmt keeps its strings in the ELF's symbol names).
+objcopy=$(ls "$(rustc --print sysroot)"/lib/rustlib/*/bin/llvm-objcopy)
+elf="$CARGO_TARGET_DIR"/thumbv6m-none-eabi/release/mb-pico
+"$objcopy" -O binary --only-section=.x10_carried "$elf" "$work/carried.bin"
+slot="$checkout_target/carry/db-pico.bin"
+n=$(wc -c <"$slot")
+# The section ends 4-aligned (carried.x): at most 3 bytes of padding after the image.
+test "$(wc -c <"$work/carried.bin")" -eq $(((n + 3) / 4 * 4))
+cmp -n "$n" "$work/carried.bin" "$slot"
+echo "mb-pico carries db-pico: $n B, the bytes of $slot"
+grep -q -a "carries board kind {} firmware" "$elf"
+g431="$CARGO_TARGET_DIR"/thumbv7em-none-eabihf/release/mb-g431
+if grep -q -a "carries board kind {} firmware" "$g431"; then
+    echo "mb-g431 links the updater" >&2
+    exit 1
+fi
+
+echo "-- cargo plan: what the Pico image would update in the world"
+cargo plan | tee "$work/plan.out"
+grep -qx "the motherboard carries pico $(sed -n 's/^version = "\(.*\)"/\1/p' "$root/Cargo.toml" | head -1) (fakes of the right length and CRC in the simulator)" "$work/plan.out"
+
 echo "-- cargo clippy (host and both boards)"
 cargo clippy --all-targets -- -D warnings
 cargo clippy --release --target thumbv6m-none-eabi --features rp2040 --bin mb-pico -- -D warnings
 cargo clippy --release --target thumbv7em-none-eabihf --features stm32g431 --bin mb-g431 -- -D warnings
+echo "-- the update policies src/bin/mb-pico.rs documents (UpdatePolicy::Never, ::Except) compile"
+cp src/bin/mb-pico.rs "$work/mb-pico.rs"
+sed -n 's/^\/\/! `\(, updates: .*)\)`.*$/\1/p' "$work/mb-pico.rs" >"$work/policies"
+test "$(wc -l <"$work/policies")" -eq 2
+while IFS= read -r policy; do
+    # The image's last line, `x10_boards::mb_image!(x10_boards::pico, robot::Robot);`, with it.
+    grep -v '^x10_boards::mb_image!' "$work/mb-pico.rs" >src/bin/mb-pico.rs
+    echo "x10_boards::mb_image!(x10_boards::pico, robot::Robot$policy;" >>src/bin/mb-pico.rs
+    tail -1 src/bin/mb-pico.rs
+    cargo clippy --release --target thumbv6m-none-eabi --features rp2040 --bin mb-pico -- -D warnings
+done <"$work/policies"
+cp "$work/mb-pico.rs" src/bin/mb-pico.rs
 echo "-- section 7: two tasks share the motor through a static Mutex (templates/shared)"
 cp -r "$root"/templates/shared/. .
 cargo sim | tee "$work/shared.out"

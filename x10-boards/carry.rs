@@ -22,6 +22,10 @@
 // updater is not linked) and links `carried.x`, which puts the section `.x10_carried` after
 // `.rodata` in FLASH, so that `cargo xtask size` reports the carried bytes on their own line.
 // Without `X10_CARRY` (or with it empty) `CARRIED` is empty and nothing else changes.
+//
+// A robot crate made by `cargo x10 new` does not build through xtask: its build script also
+// includes `carry_checkout.rs`, which gets `X10_CARRY` from the X10 checkout
+// (`cargo xtask carry`) and passes it to [`carried_images_of`].
 
 /// One carried image as `X10_CARRY` names it.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -110,13 +114,18 @@ const CARRIED_X: &str = "SECTIONS {
 /// argument) from `X10_CARRY`; a malformed value or an unreadable file fails the build.
 fn carried_images() {
     println!("cargo:rerun-if-env-changed=X10_CARRY");
+    carried_images_of(&std::env::var("X10_CARRY").unwrap_or_default());
+}
+
+/// [`carried_images`] for `value`, an `X10_CARRY` value (a robot crate's build script gets it
+/// from the X10 checkout: `carry_checkout.rs`).
+fn carried_images_of(value: &str) {
     println!("cargo::rustc-check-cfg=cfg(x10_carry)");
     let Some(out) = std::env::var_os("OUT_DIR").map(std::path::PathBuf::from) else {
         return;
     };
-    let value = std::env::var("X10_CARRY").unwrap_or_default();
     let on_board = std::env::var("CARGO_CFG_TARGET_OS").as_deref() == Ok("none");
-    let carried = match parse_carry(&value) {
+    let carried = match parse_carry(value) {
         Ok(c) if on_board => c,
         Ok(_) => Vec::new(),
         Err(e) => panic!("{e}"),

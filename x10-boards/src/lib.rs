@@ -79,6 +79,9 @@ compile_error!(
 #[cfg(feature = "motherboard")]
 #[macro_use]
 pub mod start;
+// `mb_image!`: a motherboard image's `main` (exported at the crate's root).
+#[cfg(feature = "motherboard")]
+mod mb_image;
 #[cfg(feature = "usb-link")]
 pub mod usb_link;
 // The defmt global logger (RTT and the USB link): a `#[no_mangle]` control block the host

@@ -167,7 +167,11 @@ struct Cli {
 /// names another), adds the robot tasks with `robots`, runs and prints. Exits non-zero when
 /// the run went wrong ([`SimOutcome::problems`]).
 pub fn main(world_file: &str, robots: impl FnOnce(Sim) -> Sim) -> ExitCode {
-    let cli = Cli::parse_from(without_separator(std::env::args_os()));
+    let args = without_separator(std::env::args_os());
+    if args.get(1).is_some_and(|a| *a == "plan") {
+        return plan_main(world_file, args.into_iter().skip(1));
+    }
+    let cli = Cli::parse_from(args);
     let default = Path::new(world_file);
     let path = cli
         .run
@@ -189,6 +193,103 @@ pub fn main(world_file: &str, robots: impl FnOnce(Sim) -> Sim) -> ExitCode {
         &title,
         &path.display().to_string(),
     )
+}
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "plan",
+    about = "Prints what the robot's motherboard image (`cargo mb-pico`) would update in its world: \
+             the daughterboard images it carries (X10_CARRY_KINDS, default pico, at X10_FW_VERSION \
+             or the X10 checkout's version), then each daughterboard and what happens to it"
+)]
+struct PlanCli {
+    /// The world to read (default: the crate's world file).
+    #[arg(long, value_name = "FILE")]
+    world: Option<PathBuf>,
+}
+
+/// The images a robot crate's `cargo mb-pico` carries, as its build script builds them
+/// (`x10-boards/carry_checkout.rs`): the kinds of `kinds` (`X10_CARRY_KINDS`; `None`: `pico`),
+/// each at `version` (`X10_FW_VERSION`; `None`: the X10 checkout's, this crate's own). The
+/// simulator's worlds have no C011 board: a `c011` is left out and said in the second value.
+///
+/// # Errors
+/// An unknown kind or a version that is not major.minor.patch, in words.
+pub fn crate_carried_images(
+    kinds: Option<&str>,
+    version: Option<&str>,
+) -> Result<(Vec<x10_sim::world::CarriedImage>, bool), String> {
+    use x10_sim::world::{BoardKind, CarriedImage};
+    let version = version.unwrap_or(env!("CARGO_PKG_VERSION"));
+    let parts: Vec<Option<u8>> = version.split('.').map(|p| p.parse().ok()).collect();
+    let version = match parts.as_slice() {
+        [Some(a), Some(b), Some(c)] => [*a, *b, *c],
+        _ => {
+            return Err(format!(
+                "X10_FW_VERSION `{version}` is not major.minor.patch (numbers up to 255)"
+            ))
+        }
+    };
+    let mut images = Vec::new();
+    let mut c011 = false;
+    for k in kinds.unwrap_or("pico").split(',').map(str::trim) {
+        let kind = match k {
+            "" => continue,
+            "pico" => BoardKind::Pico,
+            "g431" => BoardKind::G431,
+            "c011" => {
+                c011 = true;
+                continue;
+            }
+            other => {
+                return Err(format!(
+                    "X10_CARRY_KINDS: unknown board kind `{other}` (pico, g431 or c011)"
+                ))
+            }
+        };
+        images.push(CarriedImage { kind, version });
+    }
+    Ok((images, c011))
+}
+
+/// `cargo plan` in a robot crate (`cargo sim -- plan`): `x10 plan` for the crate's world with
+/// the images its `cargo mb-pico` carries ([`crate_carried_images`]), unless the world names
+/// its own (`[[image]]`). Exit code 1 when the world or the variables are wrong.
+fn plan_main(world_file: &str, args: impl IntoIterator<Item = std::ffi::OsString>) -> ExitCode {
+    let cli = PlanCli::parse_from(args);
+    let path = cli.world.unwrap_or_else(|| PathBuf::from(world_file));
+    let mut world = match World::load(&path) {
+        Ok(w) => w,
+        Err(e) => {
+            eprintln!("plan: {}: {e}", path.display());
+            return ExitCode::FAILURE;
+        }
+    };
+    let kinds = std::env::var("X10_CARRY_KINDS").ok();
+    let version = std::env::var("X10_FW_VERSION").ok();
+    println!("# cargo plan {}", path.display());
+    if world.images().is_empty() {
+        let (images, c011) = match crate_carried_images(kinds.as_deref(), version.as_deref()) {
+            Ok(i) => i,
+            Err(e) => {
+                eprintln!("plan: {e}");
+                return ExitCode::FAILURE;
+            }
+        };
+        println!("# the images cargo mb-pico carries (X10_CARRY_KINDS, X10_FW_VERSION)");
+        if c011 {
+            println!("# and c011's: a world file has no C011 board");
+        }
+        for i in images {
+            world = world.carries(i);
+        }
+    } else {
+        println!("# the images the world names ([[image]])");
+    }
+    for line in x10_sim::firmware::update_plan(&world) {
+        println!("{line}");
+    }
+    ExitCode::SUCCESS
 }
 
 /// The arguments without a `--` right after the program's name: `cargo sim -- --trace`
@@ -447,6 +548,55 @@ pub fn write_out(text: &str) -> ExitCode {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cargo_plan_knows_what_cargo_mb_pico_carries() {
+        use x10_sim::world::{BoardKind, CarriedImage};
+        let ours: [u8; 3] = {
+            let v: Vec<u8> = env!("CARGO_PKG_VERSION")
+                .split('.')
+                .map(|p| p.parse().unwrap())
+                .collect();
+            [v[0], v[1], v[2]]
+        };
+        // Unset: db-pico at the checkout's version, as the crate's build script carries it.
+        assert_eq!(
+            crate_carried_images(None, None),
+            Ok((
+                vec![CarriedImage {
+                    kind: BoardKind::Pico,
+                    version: ours
+                }],
+                false
+            ))
+        );
+        assert_eq!(
+            crate_carried_images(Some("c011, g431,pico"), Some("2.0.1")),
+            Ok((
+                vec![
+                    CarriedImage {
+                        kind: BoardKind::G431,
+                        version: [2, 0, 1]
+                    },
+                    CarriedImage {
+                        kind: BoardKind::Pico,
+                        version: [2, 0, 1]
+                    }
+                ],
+                true
+            ))
+        );
+        assert_eq!(crate_carried_images(Some(""), None), Ok((vec![], false)));
+        assert_eq!(
+            crate_carried_images(Some("pico,uno"), None),
+            Err("X10_CARRY_KINDS: unknown board kind `uno` (pico, g431 or c011)".into())
+        );
+        assert_eq!(
+            crate_carried_images(None, Some("2.0")),
+            Err("X10_FW_VERSION `2.0` is not major.minor.patch (numbers up to 255)".into())
+        );
+        assert!(crate_carried_images(None, Some("1.2.256")).is_err());
+    }
 
     fn args(v: &[&str]) -> RunArgs {
         let mut all = vec!["sim"];

@@ -306,7 +306,7 @@ fn build_carrying(
     slot_elf: &Path,
     version: &str,
 ) -> Result<std::path::PathBuf, Error> {
-    let carry = &crate::MB_PICO_CARRIES[0];
+    let carry = &crate::CARRIES[0];
     let segments = crate::loaded_segments(slot_elf)?;
     let parts: Vec<(u64, &[u8])> = segments.iter().map(|(a, b)| (*a, b.as_slice())).collect();
     let bytes = crate::slot_image(&parts, carry.slot, carry.slot_len)

@@ -16,11 +16,17 @@
 //!   An image whose chip is not its target's default runner (the C011, a thumbv6m chip like the
 //!   RP2040) gets its `probe-rs run --chip …` runner through `cargo --config`.
 //!
-//! * A motherboard image that carries daughterboard images (mb-pico: [`MB_PICO_CARRIES`]) is
+//! * A motherboard image that carries daughterboard images (mb-pico: the kinds of
+//!   `X10_CARRY_KINDS`, default `pico`, rows of [`CARRIES`]) is
 //!   built after them, `size` and `image` alike: each carried image is built, the bytes its
 //!   slot receives cut out of its ELF into `target/carry/NAME.bin`, and named to the
 //!   motherboard's build in `X10_CARRY` (issue 25; `x10-boards/carry.rs`). `size` prints the
 //!   carried bytes on a row of their own, outside the motherboard's budget.
+//!
+//! * `cargo xtask carry` builds the images mb-pico carries (`X10_CARRY_KINDS`, default `pico`)
+//!   and prints their `X10_CARRY` with the files they are built from: the build script of a
+//!   robot crate made by `cargo x10 new` runs it in the X10 checkout, so that the crate's own
+//!   `cargo mb-pico` carries them too (`x10-boards/carry_checkout.rs`, [`carry_task`]).
 //!
 //! * `cargo xtask emu [--list] [SCENARIO…]` runs mb-pico and db-pico on emulated RP2040s
 //!   (`emu/`, `docs/emulation.md`; the module [`emu`]).
@@ -115,7 +121,7 @@ const IMAGES: &[Image] = &[
         target: "thumbv6m-none-eabi",
         // Linked into boot-pico's ACTIVE slot (issue 25): `cargo boot-pico` once per board,
         // then `cargo db-pico`; the motherboard keeps it up to date after that (mb-pico
-        // carries this image, [`MB_PICO_CARRIES`]). The standalone build, without the
+        // carries this image, [`CARRIES`]). The standalone build, without the
         // bootloader, is `--features rp2040,daughterboard,together` (the emulator's
         // scenarios). `together` (issue 27): general calls, `sample`, `stage`, `apply`.
         features: "rp2040,daughterboard,together,active-slot",
@@ -221,6 +227,7 @@ const DB_BUDGET: Budget = Budget {
 /// its ELF ([`slot_image`]) into `target/carry/NAME.bin`, and named to the motherboard image's
 /// build in `X10_CARRY` (`KIND@VERSION=PATH`, `x10-boards/carry.rs`), whose build script
 /// embeds them with their CRC-32.
+#[derive(Debug)]
 struct Carry {
     /// The daughterboard image's row in [`IMAGES`] (its bin).
     bin: &'static str,
@@ -231,24 +238,75 @@ struct Carry {
     slot_len: u64,
 }
 
-/// What mb-pico carries: `cargo db-pico`'s image, linked into boot-pico's ACTIVE slot
-/// (`x10_boards::rp_flash::layout`: 32 KiB from 0x10009000). Not db-g431 (its build, for the
-/// other Rust target, would add minutes to the first `cargo mb-pico`) nor db-c011 (the MB's
-/// updater has no ST ROM method yet): each is one more row here when wanted.
-const MB_PICO_CARRIES: &[Carry] = &[Carry {
-    bin: "db-pico",
-    kind: "pico",
-    slot: 0x1000_9000,
-    slot_len: 32 * 1024,
-}];
+/// Every daughterboard image a motherboard image can carry, one row per board kind: mb-pico
+/// carries the kinds `X10_CARRY_KINDS` names ([`carry_kinds`]; `pico` when unset).
+/// * `pico`: `cargo db-pico`'s image, linked into boot-pico's ACTIVE slot
+///   (`x10_boards::rp_flash::layout`: 32 KiB from 0x10009000).
+/// * `g431`: `cargo db-g431`'s image, linked into boot-g431's ACTIVE slot
+///   (`x10_boards::g431_boot::ACTIVE`: 40 KiB from 0x08006800). Its build, for the other Rust
+///   target, adds embassy-stm32 to the first build: opt-in.
+/// * `c011`: `cargo db-c011`'s whole image from the start of the chip's flash (0x08000000,
+///   32 KiB): ST's ROM bootloader writes it there (`x10_stmboot::C011`'s `flash_base`, the
+///   motherboard's `Method::StRom`). Opt-in, as g431.
+const CARRIES: &[Carry] = &[
+    Carry {
+        bin: "db-pico",
+        kind: "pico",
+        slot: 0x1000_9000,
+        slot_len: 32 * 1024,
+    },
+    Carry {
+        bin: "db-g431",
+        kind: "g431",
+        slot: 0x0800_6800,
+        slot_len: 40 * 1024,
+    },
+    Carry {
+        bin: "db-c011",
+        kind: "c011",
+        slot: 0x0800_0000,
+        slot_len: 32 * 1024,
+    },
+];
 
-/// The daughterboard images `image` carries: mb-pico's [`MB_PICO_CARRIES`]; mb-g431's 128 KiB
-/// hold no 32 KiB image next to its ~97 KiB: none; nor do the daughterboard images.
-fn carries(image: &Image) -> &'static [Carry] {
+/// The kinds mb-pico carries when `X10_CARRY_KINDS` is not set.
+const DEFAULT_CARRY_KINDS: &str = "pico";
+
+/// The rows of [`CARRIES`] that `kinds` names (`X10_CARRY_KINDS`: comma-separated kinds, in
+/// any order, each at most once; empty: none), in the order of [`CARRIES`].
+///
+/// # Errors
+/// [`Error::Usage`] for an unknown or repeated kind.
+fn carry_kinds(kinds: &str) -> Result<Vec<&'static Carry>, Error> {
+    let mut named: Vec<&str> = Vec::new();
+    for k in kinds.split(',').map(str::trim).filter(|k| !k.is_empty()) {
+        if !CARRIES.iter().any(|c| c.kind == k) {
+            return Err(Error::Usage(format!(
+                "X10_CARRY_KINDS: unknown board kind `{k}` (pico, g431 or c011)"
+            )));
+        }
+        if named.contains(&k) {
+            return Err(Error::Usage(format!(
+                "X10_CARRY_KINDS: `{k}` named twice in `{kinds}`"
+            )));
+        }
+        named.push(k);
+    }
+    Ok(CARRIES.iter().filter(|c| named.contains(&c.kind)).collect())
+}
+
+/// The daughterboard images `image` carries: mb-pico's, the kinds of `X10_CARRY_KINDS`
+/// ([`carry_kinds`]); mb-g431's 128 KiB hold no 32 KiB image next to its ~97 KiB: none; nor
+/// do the daughterboard images.
+///
+/// # Errors
+/// [`carry_kinds`]'s.
+fn carries(image: &Image) -> Result<Vec<&'static Carry>, Error> {
     if image.bin == "mb-pico" {
-        MB_PICO_CARRIES
+        let kinds = env::var("X10_CARRY_KINDS").unwrap_or_else(|_| DEFAULT_CARRY_KINDS.into());
+        carry_kinds(&kinds)
     } else {
-        &[]
+        Ok(Vec::new())
     }
 }
 
@@ -335,7 +393,7 @@ impl fmt::Display for Error {
         match self {
             Error::Usage(s) => write!(
                 f,
-                "{s}\nusage: cargo xtask size [--no-build]\n       cargo xtask image NAME [ARGS...]   (NAME: {})\n       cargo xtask emu [--list] [--check-docs | --write-docs] [SCENARIO...]",
+                "{s}\nusage: cargo xtask size [--no-build]\n       cargo xtask carry\n       cargo xtask image NAME [ARGS...]   (NAME: {})\n       cargo xtask emu [--list] [--check-docs | --write-docs] [SCENARIO...]",
                 names()
             ),
             Error::Io(p, e) => write!(f, "{}: {e}", p.display()),
@@ -558,10 +616,18 @@ fn carried_version() -> String {
 /// # Errors
 /// Build, metadata, ELF and slot errors.
 fn prepare_carry(cargo: &str, image: &Image) -> Result<Option<String>, Error> {
-    let carried = carries(image);
+    let carried = carries(image)?;
     if carried.is_empty() {
         return Ok(None);
     }
+    let targets: Vec<&'static str> = carried
+        .iter()
+        .map(|c| self::image(c.bin).map(|i| i.target))
+        .collect::<Result<_, _>>()?;
+    check_targets(
+        &format!("{} carrying {}", image.bin, kinds_of(&carried)),
+        &targets,
+    )?;
     let dir = target_dir(cargo)?;
     let out = dir.join("carry");
     std::fs::create_dir_all(&out).map_err(|e| Error::Io(out.clone(), e))?;
@@ -578,7 +644,11 @@ fn prepare_carry(cargo: &str, image: &Image) -> Result<Option<String>, Error> {
         let bytes = slot_image(&parts, c.slot, c.slot_len)
             .map_err(|e| Error::Usage(format!("{}: {e}", elf.display())))?;
         let file = out.join(format!("{}.bin", c.bin));
-        std::fs::write(&file, &bytes).map_err(|e| Error::Io(file.clone(), e))?;
+        // Written only when it changed: the motherboard's build script reruns when it does
+        // (`x10-boards/carry.rs`), and so does a robot crate's (`cargo xtask carry`).
+        if std::fs::read(&file).ok().as_deref() != Some(bytes.as_slice()) {
+            std::fs::write(&file, &bytes).map_err(|e| Error::Io(file.clone(), e))?;
+        }
         eprintln!(
             "{} carries {} {version}: {} B",
             image.bin,
@@ -588,6 +658,81 @@ fn prepare_carry(cargo: &str, image: &Image) -> Result<Option<String>, Error> {
         value.push(format!("{}@{version}={}", c.kind, file.display()));
     }
     Ok(Some(value.join(";")))
+}
+
+/// The kinds of `carried`, comma-separated (`X10_CARRY_KINDS`'s form).
+fn kinds_of(carried: &[&Carry]) -> String {
+    carried.iter().map(|c| c.kind).collect::<Vec<_>>().join(",")
+}
+
+/// The files a build's dep-info file (`target/TARGET/release/BIN.d`, cargo's Makefile rule
+/// `OUTPUT: SOURCE SOURCE…`, spaces in names escaped as `\ `) names as its sources.
+fn dep_info_sources(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    for line in text.lines() {
+        // The rule's target ends at the first `: ` (a Windows drive's `C:` is followed by `\`).
+        let Some((_, deps)) = line.split_once(": ") else {
+            continue;
+        };
+        let mut word = String::new();
+        let mut chars = deps.chars().peekable();
+        while let Some(ch) = chars.next() {
+            match ch {
+                '\\' if chars.peek() == Some(&' ') => {
+                    word.push(' ');
+                    chars.next();
+                }
+                ' ' => {
+                    if !word.is_empty() {
+                        out.push(std::mem::take(&mut word));
+                    }
+                }
+                _ => word.push(ch),
+            }
+        }
+        if !word.is_empty() {
+            out.push(word);
+        }
+    }
+    out
+}
+
+/// `cargo xtask carry`: builds the daughterboard images mb-pico carries (the kinds of
+/// `X10_CARRY_KINDS`, default `pico`) as `cargo mb-pico` does ([`prepare_carry`]), and prints
+/// what the build script of a robot crate made by `cargo x10 new` needs
+/// (`x10-boards/carry_checkout.rs` runs it in the X10 checkout): one
+/// `cargo:rerun-if-changed=FILE` per source file of the carried images (their dep-info
+/// files) and of this task, then `X10_CARRY=VALUE` (empty when it carries none).
+///
+/// # Errors
+/// [`prepare_carry`]'s, and a dep-info file that cannot be read.
+fn carry_task() -> Result<ExitCode, Error> {
+    let cargo = env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mb = image("mb-pico")?;
+    let value = prepare_carry(&cargo, mb)?.unwrap_or_default();
+    let dir = target_dir(&cargo)?;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let mut lines = Vec::new();
+    for own in ["xtask/src/main.rs", "Cargo.lock", ".cargo/config.toml"] {
+        lines.push(format!(
+            "cargo:rerun-if-changed={}",
+            root.join(own).display()
+        ));
+    }
+    for c in carries(mb)? {
+        let db = image(c.bin)?;
+        let d = dir
+            .join(db.target)
+            .join("release")
+            .join(format!("{}.d", db.bin));
+        let text = std::fs::read_to_string(&d).map_err(|e| Error::Io(d.clone(), e))?;
+        for f in dep_info_sources(&text) {
+            lines.push(format!("cargo:rerun-if-changed={f}"));
+        }
+    }
+    lines.push(format!("X10_CARRY={value}"));
+    println!("{}", lines.join("\n"));
+    Ok(ExitCode::SUCCESS)
 }
 
 /// `X10_CARRY` on `c` (the build of a motherboard image): `value`, or removed.
@@ -775,7 +920,11 @@ fn with_record(image: &Image, flash: u64) -> String {
 /// The size table's row of the daughterboard images `image` carries: their bytes (section
 /// [`CARRIED_SECTION`]), outside its budget (which is its own code's) but within its chip.
 fn carried_row(image: &Image, carried: u64) -> String {
-    let names: Vec<&str> = carries(image).iter().map(|c| c.bin).collect();
+    let names: Vec<&str> = carries(image)
+        .unwrap_or_default()
+        .iter()
+        .map(|c| c.bin)
+        .collect();
     format!(
         "| {} carries {} {} | {} | {} B ({}) | - | not in the budget | - | in the image + record column | - |",
         image.bin,
@@ -843,7 +992,7 @@ fn size(build_first: bool) -> Result<bool, Error> {
             with_record(image, flash + carried),
             secs
         );
-        if carried > 0 || !carries(image).is_empty() {
+        if carried > 0 || carries(image).is_ok_and(|c| !c.is_empty()) {
             println!("{}", carried_row(image, carried));
         }
     }
@@ -868,6 +1017,7 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
         [task, flag] if task == "size" && flag == "--no-build" => size(false).map(sized),
         [task, name, rest @ ..] if task == "image" => run_image(name, rest),
         [task, rest @ ..] if task == "emu" => emu::emu(rest),
+        [task] if task == "carry" => carry_task(),
         _ => Err(Error::Usage(format!("unknown arguments {args:?}"))),
     }
 }
@@ -904,6 +1054,7 @@ mod tests {
             e.to_string(),
             "unknown image `mb-uno`\n\
              usage: cargo xtask size [--no-build]\n       \
+             cargo xtask carry\n       \
              cargo xtask image NAME [ARGS...]   (NAME: mb-pico, db-pico, boot-pico, mb-g431, db-g431, boot-g431, db-c011)\n       \
              cargo xtask emu [--list] [--check-docs | --write-docs] [SCENARIO...]"
         );
@@ -966,6 +1117,85 @@ mod tests {
     #[allow(dead_code)]
     mod carry {
         include!("../../x10-boards/carry.rs");
+        // A robot crate's build script includes this one after it.
+        include!("../../x10-boards/carry_checkout.rs");
+
+        #[test]
+        fn the_nested_build_gets_none_of_the_outer_build_s_variables() {
+            for v in [
+                "CARGO_TARGET_DIR",
+                "CARGO_ENCODED_RUSTFLAGS",
+                "RUSTFLAGS",
+                "TARGET",
+                "CARGO_FEATURE_RP2040",
+                "CARGO_CFG_TARGET_OS",
+                "RUSTC",
+                "RUSTC_WRAPPER",
+                "RUSTC_WORKSPACE_WRAPPER",
+                "CLIPPY_ARGS",
+                "DEFMT_LOG",
+                "RUSTUP_TOOLCHAIN",
+                "OUT_DIR",
+                "CARGO_MANIFEST_DIR",
+                "CARGO_PROFILE_DEV_DEBUG",
+                "CARGO_TARGET_THUMBV6M_NONE_EABI_RUNNER",
+                "CARGO_MAKEFLAGS",
+                "X10_DB_ADDR",
+                "__CARGO_FIX_PLZ",
+            ] {
+                assert!(outer_build_var(v), "{v}");
+            }
+            // What the user says about the images, and where cargo and rustup live, stay.
+            for v in [
+                "X10_CARRY_KINDS",
+                "X10_FW_VERSION",
+                "X10_BUS_HZ",
+                "CARGO_HOME",
+                "RUSTUP_HOME",
+                "PATH",
+                "HOME",
+            ] {
+                assert!(!outer_build_var(v), "{v}");
+            }
+        }
+
+        #[test]
+        fn the_nested_build_never_shares_the_outer_build_s_target_directory() {
+            let base = std::env::temp_dir().join(format!("xtask-carry-{}", std::process::id()));
+            let checkout = base.join("x10").join("target");
+            let outer = base.join("my-robot").join("target");
+            let out_dir = outer.join("thumbv6m-none-eabi/release/build/my-robot-1234/out");
+            std::fs::create_dir_all(&out_dir).unwrap();
+            std::fs::create_dir_all(&checkout).unwrap();
+            std::fs::write(outer.join("CACHEDIR.TAG"), "").unwrap();
+            assert_eq!(outer_target_dir(&out_dir).as_deref(), Some(outer.as_path()));
+            assert_eq!(nested_target_dir(&checkout, Some(&outer)), checkout);
+            assert_eq!(nested_target_dir(&checkout, None), checkout);
+            // The outer build in the checkout's own target directory (by another path).
+            let again = base.join("x10").join("..").join("x10").join("target");
+            assert_eq!(
+                nested_target_dir(&checkout, Some(&again)),
+                checkout.join("carry-build")
+            );
+            std::fs::remove_dir_all(&base).unwrap();
+        }
+
+        #[test]
+        fn xtask_carry_s_output_is_split_into_directives_and_the_value() {
+            let out = "cargo:rerun-if-changed=/x/a.rs\ncargo:rerun-if-changed=/x/b.rs\nX10_CARRY=pico@0.1.0=/x/target/carry/db-pico.bin\n";
+            assert_eq!(
+                carry_output(out),
+                Ok((
+                    vec![
+                        "cargo:rerun-if-changed=/x/a.rs",
+                        "cargo:rerun-if-changed=/x/b.rs"
+                    ],
+                    "pico@0.1.0=/x/target/carry/db-pico.bin"
+                ))
+            );
+            assert_eq!(carry_output("X10_CARRY=\n"), Ok((vec![], "")));
+            assert!(carry_output("cargo:rerun-if-changed=/x/a.rs\n").is_err());
+        }
 
         #[test]
         fn x10_carry_is_parsed() {
@@ -1058,23 +1288,82 @@ mod tests {
     }
 
     #[test]
-    fn only_mb_pico_carries_and_it_carries_db_pico_s_slot() {
+    fn only_mb_pico_carries_and_by_default_db_pico_s_slot() {
         let mb = image("mb-pico").unwrap();
-        let c = carries(mb);
+        let c = carry_kinds(DEFAULT_CARRY_KINDS).unwrap();
         assert_eq!(c.len(), 1);
         assert_eq!((c[0].bin, c[0].kind), ("db-pico", "pico"));
         assert_eq!((c[0].slot, c[0].slot_len), (0x1000_9000, 32 * 1024));
         // The carried image is the `active-slot` build: `cargo db-pico`'s.
         assert!(image("db-pico").unwrap().features.contains("active-slot"));
         for i in IMAGES.iter().filter(|i| i.bin != "mb-pico") {
-            assert!(carries(i).is_empty(), "{}", i.bin);
+            assert!(carries(i).unwrap().is_empty(), "{}", i.bin);
         }
         let row = carried_row(mb, 31_000);
-        assert!(row.starts_with("| mb-pico carries db-pico "), "{row}");
+        assert!(row.starts_with("| mb-pico carries db-pico"), "{row}");
         assert!(
             row.contains("| thumbv6m-none-eabi | 31000 B (30.3 KiB) | - | not in the budget |"),
             "{row}"
         );
+    }
+
+    #[test]
+    fn more_kinds_are_opt_in_each_at_its_slot() {
+        let bins = |k: &str| -> Vec<(&str, u64, u64)> {
+            carry_kinds(k)
+                .unwrap()
+                .iter()
+                .map(|c| (c.bin, c.slot, c.slot_len))
+                .collect()
+        };
+        // In the table's order, whatever the order named.
+        assert_eq!(
+            bins("c011, g431,pico"),
+            [
+                ("db-pico", 0x1000_9000, 32 * 1024),
+                // boot-g431's ACTIVE: after its 24 KiB and the 2 KiB STATE page, 40 KiB.
+                ("db-g431", 0x0800_6800, 40 * 1024),
+                // The C011's whole flash, where ST's ROM bootloader writes it.
+                ("db-c011", 0x0800_0000, 32 * 1024),
+            ]
+        );
+        assert_eq!(bins("c011"), [("db-c011", 0x0800_0000, 32 * 1024)]);
+        assert_eq!(bins(""), []);
+        assert_eq!(kinds_of(&carry_kinds("g431,pico").unwrap()), "pico,g431");
+        // Each carried bin is a daughterboard image of the table, for the Rust target of its
+        // chip.
+        for c in CARRIES {
+            let db = image(c.bin).unwrap();
+            assert!(db.daughterboard, "{}", c.bin);
+            assert!(c.slot_len >= DB_GOAL.flash, "{}", c.bin);
+        }
+        assert_eq!(image("db-g431").unwrap().target, "thumbv7em-none-eabihf");
+        let err = |k: &str| carry_kinds(k).unwrap_err().to_string();
+        assert!(
+            err("pico,rp2040")
+                .starts_with("X10_CARRY_KINDS: unknown board kind `rp2040` (pico, g431 or c011)"),
+            "{}",
+            err("pico,rp2040")
+        );
+        assert!(
+            err("pico,pico").starts_with("X10_CARRY_KINDS: `pico` named twice in `pico,pico`"),
+            "{}",
+            err("pico,pico")
+        );
+    }
+
+    #[test]
+    fn dep_info_names_the_sources() {
+        let text = "/t/thumbv6m-none-eabi/release/db-pico: /x/firmware-db/src/lib.rs /x/my\\ dir/a.rs  /r/embassy-rp/src/lib.rs\n\n/x/firmware-db/src/lib.rs:\n";
+        assert_eq!(
+            dep_info_sources(text),
+            [
+                "/x/firmware-db/src/lib.rs",
+                "/x/my dir/a.rs",
+                "/r/embassy-rp/src/lib.rs"
+            ]
+        );
+        assert_eq!(dep_info_sources(""), Vec::<String>::new());
     }
 
     #[test]

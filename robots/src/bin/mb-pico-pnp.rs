@@ -5,10 +5,4 @@
 #![no_std]
 #![no_main]
 
-use x10_boards::pico as board;
-
-#[path = "../mb_image.rs"]
-#[macro_use]
-mod image;
-
-mb_image!(x10_robots::TwoBoards);
+x10_boards::mb_image!(x10_boards::pico, x10_robots::TwoBoards);

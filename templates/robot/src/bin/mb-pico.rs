@@ -1,22 +1,18 @@
 //! The motherboard image for a Raspberry Pi Pico: `cargo mb-pico` builds it, flashes it with
-//! probe-rs and prints its defmt log.
+//! probe-rs and prints its defmt log. It carries the X10 checkout's daughterboard images
+//! (`build.rs`: db-pico by default, `X10_CARRY_KINDS=pico,g431,c011` for more) and brings
+//! every daughterboard of those kinds to their version over the bus; `cargo plan` prints what
+//! it would update in `world.toml`.
+//!
+//! Which boards it updates: every one by default. To update none, or to leave some boards on
+//! the firmware they run (by unique ID: `x10 boards` prints them), end the line below with
+//! `, updates: x10_boards::start::UpdatePolicy::Never)` or
+//! `, updates: x10_boards::start::UpdatePolicy::Except(&[x10::Uid([0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07, 0x08])]))`.
 #![no_std]
 #![no_main]
 
-use defmt::unwrap;
-use embassy_executor::Spawner;
-use x10::MbConfig;
-use x10_boards::pico::{init, start_motherboard};
-use x10_boards::start::MB_ADDRESS;
-// The panic and HardFault handlers and the watchdog come with x10-boards (`x10_boards::watchdog`),
-// and so does the defmt logger (`x10_boards::usb_log`: RTT, and the USB link for `x10 monitor`).
-
-#[embassy_executor::main]
-async fn main(spawner: Spawner) {
-    // The USB link's hello names the robot (`x10 monitor`, docs/usb-link.md).
-    x10_boards::start::name_robot(<robot::Robot as x10::Robot>::NAME);
-    let p = init();
-    let x10 = unwrap!(start_motherboard(spawner, p, MbConfig::new(MB_ADDRESS)));
-    // One embassy task per task of the robot (`src/lib.rs`), each logging the error that ends it.
-    unwrap!(robot::Robot.spawn(spawner, x10));
-}
+// `main`: starts the X10 motherboard runtime, the updater, and one embassy task per task of the
+// robot (`src/lib.rs`), each logging the error that ends it. The panic and HardFault handlers
+// and the watchdog come with x10-boards (`x10_boards::watchdog`), and so does the defmt logger
+// (`x10_boards::usb_log`: RTT, and the USB link for `x10 monitor`).
+x10_boards::mb_image!(x10_boards::pico, robot::Robot);
