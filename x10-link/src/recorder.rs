@@ -17,7 +17,7 @@ use firmware_mb::{CallObserver, CallRecord, MbDiagnostics, X10};
 use x10_devices::LinkError;
 use x10_microcode::{Address, Event, Op};
 
-use crate::frame::{encode_host, FrameError, MAX_FRAME, MAX_LOG_CHUNK};
+use crate::frame::{cobs_each, cobs_max, host_body, FrameError, MAX_LOG_CHUNK, MAX_MESSAGE};
 use crate::msg::{
     CallError, CallRec, DiagCounters, Dropped, EventRec, Hello, Outcome, OutputRec, OutputValue,
     ToDevice, ToHost, WireOp, LINK_VERSION,
@@ -47,26 +47,20 @@ struct State<const N: usize> {
 }
 
 impl<const N: usize> State<N> {
-    /// Appends a whole frame or nothing.
-    fn push_frame(&mut self, frame: &[u8]) -> bool {
-        if N - self.ring.len() < frame.len() {
-            return false;
-        }
-        for &b in frame {
-            // Cannot fail: the room was checked.
-            let _ = self.ring.push_back(b);
-        }
-        true
-    }
-
+    /// Appends `msg`'s whole frame or nothing: COBS-encoded straight into the ring.
     fn push(&mut self, msg: &ToHost<'_>) -> Result<(), FrameError> {
-        let mut buf = [0u8; MAX_FRAME];
-        let n = encode_host(msg, &mut buf)?;
-        if self.push_frame(buf.get(..n).ok_or(FrameError::TooLong)?) {
-            Ok(())
-        } else {
-            Err(FrameError::TooLong)
+        let mut raw = [0u8; MAX_MESSAGE + 2];
+        let n = host_body(msg, &mut raw)?;
+        // The frame's length: COBS's (exact below 254 bytes) and the final zero.
+        if N - self.ring.len() <= cobs_max(n) {
+            return Err(FrameError::TooLong);
         }
+        let ring = &mut self.ring;
+        cobs_each(raw.get(..n).unwrap_or(&[]), &mut |b| {
+            // Cannot fail: the room was checked.
+            let _ = ring.push_back(b);
+        });
+        Ok(())
     }
 
     fn saw_board(&mut self, db: u8) {
