@@ -34,9 +34,49 @@ pub struct Seen {
     pub outputs: u32,
 }
 
+/// `N` bytes in a circle: the oldest at `start`, `len` of them. Smaller in flash than
+/// `heapless::Deque` (one index and a length; issue 26's budget), and without its panic
+/// paths: every access is a checked one.
+struct Ring<const N: usize> {
+    buf: [u8; N],
+    start: usize,
+    len: usize,
+}
+
+impl<const N: usize> Ring<N> {
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn clear(&mut self) {
+        self.start = 0;
+        self.len = 0;
+    }
+
+    /// Appends `b`; dropped when full (the callers check the room first).
+    fn push(&mut self, b: u8) {
+        if self.len < N {
+            if let Some(slot) = self.buf.get_mut((self.start + self.len) % N) {
+                *slot = b;
+                self.len += 1;
+            }
+        }
+    }
+
+    fn pop(&mut self) -> Option<u8> {
+        if self.len == 0 {
+            return None;
+        }
+        let b = *self.buf.get(self.start)?;
+        self.start = (self.start + 1) % N;
+        self.len -= 1;
+        Some(b)
+    }
+}
+
 struct State<const N: usize> {
     listening: bool,
-    ring: heapless::Deque<u8, N>,
+    ring: Ring<N>,
     dropped: Dropped,
     reported: Dropped,
     seen: Seen,
@@ -56,10 +96,7 @@ impl<const N: usize> State<N> {
             return Err(FrameError::TooLong);
         }
         let ring = &mut self.ring;
-        cobs_each(raw.get(..n).unwrap_or(&[]), &mut |b| {
-            // Cannot fail: the room was checked.
-            let _ = ring.push_back(b);
-        });
+        cobs_each(raw.get(..n).unwrap_or(&[]), &mut |b| ring.push(b));
         Ok(())
     }
 
@@ -120,7 +157,11 @@ impl<const N: usize> Recorder<N> {
         Recorder {
             state: Mutex::new(RefCell::new(State {
                 listening: false,
-                ring: heapless::Deque::new(),
+                ring: Ring {
+                    buf: [0; N],
+                    start: 0,
+                    len: 0,
+                },
                 dropped: Dropped {
                     calls: 0,
                     events: 0,
@@ -147,8 +188,14 @@ impl<const N: usize> Recorder<N> {
         }
     }
 
-    fn with<R>(&self, f: impl FnOnce(&mut State<N>) -> R) -> R {
-        self.state.lock(|s| f(&mut s.borrow_mut()))
+    /// Runs `f` on the state inside the critical section. A use from inside another (a
+    /// panic while recording, logged through [`Recorder::log`]) gets `R`'s default instead
+    /// of a second panic: no panic path.
+    fn with<R: Default>(&self, f: impl FnOnce(&mut State<N>) -> R) -> R {
+        self.state.lock(|s| match s.try_borrow_mut() {
+            Ok(mut s) => f(&mut s),
+            Err(_) => R::default(),
+        })
     }
 
     /// True while a laptop listens.
@@ -342,6 +389,8 @@ impl<const N: usize> Recorder<N> {
 
     /// Takes up to `out.len()` bytes of whole or partial frames, oldest first; first queues
     /// a [`ToHost::Dropped`] report when the counters moved since the last one and it fits.
+    /// Not inlined into the USB task's poll, where its one caller is (issue 26: measured).
+    #[inline(never)]
     pub fn take(&self, out: &mut [u8]) -> usize {
         let n = self.with(|s| {
             if s.listening && s.dropped != s.reported {
@@ -352,7 +401,7 @@ impl<const N: usize> Recorder<N> {
             }
             let mut n = 0;
             for slot in out.iter_mut() {
-                match s.ring.pop_front() {
+                match s.ring.pop() {
                     Some(b) => {
                         *slot = b;
                         n += 1;
@@ -501,5 +550,37 @@ pub async fn serve<const N: usize>(rec: &Recorder<N>, x10: X10, who: Identity, r
             return;
         }
         rec.room.wait().await;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Ring;
+
+    #[test]
+    fn the_ring_wraps_keeps_order_and_refuses_past_full() {
+        let mut r: Ring<5> = Ring {
+            buf: [0; 5],
+            start: 0,
+            len: 0,
+        };
+        for b in 1..=4 {
+            r.push(b);
+        }
+        assert_eq!((r.pop(), r.pop(), r.pop()), (Some(1), Some(2), Some(3)));
+        // Written across the end of the buffer: 4 5 6 7 8, then full.
+        for b in 5..=9 {
+            r.push(b);
+        }
+        assert_eq!(r.len(), 5);
+        let mut got = [0u8; 6];
+        for g in &mut got {
+            *g = r.pop().unwrap_or(0);
+        }
+        assert_eq!(got, [4, 5, 6, 7, 8, 0]);
+        assert_eq!(r.len(), 0);
+        r.push(1);
+        r.clear();
+        assert_eq!((r.len(), r.pop()), (0, None));
     }
 }
