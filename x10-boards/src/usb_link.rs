@@ -102,7 +102,11 @@ async fn write_loop<D: Driver<'static>>(mut tx: Sender<'static, D>) -> ! {
                 RECORDER.wait_data().await;
                 continue;
             }
-            if tx.write_packet(packet.get(..n).unwrap_or(&[])).await.is_err() {
+            if tx
+                .write_packet(packet.get(..n).unwrap_or(&[]))
+                .await
+                .is_err()
+            {
                 break;
             }
             end_read = n == PACKET && RECORDER.pending() == 0;
