@@ -205,6 +205,7 @@ impl<const N: usize> Recorder<N> {
 
     /// A laptop said hello (true) or went away (false: the ring is emptied, the drop counters
     /// start again at the next hello).
+    #[inline(never)]
     pub fn set_listening(&self, on: bool) {
         self.with(|s| {
             s.listening = on;
@@ -227,6 +228,7 @@ impl<const N: usize> Recorder<N> {
     }
 
     /// Bytes waiting.
+    #[inline(never)]
     pub fn pending(&self) -> usize {
         self.with(|s| s.ring.len())
     }
@@ -286,6 +288,7 @@ impl<const N: usize> Recorder<N> {
     }
 
     /// Counts a laptop frame that did not decode.
+    #[inline(never)]
     pub fn bad_frame(&self) {
         self.with(|s| add(&mut s.dropped.bad_frames));
     }
