@@ -392,7 +392,7 @@ impl<const N: usize> Recorder<N> {
 
     /// Takes up to `out.len()` bytes of whole or partial frames, oldest first; first queues
     /// a [`ToHost::Dropped`] report when the counters moved since the last one and it fits.
-    /// Not inlined into the USB task's poll, where its one caller is (issue 26: measured).
+    /// Not inlined into the USB task's poll, where its one caller is (issue 26's flash budget).
     #[inline(never)]
     pub fn take(&self, out: &mut [u8]) -> usize {
         let n = self.with(|s| {
