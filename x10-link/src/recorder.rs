@@ -392,8 +392,6 @@ impl<const N: usize> Recorder<N> {
 
     /// Takes up to `out.len()` bytes of whole or partial frames, oldest first; first queues
     /// a [`ToHost::Dropped`] report when the counters moved since the last one and it fits.
-    /// Not inlined into the USB task's poll, where its one caller is (issue 26's flash budget).
-    #[inline(never)]
     pub fn take(&self, out: &mut [u8]) -> usize {
         let n = self.with(|s| {
             if s.listening && s.dropped != s.reported {
