@@ -84,26 +84,32 @@ pub async fn run<D: Driver<'static>>(driver: D, x10: X10, board: &'static str) -
 }
 
 /// Drains the ring to the laptop, one packet at a time; a full packet that empties the ring
-/// is followed by a zero-length one so the host's read ends.
+/// is followed by a zero-length one so the host's read ends. One `write_packet` for both (each
+/// await of it is a copy of its poll in the task's state machine: issue 26's flash budget).
 async fn write_loop<D: Driver<'static>>(mut tx: Sender<'static, D>) -> ! {
     let mut packet = [0u8; PACKET];
     loop {
         tx.wait_connection().await;
+        // The last packet written was full and emptied the ring: a zero-length one is due.
+        let mut end_read = false;
         loop {
-            let n = RECORDER.take(&mut packet);
-            if n == 0 {
+            let n = if end_read {
+                0
+            } else {
+                RECORDER.take(&mut packet)
+            };
+            if n == 0 && !end_read {
                 RECORDER.wait_data().await;
                 continue;
             }
-            let Some(bytes) = packet.get(..n) else {
-                continue;
-            };
-            if tx.write_packet(bytes).await.is_err() {
+            if tx
+                .write_packet(packet.get(..n).unwrap_or(&[]))
+                .await
+                .is_err()
+            {
                 break;
             }
-            if n == PACKET && RECORDER.pending() == 0 && tx.write_packet(&[]).await.is_err() {
-                break;
-            }
+            end_read = n == PACKET && RECORDER.pending() == 0;
         }
         RECORDER.set_listening(false);
     }

@@ -17,7 +17,7 @@ use firmware_mb::{CallObserver, CallRecord, MbDiagnostics, X10};
 use x10_devices::LinkError;
 use x10_microcode::{Address, Event, Op};
 
-use crate::frame::{encode_host, FrameError, MAX_FRAME, MAX_LOG_CHUNK};
+use crate::frame::{cobs_each, cobs_max, host_body, FrameError, MAX_LOG_CHUNK, MAX_MESSAGE};
 use crate::msg::{
     CallError, CallRec, DiagCounters, Dropped, EventRec, Hello, Outcome, OutputRec, OutputValue,
     ToDevice, ToHost, WireOp, LINK_VERSION,
@@ -34,9 +34,49 @@ pub struct Seen {
     pub outputs: u32,
 }
 
+/// `N` bytes in a circle: the oldest at `start`, `len` of them. Smaller in flash than
+/// `heapless::Deque` (one index and a length; issue 26's budget), and without its panic
+/// paths: every access is a checked one.
+struct Ring<const N: usize> {
+    buf: [u8; N],
+    start: usize,
+    len: usize,
+}
+
+impl<const N: usize> Ring<N> {
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    fn clear(&mut self) {
+        self.start = 0;
+        self.len = 0;
+    }
+
+    /// Appends `b`; dropped when full (the callers check the room first).
+    fn push(&mut self, b: u8) {
+        if self.len < N {
+            if let Some(slot) = self.buf.get_mut((self.start + self.len) % N) {
+                *slot = b;
+                self.len += 1;
+            }
+        }
+    }
+
+    fn pop(&mut self) -> Option<u8> {
+        if self.len == 0 {
+            return None;
+        }
+        let b = *self.buf.get(self.start)?;
+        self.start = (self.start + 1) % N;
+        self.len -= 1;
+        Some(b)
+    }
+}
+
 struct State<const N: usize> {
     listening: bool,
-    ring: heapless::Deque<u8, N>,
+    ring: Ring<N>,
     dropped: Dropped,
     reported: Dropped,
     seen: Seen,
@@ -47,26 +87,17 @@ struct State<const N: usize> {
 }
 
 impl<const N: usize> State<N> {
-    /// Appends a whole frame or nothing.
-    fn push_frame(&mut self, frame: &[u8]) -> bool {
-        if N - self.ring.len() < frame.len() {
-            return false;
-        }
-        for &b in frame {
-            // Cannot fail: the room was checked.
-            let _ = self.ring.push_back(b);
-        }
-        true
-    }
-
+    /// Appends `msg`'s whole frame or nothing: COBS-encoded straight into the ring.
     fn push(&mut self, msg: &ToHost<'_>) -> Result<(), FrameError> {
-        let mut buf = [0u8; MAX_FRAME];
-        let n = encode_host(msg, &mut buf)?;
-        if self.push_frame(buf.get(..n).ok_or(FrameError::TooLong)?) {
-            Ok(())
-        } else {
-            Err(FrameError::TooLong)
+        let mut raw = [0u8; MAX_MESSAGE + 2];
+        let n = host_body(msg, &mut raw)?;
+        // The frame's length: COBS's (exact below 254 bytes) and the final zero.
+        if N - self.ring.len() <= cobs_max(n) {
+            return Err(FrameError::TooLong);
         }
+        let ring = &mut self.ring;
+        cobs_each(raw.get(..n).unwrap_or(&[]), &mut |b| ring.push(b));
+        Ok(())
     }
 
     fn saw_board(&mut self, db: u8) {
@@ -126,7 +157,11 @@ impl<const N: usize> Recorder<N> {
         Recorder {
             state: Mutex::new(RefCell::new(State {
                 listening: false,
-                ring: heapless::Deque::new(),
+                ring: Ring {
+                    buf: [0; N],
+                    start: 0,
+                    len: 0,
+                },
                 dropped: Dropped {
                     calls: 0,
                     events: 0,
@@ -153,8 +188,14 @@ impl<const N: usize> Recorder<N> {
         }
     }
 
-    fn with<R>(&self, f: impl FnOnce(&mut State<N>) -> R) -> R {
-        self.state.lock(|s| f(&mut s.borrow_mut()))
+    /// Runs `f` on the state inside the critical section. A use from inside another (a
+    /// panic while recording, logged through [`Recorder::log`]) gets `R`'s default instead
+    /// of a second panic: no panic path.
+    fn with<R: Default>(&self, f: impl FnOnce(&mut State<N>) -> R) -> R {
+        self.state.lock(|s| match s.try_borrow_mut() {
+            Ok(mut s) => f(&mut s),
+            Err(_) => R::default(),
+        })
     }
 
     /// True while a laptop listens.
@@ -164,6 +205,7 @@ impl<const N: usize> Recorder<N> {
 
     /// A laptop said hello (true) or went away (false: the ring is emptied, the drop counters
     /// start again at the next hello).
+    #[inline(never)]
     pub fn set_listening(&self, on: bool) {
         self.with(|s| {
             s.listening = on;
@@ -186,6 +228,7 @@ impl<const N: usize> Recorder<N> {
     }
 
     /// Bytes waiting.
+    #[inline(never)]
     pub fn pending(&self) -> usize {
         self.with(|s| s.ring.len())
     }
@@ -245,6 +288,7 @@ impl<const N: usize> Recorder<N> {
     }
 
     /// Counts a laptop frame that did not decode.
+    #[inline(never)]
     pub fn bad_frame(&self) {
         self.with(|s| add(&mut s.dropped.bad_frames));
     }
@@ -358,7 +402,7 @@ impl<const N: usize> Recorder<N> {
             }
             let mut n = 0;
             for slot in out.iter_mut() {
-                match s.ring.pop_front() {
+                match s.ring.pop() {
                     Some(b) => {
                         *slot = b;
                         n += 1;
@@ -507,5 +551,37 @@ pub async fn serve<const N: usize>(rec: &Recorder<N>, x10: X10, who: Identity, r
             return;
         }
         rec.room.wait().await;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Ring;
+
+    #[test]
+    fn the_ring_wraps_keeps_order_and_refuses_past_full() {
+        let mut r: Ring<5> = Ring {
+            buf: [0; 5],
+            start: 0,
+            len: 0,
+        };
+        for b in 1..=4 {
+            r.push(b);
+        }
+        assert_eq!((r.pop(), r.pop(), r.pop()), (Some(1), Some(2), Some(3)));
+        // Written across the end of the buffer: 4 5 6 7 8, then full.
+        for b in 5..=9 {
+            r.push(b);
+        }
+        assert_eq!(r.len(), 5);
+        let mut got = [0u8; 6];
+        for g in &mut got {
+            *g = r.pop().unwrap_or(0);
+        }
+        assert_eq!(got, [4, 5, 6, 7, 8, 0]);
+        assert_eq!(r.len(), 0);
+        r.push(1);
+        r.clear();
+        assert_eq!((r.len(), r.pop()), (0, None));
     }
 }

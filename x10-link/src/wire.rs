@@ -17,6 +17,9 @@ struct Out<'a> {
 }
 
 impl Out<'_> {
+    /// Not inlined: called at some forty sites of the motherboard's encoder (issue 26's
+    /// flash budget).
+    #[inline(never)]
     fn byte(&mut self, b: u8) {
         match self.buf.get_mut(self.n) {
             Some(slot) => {

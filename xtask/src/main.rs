@@ -512,7 +512,46 @@ fn build_command(cargo: &str, image: &Image) -> Command {
     ])
     .args(["--features", image.features, "--bin", image.bin]);
     rtt_buffer(&mut c, image);
+    remap_registry(&mut c, &registry_sources());
     c
+}
+
+/// The directories of the crates cargo downloaded (`$CARGO_HOME/registry/src/*`, `CARGO_HOME`
+/// defaulting to `~/.cargo`), sorted; none when there is no such directory.
+fn registry_sources() -> Vec<PathBuf> {
+    let home = env::var_os("CARGO_HOME")
+        .map(PathBuf::from)
+        .or_else(|| env::var_os("HOME").map(|h| PathBuf::from(h).join(".cargo")));
+    let Some(src) = home.map(|h| h.join("registry").join("src")) else {
+        return Vec::new();
+    };
+    let mut dirs: Vec<PathBuf> = std::fs::read_dir(src)
+        .map(|d| d.flatten().map(|e| e.path()).collect())
+        .unwrap_or_default();
+    dirs.sort();
+    dirs
+}
+
+/// The firmware images' rustflags get `--remap-path-prefix=DIR/=` for each of `dirs` (the
+/// registry's sources): a panic location in a downloaded crate then names its file as
+/// `embassy-usb-0.6.0/src/lib.rs` instead of behind the 60-character path of cargo's
+/// registry on the machine that built it. Each file name is stored once in flash, for the
+/// panic locations of that file: mb-pico 1 232 B smaller with the USB link, 888 B without
+/// (344 B are the link's files; issue 26, docs/boards.md "The USB link"). The absolute path is the builder's own, so it cannot be
+/// written in `.cargo/config.toml`: the images' builds (`size`, `image`, `emu`) add it as a
+/// `--config` of the same cfg-target as that file's rustflags, which cargo joins to them.
+fn remap_registry(c: &mut Command, dirs: &[PathBuf]) {
+    if dirs.is_empty() {
+        return;
+    }
+    let flags: Vec<String> = dirs
+        .iter()
+        .map(|d| format!("{:?}", format!("--remap-path-prefix={}/=", d.display())))
+        .collect();
+    c.arg("--config").arg(format!(
+        "target.'cfg(all(target_arch = \"arm\", target_os = \"none\"))'.rustflags = [{}]",
+        flags.join(", ")
+    ));
 }
 
 /// A daughterboard image's build gets [`DB_RTT_BUFFER`], unless the environment sets
@@ -828,8 +867,10 @@ fn image_command(cargo: &str, image: &Image, args: &[String]) -> Command {
             image.features,
             "--bin",
             image.bin,
-        ])
-        .args(args);
+        ]);
+    // Before `args`: what follows their `--` is probe-rs's.
+    remap_registry(&mut cmd, &registry_sources());
+    cmd.args(args);
     rtt_buffer(&mut cmd, image);
     cmd
 }
@@ -1092,7 +1133,16 @@ mod tests {
         let args = ["--".to_owned(), "--connect-under-reset".to_owned()];
         let cmd = image_command("cargo", image("db-g431").unwrap(), &args);
         assert_eq!(cmd.get_program(), "cargo");
-        let got: Vec<&std::ffi::OsStr> = cmd.get_args().collect();
+        let mut got: Vec<&std::ffi::OsStr> = cmd.get_args().collect();
+        // The registry's remapping before the runner's arguments, where cargo downloaded
+        // crates (remap_registry).
+        if !registry_sources().is_empty() {
+            assert_eq!(got[10], "--config");
+            assert!(got[11]
+                .to_string_lossy()
+                .contains("rustflags = [\"--remap-path-prefix="));
+            got.drain(10..12);
+        }
         assert_eq!(
             got,
             [
@@ -1110,6 +1160,38 @@ mod tests {
                 "--connect-under-reset"
             ]
         );
+    }
+
+    #[test]
+    fn the_registry_s_paths_are_remapped_in_the_images_rustflags() {
+        let mut c = Command::new("cargo");
+        remap_registry(&mut c, &[]);
+        assert_eq!(c.get_args().count(), 0);
+        remap_registry(
+            &mut c,
+            &[
+                PathBuf::from("/h/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f"),
+                PathBuf::from("/h/.cargo/registry/src/other"),
+            ],
+        );
+        let got: Vec<&std::ffi::OsStr> = c.get_args().collect();
+        assert_eq!(
+            got,
+            [
+                "--config",
+                "target.'cfg(all(target_arch = \"arm\", target_os = \"none\"))'.rustflags = \
+                 [\"--remap-path-prefix=/h/.cargo/registry/src/index.crates.io-1949cf8c6b5b557f/=\", \
+                 \"--remap-path-prefix=/h/.cargo/registry/src/other/=\"]"
+            ]
+        );
+        // The same cfg-target as .cargo/config.toml's rustflags, which cargo joins them to.
+        let config = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../.cargo/config.toml"),
+        )
+        .unwrap();
+        assert!(config.contains(
+            "[target.'cfg(all(target_arch = \"arm\", target_os = \"none\"))']\nrustflags = "
+        ));
     }
 
     /// The build-script side of the carried images (`x10-boards/carry.rs`), as the motherboard
