@@ -91,6 +91,16 @@ const same = (a, b) => Buffer.compare(Buffer.from(a), Buffer.from(b)) === 0;
 
 
 /**
+ * True once 2.0.0 has booted and 200 ms have passed since the MB sent confirm_firmware (the
+ * board writes embassy-boot's state after its reply: a sector erase and a program): the stop
+ * condition of the runs (with 30 virtual s as their limit).
+ */
+function settled(rig, w) {
+  const confirm = w.of(CONFIRM);
+  return confirm.length > 0 && w.booted().some((b) => b.v === '2.0.0') && rig.now() > confirm[0].t + 200e6;
+}
+
+/**
  * Where the time of an update went (virtual ns, printed in s): the phases enter_update to begin
  * (the board resets into its bootloader, the MB finds it there), begin to the last commit (the
  * transfer), that commit to 2.0.0's boot event (the reset, the swap, the new image's start);
@@ -120,10 +130,7 @@ function updateOnce(ctx, imgs, hz, detail) {
   const chunks = Math.ceil(v2.length / CHUNK);
   const { rig, mb, nor, w } = setup(ctx, imgs);
   const mbLog = () => ctx.defmt(mb).map((l) => l.text).join('\n');
-  // Until 2.0.0 has booted and 200 ms after the MB sent confirm_firmware (the board writes
-  // embassy-boot's state after its reply: a sector erase and a program), or 30 virtual s.
-  const confirmed = () => w.booted().some((b) => b.v === '2.0.0') && w.of(CONFIRM).length > 0;
-  rig.run(30000e6, () => confirmed() && rig.now() > w.of(CONFIRM)[0].t + 200e6);
+  rig.run(30000e6, () => settled(rig, w));
   const log = mbLog();
   ctx.check('mb-pico carries db-pico 2.0.0 (its log: kind 3, 2.0.0, the slot\'s bytes)',
     log.includes(`carries board kind 3 firmware 2.0.0, ${v2.length} B`), log.split('\n').filter((l) => /carries/.test(l)).join('; '));
@@ -214,7 +221,7 @@ export default [
       fresh.defmt = chip.defmt;
       ctx.check('the power is cut after half the chunks, ACTIVE still 0.1.0', w.of(CHUNK_OP).length >= half && same(nor.data.slice(ACTIVE, ACTIVE + v1.length), v1),
         `${w.of(CHUNK_OP).length} chunks at ${(tCut / 1e9).toFixed(2)} s`);
-      rig.run(tCut + 30000e6, () => confirmed() && rig.now() > w.of(CONFIRM)[0].t + 200e6);
+      rig.run(tCut + 30000e6, () => settled(rig, w));
       const b2 = w.booted();
       const log2 = ctx.defmt(mb).map((l) => l.text).join('\n');
       ctx.check('the MB begins again and finishes: 2.0.0 boots, is confirmed, ACTIVE holds the carried image',
