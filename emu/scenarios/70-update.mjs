@@ -130,6 +130,14 @@ function updateOnce(ctx, imgs, hz, detail) {
   const chunks = Math.ceil(v2.length / CHUNK);
   const { rig, mb, nor, w } = setup(ctx, imgs);
   const mbLog = () => ctx.defmt(mb).map((l) => l.text).join('\n');
+  // mb-pico's core awake (not in WFI/WFE) per virtual ms, sampled every quantum (1 µs).
+  const busy = [];
+  rig.hooks.push(() => {
+    if (!mb.rp.core.waiting) {
+      const k = Math.floor(rig.t / 1e6);
+      busy[k] = (busy[k] ?? 0) + 1;
+    }
+  });
   rig.run(30000e6, () => settled(rig, w));
   const log = mbLog();
   ctx.check('mb-pico carries db-pico 2.0.0 (its log: kind 3, 2.0.0, the slot\'s bytes)',
@@ -153,7 +161,16 @@ function updateOnce(ctx, imgs, hz, detail) {
     ctx.figure(`update by mb-pico at ${at}: wire-time floor, chunks × ${CHUNK_WIRE_BITS} bit times / clock (s; chunks)`,
       `${(floorNs(v2.length, hz) / 1e9).toFixed(2)}; ${chunks}`);
     const d = breakdown(rig, w, v2.length, tBoot);
+    // The share of whole ms from `a` to `b` (ns) that mb-pico's core was awake, %.
+    const awake = (a, b) => {
+      const [from, to] = [Math.ceil(a / 1e6), Math.floor(b / 1e6)];
+      let sum = 0;
+      for (let k = from; k < to; k++) sum += busy[k] ?? 0;
+      return ((100 * sum) / ((to - from) * 1000)).toFixed(0);
+    };
     ctx.figure(`update by mb-pico at ${at}: enter_update to begin / begin to commit / commit to 2.0.0's boot event (s, virtual)`, d.phases);
+    ctx.figure(`update by mb-pico at ${at}: mb-pico's core awake (not in WFI/WFE) in the 40 ms before enter_update / from begin to commit (%, sampled every µs)`,
+      `${awake(tEnter - 40e6, tEnter)} / ${awake(begin[0].t, commit.at(-1).t)}`);
     ctx.figure(`update by mb-pico at ${at}: begin to commit: the MB's transactions to the board on the wire (how many) / then until its next one: after begin (the first erase) / after the chunks that fill a sector (the next one's erase; how many) / after the other chunks, bus quiet (how many, mean) / after the other chunks, behind Figure 4.4's requests to absent board 9 (how many, mean) / after a commit (read-back) (s, virtual)`, d.transfer);
   }
 
