@@ -43,6 +43,16 @@ for (let v = opt('--db-at'); v; v = opt('--db-at')) {
   const [hz, path] = v.split('=');
   dbAt[Number(hz)] = path;
 }
+// The update at faster buses: --mb-carry-at, --db-slot-at, --db-slot-v2-at HZ=ELF (mb-pico
+// carrying 2.0.0, db-pico 0.1.0 and 2.0.0 in ACTIVE, each built for that bus).
+const updateAt = {};
+for (const [flag, key] of [['--mb-carry-at', 'mbCarry'], ['--db-slot-at', 'dbSlot'], ['--db-slot-v2-at', 'dbSlotV2']]) {
+  for (let v = opt(flag); v; v = opt(flag)) {
+    const i = v.indexOf('=');
+    const hz = Number(v.slice(0, i));
+    updateAt[hz] = { ...updateAt[hz], [key]: v.slice(i + 1) };
+  }
+}
 const x10 = opt('--x10');
 const out = opt('--out') ?? join(here, 'out');
 const list = args.includes('--list');
@@ -57,7 +67,7 @@ if (list) {
   process.exit(0);
 }
 if (!mbElf || !dbElf) {
-  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--fw-flash ELF] [--db-pnp ELF] [--mb-pnp ELF] [--boot ELF --db-slot ELF --db-slot-v2 ELF --mb-carry ELF] [--x10 X10] [--out DIR] [SCENARIO...] | --list');
+  console.error('usage: node run.mjs --mb MB_ELF --db DB_ELF [--db-at HZ=DB_ELF]... [--mb-doorbell MB_ELF] [--fw-flash ELF] [--db-pnp ELF] [--mb-pnp ELF] [--boot ELF --db-slot ELF --db-slot-v2 ELF --mb-carry ELF] [--mb-carry-at HZ=ELF --db-slot-at HZ=ELF --db-slot-v2-at HZ=ELF]... [--x10 X10] [--out DIR] [SCENARIO...] | --list');
   process.exit(2);
 }
 const wanted = args.filter((a) => !a.startsWith('--'));
@@ -165,7 +175,7 @@ for (const s of scenarios.filter((s) => !wanted.length || wanted.includes(s.name
   const figures = [];
   const rigs = [];
   const ctx = {
-    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf, dbPnpElf, mbPnpElf, bootElf, dbSlotElf, dbSlotV2Elf, mbCarryElf, out,
+    mbElf, dbElf, dbAt, mbDoorbellElf, fwFlashElf, dbPnpElf, mbPnpElf, bootElf, dbSlotElf, dbSlotV2Elf, mbCarryElf, updateAt, out,
     rig(options = {}) { const r = new Rig(options); rigs.push(r); return r; },
     check(name, ok, detail = '') { checks.push({ name, ok: !!ok, detail }); },
     figure(name, value) { figures.push({ name, value }); },

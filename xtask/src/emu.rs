@@ -6,8 +6,11 @@
 //! built into the bootloader's ACTIVE slot as `target/emu/db-pico-slot` and, as 2.0.0,
 //! `db-pico-slot-v2`, with `boot-pico`, and mb-pico carrying `db-pico-slot-v2`'s slot bytes as
 //! 2.0.0 (`X10_CARRY`), `target/emu/mb-pico-carry`; db-pico (without the bootloader: the
-//! standalone build, not `cargo db-pico`'s ACTIVE-slot one) also for 400 kHz and 1 MHz buses, `X10_BUS_HZ`, copied to
-//! `target/emu/db-pico-HZ`), the flash path's test image `emu/fw-flash` (its own workspace) and
+//! standalone build, not `cargo db-pico`'s ACTIVE-slot one) also for 400 kHz and 1 MHz buses,
+//! `X10_BUS_HZ`, copied to `target/emu/db-pico-HZ`; for those buses too the two slot builds,
+//! `db-pico-slot-HZ` and `db-pico-slot-v2-HZ`, and mb-pico carrying the latter,
+//! `mb-pico-carry-HZ`: boot-pico is a target only, built without a bus clock, and serves every
+//! bus), the flash path's test image `emu/fw-flash` (its own workspace) and
 //! the host `x10` tool, installs the rig's Node packages from `emu/package-lock.json`
 //! with `npm ci` when `emu/node_modules` is missing or older than the lock file, then runs
 //! `node emu/run.mjs` on the two ELFs. The rig, its scenarios and what they check are in
@@ -174,9 +177,15 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
                 features: "daughterboard,active-slot,together",
                 ..*row
             };
-            for (version, copy) in [(None, "db-pico-slot"), (Some("2.0.0"), "db-pico-slot-v2")] {
-                build_slot(&cargo, &slot, version)?;
-                std::fs::copy(&elf, out.join(copy)).map_err(Error::Run)?;
+            // The same two for the faster buses (`update-400k`, `update-1m`), copied aside as
+            // `db-pico-slot-HZ` and `db-pico-slot-v2-HZ`; the default bus's last.
+            for hz in FAST_BUSES.map(Some).into_iter().chain([None]) {
+                let suffix = hz.map_or(String::new(), |hz| format!("-{hz}"));
+                for (version, copy) in [(None, "db-pico-slot"), (Some("2.0.0"), "db-pico-slot-v2")]
+                {
+                    build_slot(&cargo, &slot, version, hz)?;
+                    std::fs::copy(&elf, out.join(format!("{copy}{suffix}"))).map_err(Error::Run)?;
+                }
             }
             let boot = IMAGES
                 .iter()
@@ -190,14 +199,25 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
     let release = target_dir(&cargo)?
         .join("thumbv6m-none-eabi")
         .join("release");
-    // mb-pico carrying db-pico 2.0.0 (the slot build above) for the `update` scenario, copied
-    // aside; then the plain mb-pico again, which the other scenarios run from `release`.
-    let carry_mb = build_carrying(&cargo, &out, &out.join("db-pico-slot-v2"), "2.0.0")?;
+    // mb-pico carrying db-pico 2.0.0 (the slot build above) for the `update` scenario, and for
+    // each faster bus mb-pico built for it carrying that bus's 2.0.0 (`update-400k`,
+    // `update-1m`), each copied aside; then the plain mb-pico again, which the other scenarios
+    // run from `release`.
+    let carry_mb = build_carrying(&cargo, &out, &out.join("db-pico-slot-v2"), "2.0.0", None)?;
+    let mut update_at = Vec::new();
+    for hz in FAST_BUSES {
+        let mb = build_carrying(
+            &cargo,
+            &out,
+            &out.join(format!("db-pico-slot-v2-{hz}")),
+            "2.0.0",
+            Some(hz),
+        )?;
+        update_at.push((hz, mb));
+    }
+    build_at(&cargo, mb_row()?, None)?;
     // The doorbell example's motherboard image: a DB event waking an MB task.
-    let mb = IMAGES
-        .iter()
-        .find(|i| i.bin == "mb-pico")
-        .ok_or_else(|| Error::Usage("no image mb-pico".into()))?;
+    let mb = mb_row()?;
     let doorbell = crate::Image {
         bin: "mb-pico-doorbell",
         ..*mb
@@ -247,6 +267,17 @@ fn run(args: &[String]) -> Result<ExitCode, Error> {
         a.push("--db-at".into());
         a.push(f);
     }
+    // The faster buses' update images: mb-pico carrying 2.0.0, db-pico 0.1.0 and 2.0.0 in ACTIVE.
+    for (hz, mb) in update_at {
+        for (flag, path) in [
+            ("--mb-carry-at", mb),
+            ("--db-slot-at", out.join(format!("db-pico-slot-{hz}"))),
+            ("--db-slot-v2-at", out.join(format!("db-pico-slot-v2-{hz}"))),
+        ] {
+            a.push(flag.into());
+            a.push(format!("{hz}={}", path.display()));
+        }
+    }
     if let Some(p) = pnp_elf {
         a.push("--db-pnp".into());
         a.push(p.display().to_string());
@@ -294,9 +325,19 @@ fn build_fw_flash(cargo: &str, root: &Path) -> Result<std::path::PathBuf, Error>
     Ok(target.join(TARGET).join("release").join("x10-emu-fw-flash"))
 }
 
-/// Builds mb-pico carrying the slot image of the db-pico ELF `slot_elf` as `version`
-/// (`X10_CARRY`), copies it to `out/mb-pico-carry`, then builds the plain mb-pico again (the
-/// ELF in the target directory is the plain one after); the copy's path.
+/// mb-pico's row in [`IMAGES`].
+fn mb_row() -> Result<&'static crate::Image, Error> {
+    IMAGES
+        .iter()
+        .find(|i| i.bin == "mb-pico")
+        .ok_or_else(|| Error::Usage("no image mb-pico".into()))
+}
+
+/// Builds mb-pico for a bus of `hz` (`X10_BUS_HZ`; `None`: the default bus) carrying the slot
+/// image of the db-pico ELF `slot_elf` as `version` (`X10_CARRY`, the slot bytes written to
+/// `SLOT_ELF.bin`), and copies it to `out/mb-pico-carry` (`out/mb-pico-carry-HZ`); the copy's
+/// path. The ELF in the target directory is then the carrying one: the caller builds the plain
+/// mb-pico again.
 ///
 /// # Errors
 /// Build, ELF and slot errors.
@@ -305,20 +346,22 @@ fn build_carrying(
     out: &Path,
     slot_elf: &Path,
     version: &str,
+    hz: Option<u32>,
 ) -> Result<std::path::PathBuf, Error> {
     let carry = &crate::CARRIES[0];
     let segments = crate::loaded_segments(slot_elf)?;
     let parts: Vec<(u64, &[u8])> = segments.iter().map(|(a, b)| (*a, b.as_slice())).collect();
     let bytes = crate::slot_image(&parts, carry.slot, carry.slot_len)
         .map_err(|e| Error::Usage(format!("{}: {e}", slot_elf.display())))?;
-    let bin = out.join("db-pico-slot-v2.bin");
+    let bin = slot_elf.with_extension("bin");
     std::fs::write(&bin, bytes).map_err(|e| Error::Io(bin.clone(), e))?;
-    let mb = IMAGES
-        .iter()
-        .find(|i| i.bin == "mb-pico")
-        .ok_or_else(|| Error::Usage("no image mb-pico".into()))?;
+    let mb = mb_row()?;
     let mut c = crate::build_command(cargo, mb);
-    c.env_remove("X10_BUS_HZ").env_remove("X10_DB_ADDR").env(
+    match hz {
+        Some(hz) => c.env("X10_BUS_HZ", hz.to_string()),
+        None => c.env_remove("X10_BUS_HZ"),
+    };
+    c.env_remove("X10_DB_ADDR").env(
         "X10_CARRY",
         format!("{}@{version}={}", carry.kind, bin.display()),
     );
@@ -329,9 +372,10 @@ fn build_carrying(
         .join(mb.target)
         .join("release")
         .join(mb.bin);
-    let copy = out.join("mb-pico-carry");
+    let copy = out.join(hz.map_or("mb-pico-carry".to_owned(), |hz| {
+        format!("mb-pico-carry-{hz}")
+    }));
     std::fs::copy(&elf, &copy).map_err(Error::Run)?;
-    build_at(cargo, mb, None)?;
     Ok(copy)
 }
 
@@ -339,7 +383,8 @@ fn build_carrying(
 const STANDALONE_DB_PICO: &str = "rp2040,daughterboard,together";
 
 /// The bus frequencies, besides the default 100 kHz, that the `event-latency` scenario
-/// measures with a db-pico built for them.
+/// measures with a db-pico built for them, and the `update-400k` and `update-1m` scenarios
+/// with mb-pico and db-pico's slot builds built for them.
 const FAST_BUSES: [u32; 2] = [400_000, 1_000_000];
 
 /// Builds `image` for a bus of `hz` (`X10_BUS_HZ`), or for the default bus (the variable
@@ -372,10 +417,20 @@ fn build_with(cargo: &str, image: &crate::Image, hz: Option<u32>, at_9: bool) ->
 }
 
 /// Builds db-pico for the bootloader's ACTIVE slot (`image`: its `active-slot` row), plug and
-/// play, for the default bus, with `X10_FW_VERSION` set to `version` (or removed).
-fn build_slot(cargo: &str, image: &crate::Image, version: Option<&str>) -> Result<(), Error> {
+/// play, for a bus of `hz` (`X10_BUS_HZ`; `None`: the default bus), with `X10_FW_VERSION` set
+/// to `version` (or removed).
+fn build_slot(
+    cargo: &str,
+    image: &crate::Image,
+    version: Option<&str>,
+    hz: Option<u32>,
+) -> Result<(), Error> {
     let mut c = crate::build_command(cargo, image);
-    c.env_remove("X10_BUS_HZ").env_remove("X10_DB_ADDR");
+    match hz {
+        Some(hz) => c.env("X10_BUS_HZ", hz.to_string()),
+        None => c.env_remove("X10_BUS_HZ"),
+    };
+    c.env_remove("X10_DB_ADDR");
     match version {
         Some(v) => c.env("X10_FW_VERSION", v),
         None => c.env_remove("X10_FW_VERSION"),
