@@ -1271,7 +1271,7 @@ mod tests {
         let known: Vec<(Vec<u8>, (&str, String))> = vec![
             (
                 log_frame(1, 1),
-                ("info", "USB link: a laptop listens (link version 1)".into()),
+                ("info", "USB link: a laptop listens (link version 2)".into()),
             ),
             (
                 log_frame(1, 2),
@@ -1297,13 +1297,13 @@ mod tests {
 
     #[test]
     fn defmt_prints_json_lines_are_read() {
-        let out = "{\"schema_version\":1}\n{\"data\":\"USB link: a laptop listens (link version 1)\",\"level\":\"INFO\",\"location\":null}\nnot json\n{\"data\":\"x\",\"level\":null}\n";
+        let out = "{\"schema_version\":1}\n{\"data\":\"USB link: a laptop listens (link version 2)\",\"level\":\"INFO\",\"location\":null}\nnot json\n{\"data\":\"x\",\"level\":null}\n";
         assert_eq!(
             defmt_print_lines(out),
             [
                 (
                     "info".to_string(),
-                    "USB link: a laptop listens (link version 1)".to_string()
+                    "USB link: a laptop listens (link version 2)".to_string()
                 ),
                 ("print".to_string(), "x".to_string())
             ]
@@ -1352,7 +1352,7 @@ mod tests {
             lines,
             [
                 "1.000450 INFO  robot: SELF io high A1.B -> ok in 450us",
-                "1.000450 INFO  log: USB link: a laptop listens (link version 1)",
+                "1.000450 INFO  log: USB link: a laptop listens (link version 2)",
                 "1.000450 WARN  log: bus fault 7",
             ]
         );
