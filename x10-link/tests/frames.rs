@@ -60,7 +60,7 @@ fn examples() -> Vec<(&'static str, String, Vec<u8>)> {
     }
     let to_host = [
         ToHost::Hello(Hello {
-            version: 1,
+            version: 2,
             address: 8,
             board: "Pico",
             robot: "fig4_4",
@@ -173,7 +173,7 @@ fn examples() -> Vec<(&'static str, String, Vec<u8>)> {
     ];
     let to_device = [
         ToDevice::Hello(Hello {
-            version: 1,
+            version: 2,
             address: 0,
             board: "x10",
             robot: "",
