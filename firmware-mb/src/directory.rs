@@ -190,7 +190,7 @@ impl Directory {
         self.len = 0;
     }
 
-    fn known(&self) -> &[KnownBoard] {
+    pub(crate) fn known(&self) -> &[KnownBoard] {
         self.entries.get(..self.len).unwrap_or(&[])
     }
 
@@ -210,11 +210,6 @@ impl Directory {
             }
         };
         self.entries.get_mut(i)
-    }
-
-    /// Every known board, in the order they were first heard.
-    pub(crate) fn boards(&self) -> impl Iterator<Item = &KnownBoard> {
-        self.known().iter()
     }
 
     /// The first known board that `q` names, present or not.
@@ -599,7 +594,7 @@ mod tests {
         d.seen(a(0x20), &info(uid(2), BoardKind::PICO), now);
         d.lost(a(0x20));
         assert!(!d.answered(a(0x20)));
-        assert!(d.boards().all(|b| !b.present));
+        assert!(d.known().iter().all(|b| !b.present));
     }
 
     #[test]
@@ -653,11 +648,11 @@ mod tests {
         );
         // Nobody known at 0x21: nothing changes.
         d.identified(a(0x21), &info(uid(9), BoardKind::G431).identity);
-        assert_eq!(d.boards().count(), 1);
+        assert_eq!(d.known().len(), 1);
         // Two IDs from one address (collided): which one answered is not known.
         d.seen(a(0x20), &info(uid(2), BoardKind::PICO), now);
         d.identified(a(0x20), &info(uid(3), BoardKind::G431).identity);
-        assert!(d.boards().all(|b| b.kind == BoardKind::PICO));
+        assert!(d.known().iter().all(|b| b.kind == BoardKind::PICO));
     }
 
     #[test]
@@ -835,7 +830,7 @@ mod tests {
             d.seen(x, &info(uid(2), BoardKind::PICO), Instant(5_000)),
             Heard::Collision
         );
-        let both: Vec<KnownBoard> = d.boards().copied().collect();
+        let both: Vec<KnownBoard> = d.known().to_vec();
         assert_eq!(both.len(), 2);
         assert!(both.iter().all(|b| b.collided && b.address == x));
         // A board replaced after the window is no collision.

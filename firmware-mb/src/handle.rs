@@ -95,15 +95,20 @@ impl X10 {
     }
 
     /// As [`X10::boards`], from the `first`-th board on; also returns how many boards are
-    /// known in all.
-    pub fn boards_from(&self, first: usize, out: &mut [KnownBoard]) -> (usize, usize) {
+    /// known in all, and the board being updated ([`X10::updating`]).
+    pub fn boards_from(
+        &self,
+        first: usize,
+        out: &mut [KnownBoard],
+    ) -> (usize, usize, Option<Address>) {
         self.core.with(|t| {
+            let known = t.directory.known();
             let copied = out
                 .iter_mut()
-                .zip(t.directory.boards().skip(first))
+                .zip(known.iter().skip(first))
                 .map(|(o, b)| *o = *b)
                 .count();
-            (copied, t.directory.boards().count())
+            (copied, known.len(), t.updating)
         })
     }
 
@@ -159,38 +164,65 @@ impl X10 {
     /// [`AssignError`]: the refusals before anything is sent (unknown ID, reserved address,
     /// address taken, a board in a collision), or the board did not confirm.
     pub async fn assign(&self, uid: Uid, to: Address) -> Result<(), AssignError> {
+        if let Some(old) = self.assign_step(uid, to)? {
+            self.call(old, Op::SetAddress(to))
+                .await
+                .map_err(AssignError::NotConfirmed)?;
+            self.moved(old, to);
+        }
+        self.assign_wait(uid, to).await
+    }
+
+    /// [`X10::assign`]'s first step, for a caller that sends the `set_address` itself (the
+    /// USB link, through its one call site): refuses, or queues the `assign` of a board that
+    /// does not answer (`None`), or names the address the board answers at (`Some`: send it
+    /// `Op::SetAddress(to)` there, then [`X10::moved`]). Then [`X10::assign_wait`].
+    ///
+    /// # Errors
+    /// As [`X10::assign`], before anything is sent.
+    pub fn assign_step(&self, uid: Uid, to: Address) -> Result<Option<Address>, AssignError> {
         let mb = self.core.config.address;
         let pinned = self.core.config.pinned;
         let plan = self.core.with(|t| {
-            let boards = &t.boards;
-            t.directory
-                .assign_plan(uid, to, mb, pinned, |a| boards.ports_known(a))
+            let plan = {
+                let boards = &t.boards;
+                t.directory
+                    .assign_plan(uid, to, mb, pinned, |a| boards.ports_known(a))?
+            };
+            if plan == AssignPlan::Assign {
+                t.directory.reassign(uid, to);
+            }
+            Ok(plan)
         })?;
-        match plan {
-            AssignPlan::Already => return Ok(()),
-            AssignPlan::SetAddress(old) => self
-                .set_address(old, to)
-                .await
-                .map_err(AssignError::NotConfirmed)?,
+        Ok(match plan {
+            AssignPlan::SetAddress(old) => Some(old),
             AssignPlan::Assign => {
-                self.core.with(|t| t.directory.reassign(uid, to));
                 // The dispatcher looks at its plug-and-play work again.
                 self.core.keepalive_changed.signal(());
+                None
             }
-        }
-        let deadline = now().plus_us(ASSIGN_WAIT_US);
-        loop {
-            if self
-                .board(BoardQuery::Uid(uid))
-                .is_some_and(|b| b.present && b.address == to)
-            {
-                return Ok(());
-            }
-            let t = now();
-            if t >= deadline {
-                return Err(AssignError::NotConfirmed(LinkError::Timeout));
-            }
-            sleep_until(t.plus_us(WAIT_FOR_BOARD_POLL_US).min(deadline)).await;
+            AssignPlan::Already => None,
+        })
+    }
+
+    /// The board at `from` confirmed `set_address(to)`: the directory has it at `to`, present
+    /// again once its `boot` comes from there.
+    pub fn moved(&self, from: Address, to: Address) {
+        self.core.with(|t| t.directory.moved(from, to));
+    }
+
+    /// Waits until the board `uid` answers at `to` (its `boot` came from there), at most
+    /// [`ASSIGN_WAIT_US`].
+    ///
+    /// # Errors
+    /// [`AssignError::NotConfirmed`] with `Timeout`.
+    pub async fn assign_wait(&self, uid: Uid, to: Address) -> Result<(), AssignError> {
+        match self
+            .wait_for_board(BoardQuery::Uid(uid), ASSIGN_WAIT_US)
+            .await
+        {
+            Ok(b) if b.address == to => Ok(()),
+            _ => Err(AssignError::NotConfirmed(LinkError::Timeout)),
         }
     }
 
@@ -204,13 +236,11 @@ impl X10 {
     /// # Errors
     /// [`UpdateRefusal`], as `update::start_decision` decides.
     pub fn start_update(&self, uid: Option<Uid>) -> Result<u8, UpdateRefusal> {
-        let mut list = [KnownBoard::EMPTY; crate::update::MAX_TRACKED];
-        let n = self.boards(&mut list);
         self.core.with(|t| {
             let n = crate::update::start_decision(
                 t.carried,
                 t.update_policy,
-                list.get(..n).unwrap_or(&[]),
+                t.directory.known(),
                 t.updating,
                 t.update_now.is_some(),
                 uid,

@@ -728,6 +728,7 @@ impl UpdateLink for crate::X10 {
         crate::mb_core::now().0
     }
 
+    #[inline(never)]
     fn report(
         &self,
         db: Address,
@@ -790,10 +791,10 @@ impl UpdateState {
             .map_or(0, |(_, c)| *c)
     }
 
-    /// Forgets the tries of `uid` (`None`: of every board): a request to update now
+    /// Forgets the tries of every board: a request to update now
     /// ([`crate::X10::start_update`]) tries again a board that failed too often.
-    pub fn forget(&mut self, uid: Option<Uid>) {
-        self.tried.retain(|(u, _)| uid.is_some_and(|w| w != *u));
+    pub fn forget(&mut self) {
+        self.tried.clear();
     }
 
     fn count(&mut self, uid: Uid) {
@@ -967,11 +968,12 @@ pub async fn run_updates(
     loop {
         let n = x10.boards(&mut list);
         let boards = list.get(..n).unwrap_or(&[]);
-        let request = x10.core().with(|t| t.update_now.take());
-        let (boards, policy) = match request {
+        // A request to update now: one board, or every board with `Never` overridden; the
+        // tries counted afresh.
+        let (boards, policy) = match x10.core().with(|t| t.update_now.take()) {
             None => (boards, policy),
             Some(target) => {
-                state.forget(target);
+                state.forget();
                 match target {
                     Some(uid) => (
                         boards

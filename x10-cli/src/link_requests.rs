@@ -13,7 +13,7 @@ use x10_link::{
     AssignStatus, BoardEntry, BoardState, ToDevice, UpdateFailure, UpdatePhase, UpdateRec,
     UpdateStatus,
 };
-use x10_microcode::{BoardKind, Status};
+use x10_microcode::BoardKind;
 
 use crate::monitor::{error_text, Answer, LinkRun, Robot, RobotError};
 
@@ -108,17 +108,16 @@ pub fn update_text(r: &UpdateRec) -> String {
 /// Why an update failed, in words.
 pub fn failure_text(f: &UpdateFailure) -> String {
     match f {
-        UpdateFailure::NoMethod => "no update method for its kind".into(),
-        UpdateFailure::Enter(e) => format!("enter_update failed ({})", error_text(e)),
-        UpdateFailure::NoBootloader => "its bootloader did not answer".into(),
-        UpdateFailure::Refused(s) => {
-            format!("its bootloader refused ({})", Status::from_byte(*s))
-        }
-        UpdateFailure::Link(e) => format!("the transfer failed ({})", error_text(e)),
-        UpdateFailure::NotBack => "it did not come back in time".into(),
-        UpdateFailure::RolledBack(v) => format!("rolled back to {}", version_text(*v)),
-        UpdateFailure::Rom => "the ROM bootloader refused or failed".into(),
+        UpdateFailure::NoMethod => "no update method for its kind",
+        UpdateFailure::Enter => "it refused enter_update",
+        UpdateFailure::NoBootloader => "its bootloader did not answer",
+        UpdateFailure::Refused => "its bootloader refused the image",
+        UpdateFailure::Link => "the transfer failed on the bus",
+        UpdateFailure::NotBack => "it did not come back in time",
+        UpdateFailure::RolledBack => "it came back with its old version (rolled back)",
+        UpdateFailure::Rom => "the ROM bootloader refused or failed",
     }
+    .into()
 }
 
 /// How an assign ended, in words.
@@ -156,6 +155,10 @@ pub fn update_status_text(s: &UpdateStatus) -> String {
     }
 }
 
+/// How long [`Robot::assign`] waits for the board at its new address (a board restarts in a
+/// few ms; an unaddressed one's `assign` is sent again at its next announce).
+pub const ASSIGN_WAIT: Duration = Duration::from_secs(2);
+
 fn unexpected() -> RobotError {
     RobotError::Call(x10_link::CallError::Unsupported)
 }
@@ -186,17 +189,35 @@ impl<S: Read + Write> Robot<S> {
         }
     }
 
-    /// Gives the board `uid` the address `address`; answered once the board answers there
-    /// (the motherboard waits up to 1 s for it), or why not.
+    /// Gives the board `uid` the address `address`: the motherboard's answer, and once it is
+    /// `Done` (the board confirmed, or its `assign` was sent) the board list is read until
+    /// the board is present there, at most [`ASSIGN_WAIT`]; `NotConfirmed(Timeout)` if not.
     ///
     /// # Errors
     /// [`RobotError::Refused`], [`RobotError::NoAnswer`], [`RobotError::Io`].
     pub fn assign(&mut self, uid: [u8; 8], address: u8) -> Result<AssignStatus, RobotError> {
         let id = self.fresh_id();
-        match self.ask(id, &ToDevice::Assign { id, uid, address })? {
-            Answer::Assigned(s) => Ok(s),
-            Answer::Refused => Err(RobotError::Refused),
-            _ => Err(unexpected()),
+        let status = match self.ask(id, &ToDevice::Assign { id, uid, address })? {
+            Answer::Assigned(s) => s,
+            Answer::Refused => return Err(RobotError::Refused),
+            _ => return Err(unexpected()),
+        };
+        if status != AssignStatus::Done {
+            return Ok(status);
+        }
+        let deadline = std::time::Instant::now() + ASSIGN_WAIT;
+        loop {
+            let there = self
+                .board_list()?
+                .iter()
+                .any(|b| b.uid == uid && b.address == address && b.state == BoardState::Present);
+            if there {
+                return Ok(AssignStatus::Done);
+            }
+            if std::time::Instant::now() >= deadline {
+                return Ok(AssignStatus::NotConfirmed(x10_link::CallError::Timeout));
+            }
+            std::thread::sleep(Duration::from_millis(20));
         }
     }
 

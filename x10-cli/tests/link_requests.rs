@@ -133,6 +133,20 @@ fn requests_go_out_as_the_documented_frames() {
             id,
             status: AssignStatus::Done,
         }],
+        // The board, at its new address.
+        ToDevice::Boards { id, .. } => vec![ToHost::BoardList {
+            id,
+            total: 1,
+            first: 0,
+            boards: std::iter::once(BoardEntry {
+                address: 0x40,
+                uid: UID,
+                kind: 3,
+                firmware: [0, 1, 0],
+                state: BoardState::Present,
+            })
+            .collect(),
+        }],
         ToDevice::Update { id, .. } => vec![ToHost::UpdateAnswer {
             id,
             status: UpdateStatus::Started(1),
@@ -151,8 +165,9 @@ fn requests_go_out_as_the_documented_frames() {
         requests.borrow()[1..],
         [
             "Assign { id: 1, uid: [230, 97, 56, 82, 131, 63, 92, 42], address: 64 }",
-            "Update { id: 2, uid: Some([230, 97, 56, 82, 131, 63, 92, 42]) }",
-            "Update { id: 3, uid: None }",
+            "Boards { id: 2, first: 0 }",
+            "Update { id: 3, uid: Some([230, 97, 56, 82, 131, 63, 92, 42]) }",
+            "Update { id: 4, uid: None }",
         ]
     );
     assert!(requests.borrow()[0].starts_with("Hello(Hello { version: 2,"));
@@ -224,12 +239,12 @@ fn an_update_is_followed_to_its_end_in_words() {
         db: 0x20,
         from: [0, 1, 0],
         to: [2, 0, 0],
-        phase: UpdatePhase::Failed(UpdateFailure::RolledBack([0, 1, 0])),
+        phase: UpdatePhase::Failed(UpdateFailure::RolledBack),
         at_us: 0,
     };
     assert_eq!(
         update_text(&failed),
-        "board 0x20: updating 0.1.0 \u{2192} 2.0.0 ... failed: rolled back to 0.1.0"
+        "board 0x20: updating 0.1.0 \u{2192} 2.0.0 ... failed: it came back with its old version (rolled back)"
     );
 }
 

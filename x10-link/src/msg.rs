@@ -239,7 +239,9 @@ pub const BOARDS_PER_LIST: usize = 8;
 /// How the laptop's [`ToDevice::Assign`] ended (`firmware_mb::AssignError`).
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AssignStatus {
-    /// 0: the board answers at the new address.
+    /// 0: the board confirmed its `set_address` (or, unaddressed, its `assign` was sent): it
+    /// starts again at the new address; [`ToDevice::Boards`] lists it there, present, once its
+    /// `boot` came from there.
     Done,
     /// 1: no board with that unique ID is known.
     UnknownUid,
@@ -249,8 +251,7 @@ pub enum AssignStatus {
     Taken,
     /// 4: the board shares its address with another (a collision): it cannot be moved alone.
     Collided,
-    /// 5: the board did not confirm (its `set_address` failed, or no `boot` from the new
-    /// address in time: `Timeout`).
+    /// 5: the board did not confirm: its `set_address` failed with this error.
     NotConfirmed(CallError),
 }
 
@@ -274,23 +275,24 @@ pub enum UpdateStatus {
     Busy(u8),
 }
 
-/// Why an update failed (`firmware_mb::update::UpdateError`).
+/// Why an update failed (`firmware_mb::update::UpdateError`, without its details: the
+/// motherboard's log has them).
 #[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum UpdateFailure {
     /// 0: no update method for the board's kind.
     NoMethod,
     /// 1: `enter_update` refused or failed.
-    Enter(CallError),
+    Enter,
     /// 2: the bootloader did not answer in time.
     NoBootloader,
-    /// 3: the bootloader refused with this status byte.
-    Refused(u8),
+    /// 3: the bootloader refused `begin`, a chunk or `commit`.
+    Refused,
     /// 4: a transfer failed on the bus after every retry.
-    Link(CallError),
+    Link,
     /// 5: the board did not come back in time.
     NotBack,
-    /// 6: it came back with this version (rolled back).
-    RolledBack([u8; 3]),
+    /// 6: it came back with its old version (rolled back).
+    RolledBack,
     /// 7: the ROM bootloader (STM32C011) refused, or the update through it failed.
     Rom,
 }
@@ -433,7 +435,7 @@ pub enum ToDevice<'a> {
         first: u8,
     },
     /// 6 (version 2): give the board with unique ID `uid` the address `address`; answered
-    /// with [`ToHost::Assigned`] once it answers there (or why not).
+    /// with [`ToHost::Assigned`] once it confirmed (or why not).
     Assign {
         /// Chosen by the laptop.
         id: u16,

@@ -482,12 +482,12 @@ impl<const N: usize> CallObserver for Recorder<N> {
 pub fn update_failure(e: &UpdateError) -> UpdateFailure {
     match e {
         UpdateError::NoMethod => UpdateFailure::NoMethod,
-        UpdateError::Enter(e) => UpdateFailure::Enter(call_error(e)),
+        UpdateError::Enter(_) => UpdateFailure::Enter,
         UpdateError::NoBootloader => UpdateFailure::NoBootloader,
-        UpdateError::Refused(s) => UpdateFailure::Refused(s.to_byte()),
-        UpdateError::Link(e) => UpdateFailure::Link(call_error(e)),
+        UpdateError::Refused(_) => UpdateFailure::Refused,
+        UpdateError::Link(_) => UpdateFailure::Link,
         UpdateError::NotBack => UpdateFailure::NotBack,
-        UpdateError::RolledBack(v) => UpdateFailure::RolledBack(*v),
+        UpdateError::RolledBack(_) => UpdateFailure::RolledBack,
         UpdateError::Rom(_) => UpdateFailure::Rom,
     }
 }
@@ -603,7 +603,34 @@ pub struct Identity {
 /// [`ToHost::Reply`]. Waits for room in the ring for the answer (it is the link's own task:
 /// no robot task waits). A hello turns listening on, a bye off.
 pub async fn serve<const N: usize>(rec: &Recorder<N>, x10: X10, who: Identity, req: ToDevice<'_>) {
-    let payload: x10_microcode::Payload;
+    // The one call site (its future is embedded once): the laptop's call, or the
+    // `set_address` of an assign to a board that answers at an address.
+    let mut assign: Option<Result<Address, AssignError>> = None;
+    let call: Result<(Address, Op<'_>), CallError> = match req {
+        ToDevice::Call { db, op, .. } => {
+            match (Address::new(db), Op::parse(op.fn_op, op.port, op.data)) {
+                (Err(_), _) => Err(CallError::BadAddress),
+                (_, Err(_)) => Err(CallError::Invalid),
+                (Ok(a), Ok(op)) => Ok((a, op)),
+            }
+        }
+        ToDevice::Assign { uid, address, .. } => {
+            let uid = Uid(uid);
+            let step = Address::new(address)
+                .map_err(|_| AssignError::Reserved)
+                .and_then(|to| Ok((to, x10.assign_step(uid, to)?)));
+            assign = Some(step.map(|(to, _)| to));
+            match step {
+                Ok((to, Some(old))) => Ok((old, Op::SetAddress(to))),
+                _ => Err(CallError::Unsupported),
+            }
+        }
+        _ => Err(CallError::Unsupported),
+    };
+    let result = match call {
+        Ok((a, op)) => Some(x10.call(a, op).await.map_err(|e| call_error(&e))),
+        Err(e) => Some(Err(e)).filter(|_| assign.is_none()),
+    };
     let answer = match req {
         ToDevice::Hello(_) => {
             rec.set_listening(true);
@@ -618,20 +645,14 @@ pub async fn serve<const N: usize>(rec: &Recorder<N>, x10: X10, who: Identity, r
             rec.set_listening(false);
             return;
         }
-        ToDevice::Call { id, db, op } => {
-            let outcome = match (Address::new(db), Op::parse(op.fn_op, op.port, op.data)) {
-                (Err(_), _) => Outcome::Err(CallError::BadAddress),
-                (_, Err(_)) => Outcome::Err(CallError::Invalid),
-                (Ok(a), Ok(op)) => match x10.call(a, op).await {
-                    Ok(p) => {
-                        payload = p;
-                        Outcome::Ok(&payload)
-                    }
-                    Err(e) => Outcome::Err(call_error(&e)),
-                },
-            };
-            ToHost::Reply { id, outcome }
-        }
+        ToDevice::Call { id, .. } => ToHost::Reply {
+            id,
+            outcome: match &result {
+                Some(Ok(p)) => Outcome::Ok(p),
+                Some(Err(e)) => Outcome::Err(*e),
+                None => Outcome::Err(CallError::Unsupported),
+            },
+        },
         ToDevice::Diagnostics { id } => ToHost::Diagnostics {
             id,
             counters: diag_counters(&x10.diagnostics()),
@@ -642,8 +663,7 @@ pub async fn serve<const N: usize>(rec: &Recorder<N>, x10: X10, who: Identity, r
         },
         ToDevice::Boards { id, first } => {
             let mut known = [KnownBoard::EMPTY; BOARDS_PER_LIST];
-            let (n, total) = x10.boards_from(usize::from(first), &mut known);
-            let updating = x10.updating();
+            let (n, total, updating) = x10.boards_from(usize::from(first), &mut known);
             ToHost::BoardList {
                 id,
                 total: u8::try_from(total).unwrap_or(u8::MAX),
@@ -655,15 +675,19 @@ pub async fn serve<const N: usize>(rec: &Recorder<N>, x10: X10, who: Identity, r
                     .collect(),
             }
         }
-        ToDevice::Assign { id, uid, address } => {
-            let r = match Address::new(address) {
-                Ok(a) => x10.assign(Uid(uid), a).await,
-                Err(_) => Err(AssignError::Reserved),
+        ToDevice::Assign { id, .. } => {
+            let status = match (assign, &result, call) {
+                (None, ..) => AssignStatus::UnknownUid,
+                (Some(Err(e)), ..) => assign_status(&Err(e)),
+                (Some(Ok(_)), Some(Err(e)), _) => AssignStatus::NotConfirmed(*e),
+                (Some(Ok(to)), _, call) => {
+                    if let Ok((old, _)) = call {
+                        x10.moved(old, to);
+                    }
+                    AssignStatus::Done
+                }
             };
-            ToHost::Assigned {
-                id,
-                status: assign_status(&r),
-            }
+            ToHost::Assigned { id, status }
         }
         ToDevice::Update { id, uid } => ToHost::UpdateAnswer {
             id,

@@ -6,7 +6,7 @@
 
 use crate::msg::{
     AssignStatus, CallError, CallRec, DiagCounters, EventRec, Hello, Outcome, OutputValue,
-    ToDevice, ToHost, UpdateFailure, UpdatePhase, UpdateStatus, WireOp,
+    ToDevice, ToHost, UpdatePhase, UpdateStatus, WireOp,
 };
 
 /// Writes postcard bytes into a buffer; remembers when it ran out of room.
@@ -112,28 +112,6 @@ impl Out<'_> {
         self.byte(index);
         if let Some(f) = field {
             self.byte(f);
-        }
-    }
-
-    fn update_failure(&mut self, f: &UpdateFailure) {
-        match f {
-            UpdateFailure::Enter(e) | UpdateFailure::Link(e) => {
-                self.byte(if matches!(f, UpdateFailure::Enter(_)) {
-                    1
-                } else {
-                    4
-                });
-                self.error(e);
-            }
-            UpdateFailure::RolledBack(v) => {
-                self.byte(6);
-                v.iter().for_each(|&b| self.byte(b));
-            }
-            UpdateFailure::NoMethod => self.byte(0),
-            UpdateFailure::NoBootloader => self.byte(2),
-            UpdateFailure::Refused(s) => self.tagged(3, Some(*s)),
-            UpdateFailure::NotBack => self.byte(5),
-            UpdateFailure::Rom => self.byte(7),
         }
     }
 
@@ -274,10 +252,7 @@ pub fn write_to_host(msg: &ToHost<'_>, out: &mut [u8]) -> Option<usize> {
             match &r.phase {
                 UpdatePhase::Started => o.byte(0),
                 UpdatePhase::Done => o.byte(1),
-                UpdatePhase::Failed(f) => {
-                    o.byte(2);
-                    o.update_failure(f);
-                }
+                UpdatePhase::Failed(f) => o.tagged(2, Some(*f as u8)),
             }
             o.varint(r.at_us);
         }
@@ -348,21 +323,25 @@ impl<'a> In<'a> {
         Some(*head)
     }
 
-    fn str(&mut self) -> Option<&'a str> {
-        core::str::from_utf8(self.bytes()?).ok()
+    /// A string the motherboard does not read (the laptop's hello names itself): skipped as
+    /// the bytes it is, its UTF-8 not checked (core's validation is 0.4 KiB of flash).
+    fn skip_str(&mut self) -> Option<&'static str> {
+        self.bytes().map(|_| "")
     }
 }
 
 /// Reads a [`ToDevice`] from its postcard bytes, as postcard would: `None` for an unknown
-/// variant, a truncated or overlong field, bad UTF-8 or bytes left over.
+/// variant, a truncated or overlong field or bytes left over. One difference: the names in a
+/// [`ToDevice::Hello`] are skipped, not read (they come back empty, and bytes that are not
+/// UTF-8 there are not refused): the motherboard does not use them.
 pub fn read_to_device(bytes: &[u8]) -> Option<ToDevice<'_>> {
     let mut i = In { rest: bytes };
     let msg = match i.varint(5, u64::from(u32::MAX))? {
         0 => ToDevice::Hello(Hello {
             version: i.u16()?,
             address: i.byte()?,
-            board: i.str()?,
-            robot: i.str()?,
+            board: i.skip_str()?,
+            robot: i.skip_str()?,
         }),
         1 => ToDevice::Bye,
         2 => ToDevice::Call {

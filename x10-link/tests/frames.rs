@@ -167,7 +167,7 @@ fn examples() -> Vec<(&'static str, String, Vec<u8>)> {
             db: 0x20,
             from: [0, 1, 0],
             to: [2, 0, 0],
-            phase: UpdatePhase::Failed(UpdateFailure::RolledBack([0, 1, 0])),
+            phase: UpdatePhase::Failed(UpdateFailure::RolledBack),
             at_us: 17_000_000,
         }),
     ];
@@ -281,7 +281,9 @@ fn the_motherboards_own_codec_gives_every_doc_row_exactly() {
                     got = Some(format!("{:?}", r.decode_device().unwrap()));
                 }
             }
-            assert_eq!(got.as_deref(), Some(debug.as_str()));
+            // The hello's names are skipped, not read (`read_to_device`).
+            let want = debug.replace("board: \"x10\"", "board: \"\"");
+            assert_eq!(got.as_deref(), Some(want.as_str()));
         }
     }
     // Too long for the buffer: refused, as postcard refuses it.
@@ -291,6 +293,21 @@ fn the_motherboards_own_codec_gives_every_doc_row_exactly() {
         write_to_host(&ToHost::Refused { id: 10 }, &mut short),
         Some(2)
     );
+}
+
+/// `ToDevice::Hello` with its names as any bytes (postcard writes a `str` as a byte slice).
+#[derive(serde::Deserialize)]
+enum HelloBytes<'a> {
+    Hello {
+        version: u16,
+        address: u8,
+        #[allow(dead_code)]
+        #[serde(borrow)]
+        board: &'a [u8],
+        #[allow(dead_code)]
+        #[serde(borrow)]
+        robot: &'a [u8],
+    },
 }
 
 /// The messages proptest draws for the codec's comparison.
@@ -430,12 +447,12 @@ fn to_host_of(k: u8, a: u8, n: u64, bytes: &[u8], text: &str) -> ToHost<'static>
                 0 => UpdatePhase::Started,
                 1 => UpdatePhase::Done,
                 2 => UpdatePhase::Failed(UpdateFailure::NoMethod),
-                3 => UpdatePhase::Failed(UpdateFailure::Enter(errors[usize::from(a % 11)])),
+                3 => UpdatePhase::Failed(UpdateFailure::Enter),
                 4 => UpdatePhase::Failed(UpdateFailure::NoBootloader),
-                5 => UpdatePhase::Failed(UpdateFailure::Refused(a)),
-                6 => UpdatePhase::Failed(UpdateFailure::Link(errors[usize::from(a % 11)])),
+                5 => UpdatePhase::Failed(UpdateFailure::Refused),
+                6 => UpdatePhase::Failed(UpdateFailure::Link),
                 7 => UpdatePhase::Failed(UpdateFailure::NotBack),
-                8 => UpdatePhase::Failed(UpdateFailure::RolledBack([a, 0, 1])),
+                8 => UpdatePhase::Failed(UpdateFailure::RolledBack),
                 _ => UpdatePhase::Failed(UpdateFailure::Rom),
             },
             at_us: n,
@@ -602,9 +619,14 @@ proptest! {
             cases.push(buf[..n.saturating_sub(1)].to_vec());
         }
         for c in &cases {
+            // The motherboard skips the hello's names (any bytes; read back empty).
             let want = match postcard::take_from_bytes::<ToDevice>(c) {
+                Ok((ToDevice::Hello(h), [])) => Some(ToDevice::Hello(Hello { board: "", robot: "", ..h })),
                 Ok((m, [])) => Some(m),
-                _ => None,
+                _ => match postcard::take_from_bytes::<HelloBytes>(c) {
+                    Ok((HelloBytes::Hello { version, address, .. }, [])) => Some(ToDevice::Hello(Hello { version, address, board: "", robot: "" })),
+                    _ => None,
+                },
             };
             prop_assert_eq!(read_to_device(c), want, "{:02x?}", c);
         }

@@ -155,8 +155,18 @@ fn the_laptop_lists_the_boards_and_moves_one_by_its_unique_id() {
                         serve(rec, x10, WHO, assign(id, u0, a)).await;
                     }
                     serve(rec, x10, WHO, assign(16, u0, h1)).await;
-                    // Moved: answered once it answers at 0x40.
+                    // Moved: answered once it confirmed; the laptop then lists the boards
+                    // until it is present there (x10-cli's `Robot::assign`).
                     serve(rec, x10, WHO, assign(17, u0, 0x40)).await;
+                    let mut polls = 0;
+                    while !x10
+                        .board(BoardQuery::Uid(u0))
+                        .is_some_and(|b| b.present && b.address == addr(0x40))
+                    {
+                        polls += 1;
+                        assert!(polls < 100, "not at 0x40 within 1 s");
+                        ctx.clock.sleep_ns(10 * MS).await;
+                    }
                     // Where it is already: done at once.
                     serve(rec, x10, WHO, assign(18, u0, 0x40)).await;
                     serve(

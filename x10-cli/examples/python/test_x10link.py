@@ -69,7 +69,7 @@ class Frames(unittest.TestCase):
                 "phase": "Started", "at_us": 2000000},
             "Update(UpdateRec { db: 32, from: [0, 1, 0], to: [2, 0, 0], phase: Failed": {
                 "kind": "Update", "db": 0x20, "version_from": (0, 1, 0), "version_to": (2, 0, 0),
-                "phase": "Failed", "failure": {"why": "RolledBack", "version": (0, 1, 0)},
+                "phase": "Failed", "failure": "RolledBack",
                 "at_us": 17000000},
         }
         self.assertEqual(len([w for w, _, _ in doc_rows() if w == "ToHost"]), len(want))

@@ -235,11 +235,7 @@ def decode(message):
         m.update(db=r.byte(), version_from=tuple(r.fixed(3)), version_to=tuple(r.fixed(3)))
         m["phase"] = UPDATE_PHASES[r.varint()]
         if m["phase"] == "Failed":
-            f = UPDATE_FAILURES[r.varint()]
-            m["failure"] = ({"why": f, "error": r.error()} if f in ("Enter", "Link")
-                            else {"why": f, "status": r.byte()} if f == "Refused"
-                            else {"why": f, "version": tuple(r.fixed(3))} if f == "RolledBack"
-                            else {"why": f})
+            m["failure"] = UPDATE_FAILURES[r.varint()]
         m["at_us"] = r.varint()
     if r.i != len(message):
         raise ValueError("bytes left over")
