@@ -91,7 +91,7 @@ export default [
       // The defmt log over the link (docs/usb-link.md, "The log"): the MB logs a line when a
       // laptop says hello; `x10 monitor --elf` decodes it from the USB stream alone (the file
       // holds only what came over USB), and the same line is in the RTT log the rig reads.
-      const LOG_LINE = 'USB link: a laptop listens (link version 1)';
+      const LOG_LINE = 'USB link: a laptop listens (link version 2)';
       const overUsb = monitor.split('\n').filter((l) => l.endsWith(` INFO  log: ${LOG_LINE}`));
       ctx.check(`x10 monitor prints the MB's log line "${LOG_LINE}" decoded from the USB stream, once per hello`, overUsb.length === 2,
         overUsb.join(' | ') || monitor.split('\n').find((l) => l.startsWith('log:')));

@@ -122,6 +122,38 @@ pub enum Heard {
     NoRoom,
 }
 
+/// Why [`crate::X10::assign`] did not give a board the address asked for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum AssignError {
+    /// The motherboard knows no board with that unique ID.
+    UnknownUid,
+    /// The address is not one a board may take: outside `0x08..=0x76`, the motherboard's own,
+    /// or `0x64` (where an STM32 ROM bootloader answers during an update).
+    Reserved,
+    /// Another board is there (known by its ID, present or being assigned; known without an
+    /// ID), or the address is pinned to another board (`MbConfig::pinned`).
+    Taken,
+    /// The board shares its address with another board (a collision): `set_address` there
+    /// would move both, and `assign` reaches only unaddressed boards.
+    Collided,
+    /// The board did not confirm: its `set_address` failed (the error), or it was not heard
+    /// from the new address in time (`Timeout`).
+    NotConfirmed(x10_devices::LinkError),
+}
+
+/// How [`crate::X10::assign`] reaches the board (from [`Directory::assign_plan`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum AssignPlan {
+    /// It is there already: nothing to send.
+    Already,
+    /// It answers at this address: `set_address` to it.
+    SetAddress(Address),
+    /// It does not answer at an address (unaddressed, its `assign` pending or lost; or gone):
+    /// an `assign` with its ID, written to `0x77`.
+    Assign,
+}
+
 /// The boards known by their ID, in the image's storage.
 pub(crate) struct Directory {
     entries: &'static mut [KnownBoard],
@@ -158,7 +190,7 @@ impl Directory {
         self.len = 0;
     }
 
-    fn known(&self) -> &[KnownBoard] {
+    pub(crate) fn known(&self) -> &[KnownBoard] {
         self.entries.get(..self.len).unwrap_or(&[])
     }
 
@@ -178,11 +210,6 @@ impl Directory {
             }
         };
         self.entries.get_mut(i)
-    }
-
-    /// Every known board, in the order they were first heard.
-    pub(crate) fn boards(&self) -> impl Iterator<Item = &KnownBoard> {
-        self.known().iter()
     }
 
     /// The first known board that `q` names, present or not.
@@ -386,6 +413,61 @@ impl Directory {
         }
     }
 
+    /// Whether the board `uid` may be given `to`, and how (the laptop's assign, issue 26): `to`
+    /// must be assignable, not `mb`'s, not `0x64`; free as [`choose_address`] counts it (no
+    /// other board known there present or being assigned, not pinned to another board, not
+    /// `in_use`); the board not in a collision. Pure: nothing changes.
+    pub(crate) fn assign_plan(
+        &self,
+        uid: Uid,
+        to: Address,
+        mb: Address,
+        pinned: &[PinnedAddress],
+        in_use: impl Fn(Address) -> bool,
+    ) -> Result<AssignPlan, AssignError> {
+        let raw = to.get();
+        if Address::assignable(raw).is_err() || to == mb || raw == Address::STM32_BOOTLOADER {
+            return Err(AssignError::Reserved);
+        }
+        let b = self
+            .known()
+            .iter()
+            .find(|b| b.uid == uid)
+            .ok_or(AssignError::UnknownUid)?;
+        if b.collided {
+            return Err(AssignError::Collided);
+        }
+        if b.address == to && b.present {
+            return Ok(AssignPlan::Already);
+        }
+        let other_there = self
+            .known()
+            .iter()
+            .any(|o| o.uid != uid && o.address == to && (o.present || o.assign_pending));
+        let pinned_to_other = pinned
+            .iter()
+            .any(|p| p.address == to && p.by != PinBy::Uid(uid));
+        if other_there || pinned_to_other || (b.address != to && in_use(to)) {
+            return Err(AssignError::Taken);
+        }
+        Ok(if b.present {
+            AssignPlan::SetAddress(b.address)
+        } else {
+            AssignPlan::Assign
+        })
+    }
+
+    /// The board `uid` is to take `to` from an `assign` (the laptop's, through
+    /// [`Directory::assign_plan`]): it is recorded there, not present, its `assign` pending
+    /// (sent by the dispatcher, again at its next announce until its `boot` comes from `to`).
+    pub(crate) fn reassign(&mut self, uid: Uid, to: Address) {
+        if let Some(b) = self.known_mut().iter_mut().find(|b| b.uid == uid) {
+            b.address = to;
+            b.present = false;
+            b.assign_pending = true;
+        }
+    }
+
     /// The board at `from` confirmed `set_address(to)`: it is at `to` once its `boot`
     /// arrives from there.
     pub(crate) fn moved(&mut self, from: Address, to: Address) {
@@ -512,7 +594,7 @@ mod tests {
         d.seen(a(0x20), &info(uid(2), BoardKind::PICO), now);
         d.lost(a(0x20));
         assert!(!d.answered(a(0x20)));
-        assert!(d.boards().all(|b| !b.present));
+        assert!(d.known().iter().all(|b| !b.present));
     }
 
     #[test]
@@ -566,11 +648,11 @@ mod tests {
         );
         // Nobody known at 0x21: nothing changes.
         d.identified(a(0x21), &info(uid(9), BoardKind::G431).identity);
-        assert_eq!(d.boards().count(), 1);
+        assert_eq!(d.known().len(), 1);
         // Two IDs from one address (collided): which one answered is not known.
         d.seen(a(0x20), &info(uid(2), BoardKind::PICO), now);
         d.identified(a(0x20), &info(uid(3), BoardKind::G431).identity);
-        assert!(d.boards().all(|b| b.kind == BoardKind::PICO));
+        assert!(d.known().iter().all(|b| b.kind == BoardKind::PICO));
     }
 
     #[test]
@@ -748,7 +830,7 @@ mod tests {
             d.seen(x, &info(uid(2), BoardKind::PICO), Instant(5_000)),
             Heard::Collision
         );
-        let both: Vec<KnownBoard> = d.boards().copied().collect();
+        let both: Vec<KnownBoard> = d.known().to_vec();
         assert_eq!(both.len(), 2);
         assert!(both.iter().all(|b| b.collided && b.address == x));
         // A board replaced after the window is no collision.
@@ -861,5 +943,66 @@ mod tests {
         assert!(d.find(BoardQuery::Address(a(0x40))).unwrap().present);
         assert!(d.find(BoardQuery::Kind(BoardKind::PICO)).is_some());
         assert!(d.find(BoardQuery::Kind(BoardKind::G431)).is_none());
+    }
+
+    #[test]
+    fn the_laptops_assign_is_refused_or_planned_exactly() {
+        let mut d = dir(4);
+        let now = Instant(0);
+        let mb = a(MB);
+        let none = |_: Address| false;
+        d.seen(a(0x20), &info(uid(1), BoardKind::PICO), now);
+        d.seen(a(0x21), &info(uid(2), BoardKind::PICO), now);
+        let plan = |d: &Directory, u: Uid, to: u8, pinned: &[PinnedAddress]| {
+            d.assign_plan(u, a(to), mb, pinned, none)
+        };
+        // Reserved: the motherboard's own, 0x64, the unaddressed address, the internal one.
+        for r in [MB, Address::STM32_BOOTLOADER, 0x77, 0x00] {
+            assert_eq!(
+                plan(&d, uid(1), r, &[]),
+                Err(AssignError::Reserved),
+                "{r:#04x}"
+            );
+        }
+        assert_eq!(plan(&d, uid(9), 0x40, &[]), Err(AssignError::UnknownUid));
+        // Another board there; pinned to another board; known there without an ID.
+        assert_eq!(plan(&d, uid(1), 0x21, &[]), Err(AssignError::Taken));
+        let pin = [PinnedAddress {
+            by: PinBy::Uid(uid(2)),
+            address: a(0x40),
+        }];
+        assert_eq!(plan(&d, uid(1), 0x40, &pin), Err(AssignError::Taken));
+        assert_eq!(
+            plan(&d, uid(2), 0x40, &pin),
+            Ok(AssignPlan::SetAddress(a(0x21)))
+        );
+        assert_eq!(
+            d.assign_plan(uid(1), a(0x41), mb, &[], |x| x == a(0x41)),
+            Err(AssignError::Taken)
+        );
+        assert_eq!(plan(&d, uid(1), 0x20, &[]), Ok(AssignPlan::Already));
+        assert_eq!(
+            plan(&d, uid(1), 0x40, &[]),
+            Ok(AssignPlan::SetAddress(a(0x20)))
+        );
+        // A lost board's address is free; a board that does not answer gets an assign.
+        d.lost(a(0x21));
+        assert_eq!(
+            plan(&d, uid(1), 0x21, &[]),
+            Ok(AssignPlan::SetAddress(a(0x20)))
+        );
+        assert_eq!(plan(&d, uid(2), 0x42, &[]), Ok(AssignPlan::Assign));
+        d.reassign(uid(2), a(0x42));
+        let b = d.find(BoardQuery::Uid(uid(2))).unwrap();
+        assert_eq!((b.address, b.present), (a(0x42), false));
+        assert_eq!(d.take_assign(), Some((uid(2), a(0x42))));
+        // Being assigned there: taken for the others.
+        d.reassign(uid(2), a(0x42));
+        assert_eq!(plan(&d, uid(1), 0x42, &[]), Err(AssignError::Taken));
+        // Two boards at one address: neither can be moved alone.
+        d.seen(a(0x30), &info(uid(3), BoardKind::PICO), now);
+        d.seen(a(0x30), &info(uid(4), BoardKind::PICO), now);
+        assert_eq!(plan(&d, uid(3), 0x50, &[]), Err(AssignError::Collided));
+        assert_eq!(plan(&d, uid(4), 0x50, &[]), Err(AssignError::Collided));
     }
 }

@@ -4,17 +4,22 @@
 use core::future::Future;
 
 use x10_devices::{Link, LinkError, PinEvent};
-use x10_microcode::{Address, Op, Payload, PinRef};
+use x10_microcode::{Address, Op, Payload, PinRef, Uid};
 
 use crate::config::MbConfig;
 use crate::diag::MbDiagnostics;
-use crate::directory::{BoardQuery, KnownBoard};
+use crate::directory::{AssignError, AssignPlan, BoardQuery, KnownBoard};
 use crate::mb_core::MbCore;
 use crate::mb_core::{now, sleep_until};
 use crate::together::{NotTogether, SweepResult, SweepSummary, Together};
+use crate::update::UpdateRefusal;
 
 /// How often [`X10::wait_for_board`] looks (5 ms).
 pub const WAIT_FOR_BOARD_POLL_US: u64 = 5_000;
+
+/// How long [`X10::assign`] waits for the board's `boot` from its new address (1 s: a board
+/// restarts in a few ms; an unaddressed one's `assign` is sent again at its next announce).
+pub const ASSIGN_WAIT_US: u64 = 1_000_000;
 
 /// The robot programs' handle on the running motherboard: one concrete, `Copy` type, the same
 /// on every board and in the simulator, so a robot program is a plain `async fn` that takes
@@ -86,11 +91,24 @@ impl X10 {
     /// see [`KnownBoard::present`]), copied into `out` in the order they were first heard;
     /// returns how many were copied (at most `out.len()`).
     pub fn boards(&self, out: &mut [KnownBoard]) -> usize {
+        self.boards_from(0, out).0
+    }
+
+    /// As [`X10::boards`], from the `first`-th board on; also returns how many boards are
+    /// known in all, and the board being updated ([`X10::updating`]).
+    pub fn boards_from(
+        &self,
+        first: usize,
+        out: &mut [KnownBoard],
+    ) -> (usize, usize, Option<Address>) {
         self.core.with(|t| {
-            out.iter_mut()
-                .zip(t.directory.boards())
+            let known = t.directory.known();
+            let copied = out
+                .iter_mut()
+                .zip(known.iter().skip(first))
                 .map(|(o, b)| *o = *b)
-                .count()
+                .count();
+            (copied, known.len(), t.updating)
         })
     }
 
@@ -133,6 +151,108 @@ impl X10 {
         self.core.call(old, Op::SetAddress(new)).await?;
         self.core.with(|t| t.directory.moved(old, new));
         Ok(())
+    }
+
+    /// Gives the board with unique ID `uid` the address `to` (a person fixing addresses, the
+    /// USB link's assign), through plug and play's own operations: a board that answers at an
+    /// address is sent `set_address` there ([`X10::set_address`]); one that does not
+    /// (unaddressed) an `assign` with its ID at `0x77`, sent by the dispatcher. Either way it
+    /// starts again at `to`, and this returns once its `boot` came from there (within
+    /// [`ASSIGN_WAIT_US`]): robot calls to `to` then reach it.
+    ///
+    /// # Errors
+    /// [`AssignError`]: the refusals before anything is sent (unknown ID, reserved address,
+    /// address taken, a board in a collision), or the board did not confirm.
+    pub async fn assign(&self, uid: Uid, to: Address) -> Result<(), AssignError> {
+        if let Some(old) = self.assign_step(uid, to)? {
+            self.call(old, Op::SetAddress(to))
+                .await
+                .map_err(AssignError::NotConfirmed)?;
+            self.moved(old, to);
+        }
+        self.assign_wait(uid, to).await
+    }
+
+    /// [`X10::assign`]'s first step, for a caller that sends the `set_address` itself (the
+    /// USB link, through its one call site): refuses, or queues the `assign` of a board that
+    /// does not answer (`None`), or names the address the board answers at (`Some`: send it
+    /// `Op::SetAddress(to)` there, then [`X10::moved`]). Then [`X10::assign_wait`].
+    ///
+    /// # Errors
+    /// As [`X10::assign`], before anything is sent.
+    pub fn assign_step(&self, uid: Uid, to: Address) -> Result<Option<Address>, AssignError> {
+        let mb = self.core.config.address;
+        let pinned = self.core.config.pinned;
+        let plan = self.core.with(|t| {
+            let plan = {
+                let boards = &t.boards;
+                t.directory
+                    .assign_plan(uid, to, mb, pinned, |a| boards.ports_known(a))?
+            };
+            if plan == AssignPlan::Assign {
+                t.directory.reassign(uid, to);
+            }
+            Ok(plan)
+        })?;
+        Ok(match plan {
+            AssignPlan::SetAddress(old) => Some(old),
+            AssignPlan::Assign => {
+                // The dispatcher looks at its plug-and-play work again.
+                self.core.keepalive_changed.signal(());
+                None
+            }
+            AssignPlan::Already => None,
+        })
+    }
+
+    /// The board at `from` confirmed `set_address(to)`: the directory has it at `to`, present
+    /// again once its `boot` comes from there.
+    pub fn moved(&self, from: Address, to: Address) {
+        self.core.with(|t| t.directory.moved(from, to));
+    }
+
+    /// Waits until the board `uid` answers at `to` (its `boot` came from there), at most
+    /// [`ASSIGN_WAIT_US`].
+    ///
+    /// # Errors
+    /// [`AssignError::NotConfirmed`] with `Timeout`.
+    pub async fn assign_wait(&self, uid: Uid, to: Address) -> Result<(), AssignError> {
+        match self
+            .wait_for_board(BoardQuery::Uid(uid), ASSIGN_WAIT_US)
+            .await
+        {
+            Ok(b) if b.address == to => Ok(()),
+            _ => Err(AssignError::NotConfirmed(LinkError::Timeout)),
+        }
+    }
+
+    /// Starts the update of the board `uid` now (whatever the image's `UpdatePolicy`), or of
+    /// every present board out of date (`None`; a `Never` policy overridden, pins kept), with
+    /// the images the updater carries (`update::run_updates`). Answers at once: how many boards
+    /// the updater will bring to the carried version at its next look (within
+    /// `update::UPDATE_POLL_US`); the progress reaches the call observer
+    /// (`CallObserver::update`: the USB link's records).
+    ///
+    /// # Errors
+    /// [`UpdateRefusal`], as `update::start_decision` decides.
+    pub fn start_update(&self, uid: Option<Uid>) -> Result<u8, UpdateRefusal> {
+        self.core.with(|t| {
+            let n = crate::update::start_decision(
+                t.carried,
+                t.update_policy,
+                t.directory.known(),
+                t.updating,
+                t.update_now.is_some(),
+                uid,
+            )?;
+            t.update_now = Some(uid);
+            Ok(n)
+        })
+    }
+
+    /// The board whose firmware is being updated, if any.
+    pub fn updating(&self) -> Option<Address> {
+        self.core.with(|t| t.updating)
     }
 
     /// Blinks the status LED of the board at `db` for `secs` seconds (0 stops), to find it

@@ -67,8 +67,8 @@ mod motherboard;
 
 pub use config::{MbConfig, PinBy, PinnedAddress};
 pub use diag::MbDiagnostics;
-pub use directory::{choose_address, BoardQuery, KnownBoard, COLLISION_WINDOW_US};
-pub use handle::{WAIT_FOR_BOARD_POLL_US, X10};
+pub use directory::{choose_address, AssignError, BoardQuery, KnownBoard, COLLISION_WINDOW_US};
+pub use handle::{ASSIGN_WAIT_US, WAIT_FOR_BOARD_POLL_US, X10};
 pub use jobs::REQUEST_QUEUE_LEN;
 pub use keepalive::KEEPALIVE_RAM_BYTES;
 pub use mb_core::{InternalBoard, MbCore};

@@ -29,4 +29,17 @@ pub trait CallObserver: Sync {
     /// An event was routed (a bus board's or the internal board's), at `at`. Called inside the
     /// motherboard's task; keep it short. By default nothing (the USB link records them).
     fn event(&self, _event: &Event<'_>, _at: Instant) {}
+
+    /// The updater (`update::run_updates`) starts updating the board at `db` from `from` to
+    /// `to` (`end` is `None`), or that update ended, at `at`. Called inside the updater's task. By
+    /// default nothing (the USB link records it).
+    fn update(
+        &self,
+        _db: Address,
+        _from: x10_microcode::Version,
+        _to: x10_microcode::Version,
+        _end: Option<&Result<(), crate::update::UpdateError>>,
+        _at: Instant,
+    ) {
+    }
 }

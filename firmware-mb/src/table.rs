@@ -41,6 +41,14 @@ pub(crate) struct Table {
     /// The board whose firmware is being updated (`crate::update`): other callers' requests
     /// to it end in `LinkError::Updating`.
     pub(crate) updating: Option<x10_microcode::Address>,
+    /// The images the updater carries (empty: none, or no updater runs), left by
+    /// `update::run_updates` for [`crate::X10::start_update`].
+    pub(crate) carried: &'static [crate::update::DbImage],
+    /// The updater's policy.
+    pub(crate) update_policy: crate::update::UpdatePolicy,
+    /// A request to update now, for the updater's next look: one board (its ID) or every
+    /// board (`None`).
+    pub(crate) update_now: Option<Option<x10_microcode::Uid>>,
 }
 
 /// Callers whose wakers are kept while they wait for a slot; more wake all and register
@@ -60,6 +68,9 @@ impl Table {
             slot_waiters: MultiWakerRegistration::new(),
             slot_waiting: 0,
             updating: None,
+            carried: &[],
+            update_policy: crate::update::UpdatePolicy::Auto,
+            update_now: None,
         }
     }
 

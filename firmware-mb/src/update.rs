@@ -265,6 +265,17 @@ pub trait UpdateLink {
     async fn pause(&self, us: u64);
     /// Microseconds since start.
     fn now_us(&self) -> u64;
+    /// An update of the board at `db` from `from` to `to` starts (`end` is `None`) or ended:
+    /// the USB link's records (`CallObserver::update`). By default nothing.
+    fn report(
+        &self,
+        db: Address,
+        from: Version,
+        to: Version,
+        end: Option<&Result<(), UpdateError>>,
+    ) {
+        let _ = (db, from, to, end);
+    }
     /// A raw I2C transfer through the motherboard's bus, outside the microcode (no frame, no
     /// check, no board prepared): `write` to the 7-bit address `addr`, then, unless `read`
     /// is empty, `read.len()` bytes after a repeated START (a plain read when `write` is
@@ -717,6 +728,19 @@ impl UpdateLink for crate::X10 {
         crate::mb_core::now().0
     }
 
+    #[inline(never)]
+    fn report(
+        &self,
+        db: Address,
+        from: Version,
+        to: Version,
+        end: Option<&Result<(), UpdateError>>,
+    ) {
+        if let Some(o) = self.core().observer {
+            o.update(db, from, to, end, crate::mb_core::now());
+        }
+    }
+
     /// A job of its own kind in the dispatcher's queue (a plain transfer: the bytes as they
     /// are, no board prepared), between the robot's requests.
     async fn i2c(&self, addr: u8, write: &[u8], read: &mut [u8]) -> Result<(), LinkError> {
@@ -765,6 +789,12 @@ impl UpdateState {
             .iter()
             .find(|(u, _)| *u == uid)
             .map_or(0, |(_, c)| *c)
+    }
+
+    /// Forgets the tries of every board: a request to update now
+    /// ([`crate::X10::start_update`]) tries again a board that failed too often.
+    pub fn forget(&mut self) {
+        self.tried.clear();
     }
 
     fn count(&mut self, uid: Uid) {
@@ -825,7 +855,9 @@ pub async fn update_pass<L: UpdateLink>(
             image.version[1],
             image.version[2]
         );
+        link.report(b.address, b.firmware, image.version, None);
         let r = update_board(link, cfg, b.address, b.kind, image, &mut state.stats).await;
+        link.report(b.address, b.firmware, image.version, Some(&r));
         match r {
             Ok(()) => info!("update: board {} done", b.address.get()),
             Err(_) => {
@@ -840,19 +872,121 @@ pub async fn update_pass<L: UpdateLink>(
     n
 }
 
+/// Why a request to update now ([`crate::X10::start_update`], the USB link's) was refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum UpdateRefusal {
+    /// This motherboard image carries no daughterboard images (or its updater does not run).
+    NoImages,
+    /// No board with that unique ID is known.
+    UnknownUid,
+    /// The board does not answer (lost, or not yet addressed).
+    NotPresent,
+    /// No image of the board's kind is carried.
+    NoImage,
+    /// The board runs the carried version already (for every board: all of them do).
+    UpToDate,
+    /// An update is under way (of the board at this address), or a request waits for the
+    /// updater: one at a time.
+    Busy(Option<Address>),
+}
+
+/// The policy of a request to update every board now: `Never` is overridden, a pin
+/// (`Except`) is kept.
+pub const fn requested(policy: UpdatePolicy) -> UpdatePolicy {
+    match policy {
+        UpdatePolicy::Never => UpdatePolicy::Auto,
+        p => p,
+    }
+}
+
+/// Whether a request to update `target` (one board by its ID; `None`: every present board
+/// out of date) starts now, given the `images` the updater carries (empty: it does not run),
+/// its `policy`, the `boards` known, the board `updating` and whether a request is `pending`:
+/// how many boards it will update, or why not. Pure ([`crate::X10::start_update`] applies
+/// it). A board named by its ID is updated whatever the policy; every board: as
+/// [`requested`] says.
+///
+/// # Errors
+/// [`UpdateRefusal`].
+pub fn start_decision(
+    images: &[DbImage],
+    policy: UpdatePolicy,
+    boards: &[crate::KnownBoard],
+    updating: Option<Address>,
+    pending: bool,
+    target: Option<Uid>,
+) -> Result<u8, UpdateRefusal> {
+    if images.is_empty() {
+        return Err(UpdateRefusal::NoImages);
+    }
+    if updating.is_some() || pending {
+        return Err(UpdateRefusal::Busy(updating));
+    }
+    let Some(uid) = target else {
+        let n = boards
+            .iter()
+            .filter(|b| b.present)
+            .filter(|b| plan(images, requested(policy), b.uid, b.kind, b.firmware).is_some())
+            .count();
+        return match u8::try_from(n) {
+            Ok(0) => Err(UpdateRefusal::UpToDate),
+            n => Ok(n.unwrap_or(u8::MAX)),
+        };
+    };
+    let b = boards
+        .iter()
+        .find(|b| b.uid == uid)
+        .ok_or(UpdateRefusal::UnknownUid)?;
+    if !b.present {
+        return Err(UpdateRefusal::NotPresent);
+    }
+    match decide(images, UpdatePolicy::Auto, uid, b.kind, b.firmware) {
+        Decision::Update(_) => Ok(1),
+        Decision::UpToDate(_) => Err(UpdateRefusal::UpToDate),
+        _ => Err(UpdateRefusal::NoImage),
+    }
+}
+
 /// The updater task on the motherboard: at start and every [`UPDATE_POLL_US`], an
-/// [`update_pass`] over the boards its directory knows (`Motherboard::with_directory`).
+/// [`update_pass`] over the boards its directory knows (`Motherboard::with_directory`). It
+/// leaves `images` and `policy` with the motherboard, so that a request to update now
+/// ([`crate::X10::start_update`]: one board whatever the policy, or every board with `Never`
+/// overridden) is answered at once and run at its next look, its tries counted afresh.
 pub async fn run_updates(
     x10: crate::X10,
     cfg: UpdateConfig,
-    images: &[DbImage],
+    images: &'static [DbImage],
     policy: UpdatePolicy,
 ) -> ! {
+    x10.core().with(|t| {
+        t.carried = images;
+        t.update_policy = policy;
+    });
     let mut state = UpdateState::default();
     let mut list = [crate::KnownBoard::EMPTY; MAX_TRACKED];
     loop {
         let n = x10.boards(&mut list);
         let boards = list.get(..n).unwrap_or(&[]);
+        // A request to update now: one board, or every board with `Never` overridden; the
+        // tries counted afresh.
+        let (boards, policy) = match x10.core().with(|t| t.update_now.take()) {
+            None => (boards, policy),
+            Some(target) => {
+                state.forget();
+                match target {
+                    Some(uid) => (
+                        boards
+                            .iter()
+                            .position(|b| b.uid == uid)
+                            .and_then(|i| boards.get(i..=i))
+                            .unwrap_or(&[]),
+                        UpdatePolicy::Auto,
+                    ),
+                    None => (boards, requested(policy)),
+                }
+            }
+        };
         update_pass(&x10, &cfg, images, policy, boards, &mut state, |_, _, _| {}).await;
         UpdateLink::pause(&x10, UPDATE_POLL_US).await;
     }

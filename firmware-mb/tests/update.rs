@@ -629,3 +629,75 @@ fn time_of_a_32_kib_update() {
         }
     }
 }
+
+#[test]
+fn a_request_to_update_now_is_answered_exactly() {
+    use firmware_mb::update::{requested, start_decision, UpdateRefusal};
+    let new = db_image(image(ACTIVE, NEW, true, 2));
+    let images = [new];
+    let board = |n: u8, kind: BoardKind, firmware, present| {
+        let mut b = KnownBoard::EMPTY;
+        b.uid = Uid([n; 8]);
+        b.address = Address::new(0x20 + n).unwrap();
+        b.kind = kind;
+        b.firmware = firmware;
+        b.present = present;
+        b
+    };
+    let old = board(1, BoardKind::SIMULATED, OLD, true);
+    let current = board(2, BoardKind::SIMULATED, NEW, true);
+    let gone = board(3, BoardKind::SIMULATED, OLD, false);
+    let other_kind = board(4, BoardKind::G431, OLD, true);
+    let boards = [old, current, gone, other_kind];
+    let ask = |images: &[DbImage], policy, updating, pending, target| {
+        start_decision(images, policy, &boards, updating, pending, target)
+    };
+    let auto = UpdatePolicy::Auto;
+    // No images carried: refused, whatever else.
+    assert_eq!(
+        ask(&[], auto, None, false, Some(old.uid)),
+        Err(UpdateRefusal::NoImages)
+    );
+    // One board, whatever the policy: pinned or `Never` are overridden.
+    let pins: &'static [Uid] = Box::leak(Box::new([old.uid]));
+    for policy in [auto, UpdatePolicy::Never, UpdatePolicy::Except(pins)] {
+        assert_eq!(ask(&images, policy, None, false, Some(old.uid)), Ok(1));
+    }
+    assert_eq!(
+        ask(&images, auto, None, false, Some(current.uid)),
+        Err(UpdateRefusal::UpToDate)
+    );
+    assert_eq!(
+        ask(&images, auto, None, false, Some(gone.uid)),
+        Err(UpdateRefusal::NotPresent)
+    );
+    assert_eq!(
+        ask(&images, auto, None, false, Some(other_kind.uid)),
+        Err(UpdateRefusal::NoImage)
+    );
+    assert_eq!(
+        ask(&images, auto, None, false, Some(Uid([9; 8]))),
+        Err(UpdateRefusal::UnknownUid)
+    );
+    // Busy: an update under way, or a request not yet taken.
+    assert_eq!(
+        ask(&images, auto, Some(current.address), false, Some(old.uid)),
+        Err(UpdateRefusal::Busy(Some(current.address)))
+    );
+    assert_eq!(
+        ask(&images, auto, None, true, None),
+        Err(UpdateRefusal::Busy(None))
+    );
+    // Every board: the present ones out of date of a carried kind; `Never` overridden, a pin
+    // kept.
+    assert_eq!(ask(&images, UpdatePolicy::Never, None, false, None), Ok(1));
+    assert_eq!(requested(UpdatePolicy::Never), UpdatePolicy::Auto);
+    assert_eq!(
+        ask(&images, UpdatePolicy::Except(pins), None, false, None),
+        Err(UpdateRefusal::UpToDate)
+    );
+    assert_eq!(
+        start_decision(&images, auto, &[current, gone], None, false, None),
+        Err(UpdateRefusal::UpToDate)
+    );
+}

@@ -25,6 +25,7 @@ pub mod codec;
 pub mod foxglove;
 #[cfg(feature = "foxglove-live")]
 pub mod foxglove_ws;
+pub mod link_requests;
 pub mod monitor;
 pub mod new;
 pub mod report;

@@ -15,8 +15,9 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use x10_link::{
-    encode, CallError, CallRec, Dropped, Feed, FrameReader, Hello, Outcome, OutputValue, ToDevice,
-    ToHost, WireOp, DIAG_NAMES, LINK_VERSION, MAX_FRAME,
+    encode, AssignStatus, BoardEntry, CallError, CallRec, Dropped, Feed, FrameReader, Hello,
+    Outcome, OutputValue, ToDevice, ToHost, UpdatePhase, UpdateRec, UpdateStatus, WireOp,
+    DIAG_NAMES, LINK_VERSION, MAX_FRAME,
 };
 use x10_microcode::{Address, Level, Op, PinRef, Status};
 use x10_sim::ports::{Change, OutputChange};
@@ -141,6 +142,19 @@ pub enum Answer {
     Boards(Vec<u8>),
     /// Refused (a request this motherboard does not know).
     Refused,
+    /// A page of the boards plug and play knows (link version 2).
+    BoardList {
+        /// How many boards the motherboard knows.
+        total: u8,
+        /// The index of `boards[0]`.
+        first: u8,
+        /// The boards.
+        boards: Vec<BoardEntry>,
+    },
+    /// How an assign ended (link version 2).
+    Assigned(AssignStatus),
+    /// The answer to a request to update now (link version 2).
+    UpdateAnswer(UpdateStatus),
 }
 
 /// The motherboard's defmt log as it comes over the link (`Log` messages: rzCOBS frames,
@@ -293,6 +307,8 @@ pub struct LinkRun {
     pub answers: Vec<(u16, Answer)>,
     /// The first and last record times (µs of the motherboard's clock).
     pub span_us: Option<(u64, u64)>,
+    /// Every update record (link version 2), in the order they came.
+    pub updates: Vec<UpdateRec>,
     reader: Option<Box<FrameReader<{ MAX_FRAME }>>>,
 }
 
@@ -428,6 +444,46 @@ impl LinkRun {
             ToHost::Refused { id } => {
                 self.answers.push((*id, Answer::Refused));
                 Vec::new()
+            }
+            ToHost::BoardList {
+                id,
+                total,
+                first,
+                boards,
+            } => {
+                let page = Answer::BoardList {
+                    total: *total,
+                    first: *first,
+                    boards: boards.to_vec(),
+                };
+                self.answers.push((*id, page));
+                Vec::new()
+            }
+            ToHost::Assigned { id, status } => {
+                self.answers.push((*id, Answer::Assigned(*status)));
+                Vec::new()
+            }
+            ToHost::UpdateAnswer { id, status } => {
+                self.answers.push((*id, Answer::UpdateAnswer(*status)));
+                Vec::new()
+            }
+            ToHost::Update(r) => {
+                self.saw(r.at_us);
+                self.updates.push(*r);
+                let severity = match r.phase {
+                    UpdatePhase::Failed(_) => Severity::Warn,
+                    _ => Severity::Info,
+                };
+                let line = TraceLine::new(
+                    r.at_us.saturating_mul(1_000),
+                    severity,
+                    "update",
+                    crate::link_requests::update_text(r),
+                );
+                if severity == Severity::Warn {
+                    self.warnings.push(line.clone());
+                }
+                vec![line]
             }
         }
     }
@@ -595,6 +651,9 @@ pub enum RobotError {
     Call(CallError),
     /// The operation could not be encoded.
     Invalid,
+    /// The motherboard refused the request: it does not know it (an older link version: see
+    /// its hello) or its request queue was full.
+    Refused,
 }
 
 impl std::fmt::Display for RobotError {
@@ -604,6 +663,10 @@ impl std::fmt::Display for RobotError {
             RobotError::NoAnswer => write!(f, "no answer from the robot"),
             RobotError::Call(e) => write!(f, "{}", error_text(e)),
             RobotError::Invalid => write!(f, "the operation could not be encoded"),
+            RobotError::Refused => write!(
+                f,
+                "the motherboard refused the request (an older link version does not know it; this x10 speaks version {LINK_VERSION})"
+            ),
         }
     }
 }
@@ -719,25 +782,36 @@ impl<S: Read + Write> Robot<S> {
         }
     }
 
-    fn fresh_id(&mut self) -> u16 {
+    pub(crate) fn fresh_id(&mut self) -> u16 {
         let id = self.next_id;
         self.next_id = self.next_id.wrapping_add(1).max(1);
         id
     }
 
-    fn ask(&mut self, id: u16, req: &ToDevice<'_>) -> Result<Answer, RobotError> {
+    pub(crate) fn ask(&mut self, id: u16, req: &ToDevice<'_>) -> Result<Answer, RobotError> {
         self.port
             .write_all(&frame(req))
             .map_err(|e| RobotError::Io(e.to_string()))?;
         self.wait_answer(id)
     }
 
-    fn wait_answer(&mut self, id: u16) -> Result<Answer, RobotError> {
+    pub(crate) fn wait_answer(&mut self, id: u16) -> Result<Answer, RobotError> {
         let deadline = std::time::Instant::now() + self.timeout;
         let mut buf = [0u8; 256];
         loop {
             if let Some(i) = self.run.answers.iter().position(|(a, _)| *a == id) {
                 return Ok(self.run.answers.remove(i).1);
+            }
+            // A request the motherboard could not decode (an older link version) is refused
+            // with id 0.
+            if let Some(i) = self
+                .run
+                .answers
+                .iter()
+                .position(|(a, r)| *a == 0 && *r == Answer::Refused)
+            {
+                self.run.answers.remove(i);
+                return Err(RobotError::Refused);
             }
             if std::time::Instant::now() > deadline {
                 return Err(RobotError::NoAnswer);
@@ -752,8 +826,31 @@ impl<S: Read + Write> Robot<S> {
         }
     }
 
-    fn feed(&mut self, bytes: &[u8]) {
+    pub(crate) fn feed(&mut self, bytes: &[u8]) {
         self.run.feed(bytes);
+    }
+
+    /// Reads what the robot sends for up to `within` (or until `done` says so of the run),
+    /// feeding [`Robot::run`].
+    ///
+    /// # Errors
+    /// [`RobotError::Io`].
+    pub fn read_for(
+        &mut self,
+        within: Duration,
+        done: impl Fn(&LinkRun) -> bool,
+    ) -> Result<(), RobotError> {
+        let deadline = std::time::Instant::now() + within;
+        let mut buf = [0u8; 256];
+        while !done(&self.run) && std::time::Instant::now() < deadline {
+            match self.port.read(&mut buf) {
+                Ok(0) => return Ok(()),
+                Ok(n) => self.feed(buf.get(..n).unwrap_or(&[])),
+                Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+                Err(e) => return Err(RobotError::Io(e.to_string())),
+            }
+        }
+        Ok(())
     }
 }
 
@@ -1271,7 +1368,7 @@ mod tests {
         let known: Vec<(Vec<u8>, (&str, String))> = vec![
             (
                 log_frame(1, 1),
-                ("info", "USB link: a laptop listens (link version 1)".into()),
+                ("info", "USB link: a laptop listens (link version 2)".into()),
             ),
             (
                 log_frame(1, 2),
@@ -1297,13 +1394,13 @@ mod tests {
 
     #[test]
     fn defmt_prints_json_lines_are_read() {
-        let out = "{\"schema_version\":1}\n{\"data\":\"USB link: a laptop listens (link version 1)\",\"level\":\"INFO\",\"location\":null}\nnot json\n{\"data\":\"x\",\"level\":null}\n";
+        let out = "{\"schema_version\":1}\n{\"data\":\"USB link: a laptop listens (link version 2)\",\"level\":\"INFO\",\"location\":null}\nnot json\n{\"data\":\"x\",\"level\":null}\n";
         assert_eq!(
             defmt_print_lines(out),
             [
                 (
                     "info".to_string(),
-                    "USB link: a laptop listens (link version 1)".to_string()
+                    "USB link: a laptop listens (link version 2)".to_string()
                 ),
                 ("print".to_string(), "x".to_string())
             ]
@@ -1352,7 +1449,7 @@ mod tests {
             lines,
             [
                 "1.000450 INFO  robot: SELF io high A1.B -> ok in 450us",
-                "1.000450 INFO  log: USB link: a laptop listens (link version 1)",
+                "1.000450 INFO  log: USB link: a laptop listens (link version 2)",
                 "1.000450 WARN  log: bus fault 7",
             ]
         );

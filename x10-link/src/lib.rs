@@ -28,7 +28,8 @@ pub use frame::{
     MAX_MESSAGE,
 };
 pub use msg::{
-    CallError, CallRec, DiagCounters, Dropped, EventRec, Hello, Outcome, OutputRec, OutputValue,
-    ToDevice, ToHost, WireOp, DIAG_NAMES, LINK_VERSION,
+    AssignStatus, BoardEntry, BoardState, CallError, CallRec, DiagCounters, Dropped, EventRec,
+    Hello, Outcome, OutputRec, OutputValue, ToDevice, ToHost, UpdateFailure, UpdatePhase,
+    UpdateRec, UpdateStatus, WireOp, BOARDS_PER_LIST, DIAG_NAMES, LINK_VERSION,
 };
 pub use wire::{read_to_device, write_to_host};

@@ -6,8 +6,11 @@
 
 use serde::{Deserialize, Serialize};
 
-/// The version of this message set. 1: the variants below.
-pub const LINK_VERSION: u16 = 1;
+/// The version of this message set. 1: [`ToDevice`] 0-4, [`ToHost`] 0-9. 2 (issue 26's
+/// plug-and-play and update requests): [`ToDevice::Boards`], [`ToDevice::Assign`],
+/// [`ToDevice::Update`]; [`ToHost::BoardList`], [`ToHost::Assigned`],
+/// [`ToHost::UpdateAnswer`], [`ToHost::Update`].
+pub const LINK_VERSION: u16 = 2;
 
 /// An operation as the bus carries it: byte 0 of a request (function and operand), byte 2
 /// (the port field) and the data bytes. `x10_microcode::Op::parse(fn_op, port, data)` reads it.
@@ -202,6 +205,124 @@ pub const DIAG_NAMES: [&str; 42] = [
     "collisions",
 ];
 
+/// What the motherboard knows of a board's state ([`BoardEntry`]).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BoardState {
+    /// 0: it answers.
+    Present,
+    /// 1: it stopped answering, or it is unaddressed and its `assign` not yet answered.
+    Lost,
+    /// 2: its firmware is being updated.
+    Updating,
+    /// 3: another board answers at its address (a collision).
+    Collided,
+}
+
+/// One board plug and play knows (`firmware_mb::KnownBoard`).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BoardEntry {
+    /// Its address.
+    pub address: u8,
+    /// Its unique ID.
+    pub uid: [u8; 8],
+    /// Its board kind (`x10_microcode::BoardKind`'s byte).
+    pub kind: u8,
+    /// Its firmware version: major, minor, patch.
+    pub firmware: [u8; 3],
+    /// Its state.
+    pub state: BoardState,
+}
+
+/// Boards per [`ToHost::BoardList`] (a message stays within `MAX_MESSAGE`).
+pub const BOARDS_PER_LIST: usize = 8;
+
+/// How the laptop's [`ToDevice::Assign`] ended (`firmware_mb::AssignError`).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AssignStatus {
+    /// 0: the board confirmed its `set_address` (or, unaddressed, its `assign` was sent): it
+    /// starts again at the new address; [`ToDevice::Boards`] lists it there, present, once its
+    /// `boot` came from there.
+    Done,
+    /// 1: no board with that unique ID is known.
+    UnknownUid,
+    /// 2: not an address a board may take (outside `0x08..=0x76`, the motherboard's, `0x64`).
+    Reserved,
+    /// 3: another board is there, or it is pinned to another board.
+    Taken,
+    /// 4: the board shares its address with another (a collision): it cannot be moved alone.
+    Collided,
+    /// 5: the board did not confirm: its `set_address` failed with this error.
+    NotConfirmed(CallError),
+}
+
+/// The answer to the laptop's [`ToDevice::Update`] (`firmware_mb::update::UpdateRefusal`).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UpdateStatus {
+    /// 0: started: this many boards will be updated ([`ToHost::Update`] records follow).
+    Started(u8),
+    /// 1: this motherboard image carries no daughterboard images.
+    NoImages,
+    /// 2: no board with that unique ID is known.
+    UnknownUid,
+    /// 3: the board does not answer.
+    NotPresent,
+    /// 4: no image of the board's kind is carried.
+    NoImage,
+    /// 5: already up to date (every board, for an update of all).
+    UpToDate,
+    /// 6: busy: an update is under way, of the board at this address (0: one is about to
+    /// start).
+    Busy(u8),
+}
+
+/// Why an update failed (`firmware_mb::update::UpdateError`, without its details: the
+/// motherboard's log has them).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UpdateFailure {
+    /// 0: no update method for the board's kind.
+    NoMethod,
+    /// 1: `enter_update` refused or failed.
+    Enter,
+    /// 2: the bootloader did not answer in time.
+    NoBootloader,
+    /// 3: the bootloader refused `begin`, a chunk or `commit`.
+    Refused,
+    /// 4: a transfer failed on the bus after every retry.
+    Link,
+    /// 5: the board did not come back in time.
+    NotBack,
+    /// 6: it came back with its old version (rolled back).
+    RolledBack,
+    /// 7: the ROM bootloader (STM32C011) refused, or the update through it failed.
+    Rom,
+}
+
+/// Where an update is.
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UpdatePhase {
+    /// 0: it starts.
+    Started,
+    /// 1: the board runs the new version (confirmed).
+    Done,
+    /// 2: it failed.
+    Failed(UpdateFailure),
+}
+
+/// An update of a board's firmware by the motherboard (its own or the laptop's request).
+#[derive(Serialize, Deserialize, Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UpdateRec {
+    /// The board.
+    pub db: u8,
+    /// The version it ran.
+    pub from: [u8; 3],
+    /// The version carried.
+    pub to: [u8; 3],
+    /// Where the update is.
+    pub phase: UpdatePhase,
+    /// When, µs since the motherboard booted.
+    pub at_us: u64,
+}
+
 /// Motherboard to laptop.
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
 pub enum ToHost<'a> {
@@ -246,10 +367,38 @@ pub enum ToHost<'a> {
         /// The request's id (0 when unknown).
         id: u16,
     },
+    /// 10 (version 2): the answer to [`ToDevice::Boards`] `id`: the known boards from index
+    /// `first` on, at most [`BOARDS_PER_LIST`], in the order they were first heard.
+    BoardList {
+        /// The request's id.
+        id: u16,
+        /// How many boards the motherboard knows.
+        total: u8,
+        /// The index of `boards[0]`.
+        first: u8,
+        /// The boards.
+        boards: heapless::Vec<BoardEntry, BOARDS_PER_LIST>,
+    },
+    /// 11 (version 2): the answer to [`ToDevice::Assign`] `id`.
+    Assigned {
+        /// The request's id.
+        id: u16,
+        /// How it ended.
+        status: AssignStatus,
+    },
+    /// 12 (version 2): the answer to [`ToDevice::Update`] `id`.
+    UpdateAnswer {
+        /// The request's id.
+        id: u16,
+        /// Started, or why not.
+        status: UpdateStatus,
+    },
+    /// 13 (version 2): an update starts or ended.
+    Update(UpdateRec),
 }
 
-/// Laptop to motherboard. New requests (plug and play's assign, firmware update) come as new
-/// variants at the end, with a new [`LINK_VERSION`].
+/// Laptop to motherboard. New requests come as new variants at the end, with a new
+/// [`LINK_VERSION`] (version 2 added 5-7).
 #[derive(Serialize, Deserialize, Clone, Debug, PartialEq, Eq)]
 pub enum ToDevice<'a> {
     /// 0: start listening: the motherboard answers with its own hello and keeps records
@@ -276,5 +425,33 @@ pub enum ToDevice<'a> {
     ListBoards {
         /// Chosen by the laptop.
         id: u16,
+    },
+    /// 5 (version 2): the boards plug and play knows, in full, from index `first`; answered
+    /// with [`ToHost::BoardList`] (ask again from `first + boards.len()` until `total`).
+    Boards {
+        /// Chosen by the laptop.
+        id: u16,
+        /// The index of the first board wanted.
+        first: u8,
+    },
+    /// 6 (version 2): give the board with unique ID `uid` the address `address`; answered
+    /// with [`ToHost::Assigned`] once it confirmed (or why not).
+    Assign {
+        /// Chosen by the laptop.
+        id: u16,
+        /// The board's unique ID.
+        uid: [u8; 8],
+        /// Its new address.
+        address: u8,
+    },
+    /// 7 (version 2): update the board `uid` now (whatever the image's policy), or every
+    /// board out of date (`None`: a `Never` policy overridden), with the images the
+    /// motherboard carries; answered with [`ToHost::UpdateAnswer`], then [`ToHost::Update`]
+    /// records.
+    Update {
+        /// Chosen by the laptop.
+        id: u16,
+        /// The board, or `None` for every board.
+        uid: Option<[u8; 8]>,
     },
 }

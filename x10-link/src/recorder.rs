@@ -13,14 +13,16 @@ use core::cell::RefCell;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::signal::Signal;
-use firmware_mb::{CallObserver, CallRecord, MbDiagnostics, X10};
+use firmware_mb::update::{UpdateError, UpdateRefusal};
+use firmware_mb::{AssignError, CallObserver, CallRecord, KnownBoard, MbDiagnostics, X10};
 use x10_devices::LinkError;
-use x10_microcode::{Address, Event, Op};
+use x10_microcode::{Address, Event, Op, Uid};
 
 use crate::frame::{cobs_each, cobs_max, host_body, FrameError, MAX_LOG_CHUNK, MAX_MESSAGE};
 use crate::msg::{
-    CallError, CallRec, DiagCounters, Dropped, EventRec, Hello, Outcome, OutputRec, OutputValue,
-    ToDevice, ToHost, WireOp, LINK_VERSION,
+    AssignStatus, BoardEntry, BoardState, CallError, CallRec, DiagCounters, Dropped, EventRec,
+    Hello, Outcome, OutputRec, OutputValue, ToDevice, ToHost, UpdateFailure, UpdatePhase,
+    UpdateRec, UpdateStatus, WireOp, BOARDS_PER_LIST, LINK_VERSION,
 };
 
 /// What the recorder was told of since start, listening or not.
@@ -438,6 +440,101 @@ impl<const N: usize> CallObserver for Recorder<N> {
     fn event(&self, ev: &Event<'_>, at: x10_hal::time::Instant) {
         Recorder::event(self, ev, at.as_micros());
     }
+
+    fn update(
+        &self,
+        db: Address,
+        from: x10_microcode::Version,
+        to: x10_microcode::Version,
+        end: Option<&Result<(), UpdateError>>,
+        at: x10_hal::time::Instant,
+    ) {
+        let phase = match end {
+            None => UpdatePhase::Started,
+            Some(Ok(())) => UpdatePhase::Done,
+            Some(Err(e)) => UpdatePhase::Failed(update_failure(e)),
+        };
+        let rec = UpdateRec {
+            db: db.get(),
+            from,
+            to,
+            phase,
+            at_us: at.as_micros(),
+        };
+        // Kept as an event is (a full ring counts it in `Dropped::events`).
+        let queued = self.with(|s| {
+            if !s.listening {
+                return false;
+            }
+            let ok = s.push(&ToHost::Update(rec)).is_ok();
+            if !ok {
+                add(&mut s.dropped.events);
+            }
+            ok
+        });
+        if queued {
+            self.data.signal(());
+        }
+    }
+}
+
+/// An `UpdateError` as the link says it.
+pub fn update_failure(e: &UpdateError) -> UpdateFailure {
+    match e {
+        UpdateError::NoMethod => UpdateFailure::NoMethod,
+        UpdateError::Enter(_) => UpdateFailure::Enter,
+        UpdateError::NoBootloader => UpdateFailure::NoBootloader,
+        UpdateError::Refused(_) => UpdateFailure::Refused,
+        UpdateError::Link(_) => UpdateFailure::Link,
+        UpdateError::NotBack => UpdateFailure::NotBack,
+        UpdateError::RolledBack(_) => UpdateFailure::RolledBack,
+        UpdateError::Rom(_) => UpdateFailure::Rom,
+    }
+}
+
+/// A `KnownBoard` as the link lists it; `updating`: the board being updated.
+pub fn board_entry(b: &KnownBoard, updating: Option<Address>) -> BoardEntry {
+    let state = if updating == Some(b.address) && b.present {
+        BoardState::Updating
+    } else if b.collided {
+        BoardState::Collided
+    } else if b.present {
+        BoardState::Present
+    } else {
+        BoardState::Lost
+    };
+    BoardEntry {
+        address: b.address.get(),
+        uid: b.uid.0,
+        kind: b.kind.0,
+        firmware: b.firmware,
+        state,
+    }
+}
+
+/// An `AssignError` as the link says it.
+pub fn assign_status(r: &Result<(), AssignError>) -> AssignStatus {
+    match r {
+        Ok(()) => AssignStatus::Done,
+        Err(AssignError::UnknownUid) => AssignStatus::UnknownUid,
+        Err(AssignError::Reserved) => AssignStatus::Reserved,
+        Err(AssignError::Taken) => AssignStatus::Taken,
+        Err(AssignError::Collided) => AssignStatus::Collided,
+        Err(AssignError::NotConfirmed(e)) => AssignStatus::NotConfirmed(call_error(e)),
+    }
+}
+
+/// An update request's answer as the link says it.
+pub fn update_status(r: &Result<u8, UpdateRefusal>) -> UpdateStatus {
+    match r {
+        Ok(n) => UpdateStatus::Started(*n),
+        Err(UpdateRefusal::NoImages) => UpdateStatus::NoImages,
+        Err(UpdateRefusal::UnknownUid) => UpdateStatus::UnknownUid,
+        Err(UpdateRefusal::NotPresent) => UpdateStatus::NotPresent,
+        Err(UpdateRefusal::NoImage) => UpdateStatus::NoImage,
+        Err(UpdateRefusal::UpToDate) => UpdateStatus::UpToDate,
+        Err(UpdateRefusal::Busy(a)) => UpdateStatus::Busy(a.map_or(0, Address::get)),
+    }
 }
 
 /// The counters in the order of [`crate::msg::DIAG_NAMES`].
@@ -506,7 +603,34 @@ pub struct Identity {
 /// [`ToHost::Reply`]. Waits for room in the ring for the answer (it is the link's own task:
 /// no robot task waits). A hello turns listening on, a bye off.
 pub async fn serve<const N: usize>(rec: &Recorder<N>, x10: X10, who: Identity, req: ToDevice<'_>) {
-    let payload: x10_microcode::Payload;
+    // The one call site (its future is embedded once): the laptop's call, or the
+    // `set_address` of an assign to a board that answers at an address.
+    let mut assign: Option<Result<Address, AssignError>> = None;
+    let call: Result<(Address, Op<'_>), CallError> = match req {
+        ToDevice::Call { db, op, .. } => {
+            match (Address::new(db), Op::parse(op.fn_op, op.port, op.data)) {
+                (Err(_), _) => Err(CallError::BadAddress),
+                (_, Err(_)) => Err(CallError::Invalid),
+                (Ok(a), Ok(op)) => Ok((a, op)),
+            }
+        }
+        ToDevice::Assign { uid, address, .. } => {
+            let uid = Uid(uid);
+            let step = Address::new(address)
+                .map_err(|_| AssignError::Reserved)
+                .and_then(|to| Ok((to, x10.assign_step(uid, to)?)));
+            assign = Some(step.map(|(to, _)| to));
+            match step {
+                Ok((to, Some(old))) => Ok((old, Op::SetAddress(to))),
+                _ => Err(CallError::Unsupported),
+            }
+        }
+        _ => Err(CallError::Unsupported),
+    };
+    let result = match call {
+        Ok((a, op)) => Some(x10.call(a, op).await.map_err(|e| call_error(&e))),
+        Err(e) => Some(Err(e)).filter(|_| assign.is_none()),
+    };
     let answer = match req {
         ToDevice::Hello(_) => {
             rec.set_listening(true);
@@ -521,20 +645,14 @@ pub async fn serve<const N: usize>(rec: &Recorder<N>, x10: X10, who: Identity, r
             rec.set_listening(false);
             return;
         }
-        ToDevice::Call { id, db, op } => {
-            let outcome = match (Address::new(db), Op::parse(op.fn_op, op.port, op.data)) {
-                (Err(_), _) => Outcome::Err(CallError::BadAddress),
-                (_, Err(_)) => Outcome::Err(CallError::Invalid),
-                (Ok(a), Ok(op)) => match x10.call(a, op).await {
-                    Ok(p) => {
-                        payload = p;
-                        Outcome::Ok(&payload)
-                    }
-                    Err(e) => Outcome::Err(call_error(&e)),
-                },
-            };
-            ToHost::Reply { id, outcome }
-        }
+        ToDevice::Call { id, .. } => ToHost::Reply {
+            id,
+            outcome: match &result {
+                Some(Ok(p)) => Outcome::Ok(p),
+                Some(Err(e)) => Outcome::Err(*e),
+                None => Outcome::Err(CallError::Unsupported),
+            },
+        },
         ToDevice::Diagnostics { id } => ToHost::Diagnostics {
             id,
             counters: diag_counters(&x10.diagnostics()),
@@ -542,6 +660,38 @@ pub async fn serve<const N: usize>(rec: &Recorder<N>, x10: X10, who: Identity, r
         ToDevice::ListBoards { id } => ToHost::Boards {
             id,
             addresses: rec.boards(),
+        },
+        ToDevice::Boards { id, first } => {
+            let mut known = [KnownBoard::EMPTY; BOARDS_PER_LIST];
+            let (n, total, updating) = x10.boards_from(usize::from(first), &mut known);
+            ToHost::BoardList {
+                id,
+                total: u8::try_from(total).unwrap_or(u8::MAX),
+                first,
+                boards: known
+                    .iter()
+                    .take(n)
+                    .map(|b| board_entry(b, updating))
+                    .collect(),
+            }
+        }
+        ToDevice::Assign { id, .. } => {
+            let status = match (assign, &result, call) {
+                (None, ..) => AssignStatus::UnknownUid,
+                (Some(Err(e)), ..) => assign_status(&Err(e)),
+                (Some(Ok(_)), Some(Err(e)), _) => AssignStatus::NotConfirmed(*e),
+                (Some(Ok(to)), _, call) => {
+                    if let Ok((old, _)) = call {
+                        x10.moved(old, to);
+                    }
+                    AssignStatus::Done
+                }
+            };
+            ToHost::Assigned { id, status }
+        }
+        ToDevice::Update { id, uid } => ToHost::UpdateAnswer {
+            id,
+            status: update_status(&x10.start_update(uid.map(Uid))),
         },
     };
     // Waits for room (the USB task drains the ring); an answer larger than the whole ring

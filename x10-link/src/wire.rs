@@ -5,8 +5,8 @@
 //! example frame and on random messages and bytes.
 
 use crate::msg::{
-    CallError, CallRec, DiagCounters, EventRec, Hello, Outcome, OutputValue, ToDevice, ToHost,
-    WireOp,
+    AssignStatus, CallError, CallRec, DiagCounters, EventRec, Hello, Outcome, OutputValue,
+    ToDevice, ToHost, UpdatePhase, UpdateStatus, WireOp,
 };
 
 /// Writes postcard bytes into a buffer; remembers when it ran out of room.
@@ -69,25 +69,26 @@ impl Out<'_> {
             }
             Outcome::Err(e) => {
                 self.byte(1);
-                let (index, status) = match e {
-                    CallError::Nack => (0, None),
-                    CallError::Timeout => (1, None),
-                    CallError::ArbitrationLost => (2, None),
-                    CallError::Bus => (3, None),
-                    CallError::BadReply => (4, None),
-                    CallError::Status(s) => (5, Some(*s)),
-                    CallError::Invalid => (6, None),
-                    CallError::Busy => (7, None),
-                    CallError::Unsupported => (8, None),
-                    CallError::BadAddress => (9, None),
-                    CallError::Updating => (10, None),
-                };
-                self.byte(index);
-                if let Some(s) = status {
-                    self.byte(s);
-                }
+                self.error(e);
             }
         }
+    }
+
+    fn error(&mut self, e: &CallError) {
+        let (index, status) = match e {
+            CallError::Nack => (0, None),
+            CallError::Timeout => (1, None),
+            CallError::ArbitrationLost => (2, None),
+            CallError::Bus => (3, None),
+            CallError::BadReply => (4, None),
+            CallError::Status(s) => (5, Some(*s)),
+            CallError::Invalid => (6, None),
+            CallError::Busy => (7, None),
+            CallError::Unsupported => (8, None),
+            CallError::BadAddress => (9, None),
+            CallError::Updating => (10, None),
+        };
+        self.tagged(index, status);
     }
 
     fn call(&mut self, c: &CallRec<'_>) {
@@ -104,6 +105,14 @@ impl Out<'_> {
         }
         self.bytes(e.payload);
         self.varint(e.at_us);
+    }
+
+    /// A unit variant's index, or a one-field variant's index and that field.
+    fn tagged(&mut self, index: u8, field: Option<u8>) {
+        self.byte(index);
+        if let Some(f) = field {
+            self.byte(f);
+        }
     }
 
     fn counters(&mut self, c: &DiagCounters) {
@@ -188,6 +197,65 @@ pub fn write_to_host(msg: &ToHost<'_>, out: &mut [u8]) -> Option<usize> {
             o.byte(9);
             o.varint(u64::from(*id));
         }
+        ToHost::BoardList {
+            id,
+            total,
+            first,
+            boards,
+        } => {
+            o.byte(10);
+            o.varint(u64::from(*id));
+            o.byte(*total);
+            o.byte(*first);
+            o.varint(boards.len() as u64);
+            for b in boards {
+                o.byte(b.address);
+                b.uid.iter().for_each(|&x| o.byte(x));
+                o.byte(b.kind);
+                b.firmware.iter().for_each(|&x| o.byte(x));
+                o.byte(b.state as u8);
+            }
+        }
+        ToHost::Assigned { id, status } => {
+            o.byte(11);
+            o.varint(u64::from(*id));
+            match status {
+                AssignStatus::NotConfirmed(e) => {
+                    o.byte(5);
+                    o.error(e);
+                }
+                AssignStatus::Done => o.byte(0),
+                AssignStatus::UnknownUid => o.byte(1),
+                AssignStatus::Reserved => o.byte(2),
+                AssignStatus::Taken => o.byte(3),
+                AssignStatus::Collided => o.byte(4),
+            }
+        }
+        ToHost::UpdateAnswer { id, status } => {
+            o.byte(12);
+            o.varint(u64::from(*id));
+            let (index, field) = match *status {
+                UpdateStatus::Started(n) => (0, Some(n)),
+                UpdateStatus::NoImages => (1, None),
+                UpdateStatus::UnknownUid => (2, None),
+                UpdateStatus::NotPresent => (3, None),
+                UpdateStatus::NoImage => (4, None),
+                UpdateStatus::UpToDate => (5, None),
+                UpdateStatus::Busy(a) => (6, Some(a)),
+            };
+            o.tagged(index, field);
+        }
+        ToHost::Update(r) => {
+            o.byte(13);
+            o.byte(r.db);
+            r.from.iter().chain(r.to.iter()).for_each(|&x| o.byte(x));
+            match &r.phase {
+                UpdatePhase::Started => o.byte(0),
+                UpdatePhase::Done => o.byte(1),
+                UpdatePhase::Failed(f) => o.tagged(2, Some(*f as u8)),
+            }
+            o.varint(r.at_us);
+        }
     }
     if o.full {
         None
@@ -248,21 +316,32 @@ impl<'a> In<'a> {
         Some(b)
     }
 
-    fn str(&mut self) -> Option<&'a str> {
-        core::str::from_utf8(self.bytes()?).ok()
+    /// A unique ID: 8 bytes as they are (postcard's array).
+    fn uid(&mut self) -> Option<[u8; 8]> {
+        let (head, rest) = self.rest.split_first_chunk::<8>()?;
+        self.rest = rest;
+        Some(*head)
+    }
+
+    /// A string the motherboard does not read (the laptop's hello names itself): skipped as
+    /// the bytes it is, its UTF-8 not checked (core's validation is 0.4 KiB of flash).
+    fn skip_str(&mut self) -> Option<&'static str> {
+        self.bytes().map(|_| "")
     }
 }
 
 /// Reads a [`ToDevice`] from its postcard bytes, as postcard would: `None` for an unknown
-/// variant, a truncated or overlong field, bad UTF-8 or bytes left over.
+/// variant, a truncated or overlong field or bytes left over. One difference: the names in a
+/// [`ToDevice::Hello`] are skipped, not read (they come back empty, and bytes that are not
+/// UTF-8 there are not refused): the motherboard does not use them.
 pub fn read_to_device(bytes: &[u8]) -> Option<ToDevice<'_>> {
     let mut i = In { rest: bytes };
     let msg = match i.varint(5, u64::from(u32::MAX))? {
         0 => ToDevice::Hello(Hello {
             version: i.u16()?,
             address: i.byte()?,
-            board: i.str()?,
-            robot: i.str()?,
+            board: i.skip_str()?,
+            robot: i.skip_str()?,
         }),
         1 => ToDevice::Bye,
         2 => ToDevice::Call {
@@ -276,6 +355,23 @@ pub fn read_to_device(bytes: &[u8]) -> Option<ToDevice<'_>> {
         },
         3 => ToDevice::Diagnostics { id: i.u16()? },
         4 => ToDevice::ListBoards { id: i.u16()? },
+        5 => ToDevice::Boards {
+            id: i.u16()?,
+            first: i.byte()?,
+        },
+        6 => ToDevice::Assign {
+            id: i.u16()?,
+            uid: i.uid()?,
+            address: i.byte()?,
+        },
+        7 => ToDevice::Update {
+            id: i.u16()?,
+            uid: match i.byte()? {
+                0 => None,
+                1 => Some(i.uid()?),
+                _ => return None,
+            },
+        },
         _ => return None,
     };
     i.rest.is_empty().then_some(msg)

@@ -192,7 +192,7 @@ fn laptop_requests_are_served_through_x10_call_on_the_motherboard() {
     assert_eq!(
         frames[..5],
         [
-            "Hello(Hello { version: 1, address: 8, board: \"sim\", robot: \"test\" })",
+            "Hello(Hello { version: 2, address: 8, board: \"sim\", robot: \"test\" })",
             "Reply { id: 7, outcome: Ok([]) }",
             "Reply { id: 8, outcome: Err(BadAddress) }",
             "Reply { id: 9, outcome: Err(Invalid) }",

@@ -420,6 +420,19 @@ impl CallObserver for CallTracer {
         }
     }
 
+    fn update(
+        &self,
+        db: Address,
+        from: x10_microcode::Version,
+        to: x10_microcode::Version,
+        end: Option<&Result<(), firmware_mb::update::UpdateError>>,
+        at: x10_hal::time::Instant,
+    ) {
+        if let Some(also) = self.also {
+            also.update(db, from, to, end, at);
+        }
+    }
+
     fn observe(&self, call: &CallRecord<'_>) {
         if let Some(also) = self.also {
             also.observe(call);

@@ -6,6 +6,7 @@ import unittest
 
 import x10link
 
+UID = bytes.fromhex("e6613852833f5c2a")
 DOC = os.path.join(os.path.dirname(__file__), "..", "..", "..", "docs", "usb-link.md")
 
 
@@ -31,11 +32,15 @@ class Frames(unittest.TestCase):
         self.assertEqual(x10link.call(7, 0, 0x12, 0x01), row("ToDevice", "Call"))
         self.assertEqual(x10link.diagnostics(8), row("ToDevice", "Diagnostics"))
         self.assertEqual(x10link.list_boards(9), row("ToDevice", "ListBoards"))
-        self.assertEqual(len([w for w, _, _ in doc_rows() if w == "ToDevice"]), 5)
+        self.assertEqual(x10link.boards(11, 0), row("ToDevice", "Boards"))
+        self.assertEqual(x10link.assign(12, UID, 0x40), row("ToDevice", "Assign"))
+        self.assertEqual(x10link.update(14, UID), row("ToDevice", "Update { id: 14"))
+        self.assertEqual(x10link.update(16), row("ToDevice", "Update { id: 16"))
+        self.assertEqual(len([w for w, _, _ in doc_rows() if w == "ToDevice"]), 9)
 
     def test_every_to_host_row_is_decoded_exactly(self):
         want = {
-            "Hello": {"kind": "Hello", "version": 1, "address": 8, "board": "Pico", "robot": "fig4_4"},
+            "Hello": {"kind": "Hello", "version": 2, "address": 8, "board": "Pico", "robot": "fig4_4"},
             "Log": {"kind": "Log", "bytes": bytes([1, 2, 0, 3])},
             "Call(CallRec { db: 0": {"kind": "Call", "db": 0, "fn_op": 0x20, "port": 0, "data": bytes([127]),
                                      "outcome": {"ok": b""}, "start_us": 1000000, "end_us": 1000450},
@@ -50,6 +55,22 @@ class Frames(unittest.TestCase):
             "Diagnostics": {"kind": "Diagnostics", "id": 8, "counters": [12, 12, 0, 0]},
             "Boards": {"kind": "Boards", "id": 9, "addresses": [0, 9]},
             "Refused": {"kind": "Refused", "id": 10},
+            "BoardList": {"kind": "BoardList", "id": 11, "total": 2, "first": 0, "boards": [
+                {"address": 0x20, "uid": UID, "kind": 3, "firmware": (0, 1, 0), "state": "Present"},
+                {"address": 0x31, "uid": bytes([9, 8, 7, 6, 5, 4, 3, 2]), "kind": 5,
+                 "firmware": (2, 0, 0), "state": "Lost"}]},
+            "Assigned { id: 12": {"kind": "Assigned", "id": 12, "status": "Done"},
+            "Assigned { id: 13": {"kind": "Assigned", "id": 13, "status": "NotConfirmed",
+                                  "error": {"err": "Timeout"}},
+            "UpdateAnswer { id: 14": {"kind": "UpdateAnswer", "id": 14, "status": "Started", "boards": 1},
+            "UpdateAnswer { id: 15": {"kind": "UpdateAnswer", "id": 15, "status": "Busy", "board": 0x20},
+            "Update(UpdateRec { db: 32, from: [0, 1, 0], to: [2, 0, 0], phase: Started": {
+                "kind": "Update", "db": 0x20, "version_from": (0, 1, 0), "version_to": (2, 0, 0),
+                "phase": "Started", "at_us": 2000000},
+            "Update(UpdateRec { db: 32, from: [0, 1, 0], to: [2, 0, 0], phase: Failed": {
+                "kind": "Update", "db": 0x20, "version_from": (0, 1, 0), "version_to": (2, 0, 0),
+                "phase": "Failed", "failure": "RolledBack",
+                "at_us": 17000000},
         }
         self.assertEqual(len([w for w, _, _ in doc_rows() if w == "ToHost"]), len(want))
         for prefix, message in want.items():
@@ -92,6 +113,28 @@ class RobotOverAPort(unittest.TestCase):
         self.assertEqual(robot.call(0, 0x12, 0x01), bytes([2, 0]))
         self.assertEqual(bytes(port.written), x10link.hello() + x10link.list_boards(9)
                          + row("ToDevice", "Call"))
+
+    def test_lists_plug_and_plays_boards_assigns_and_starts_an_update(self):
+        port = FakePort([row("ToHost", "BoardList"), row("ToHost", "Assigned { id: 12"),
+                         row("ToHost", "Update(UpdateRec { db: 32, from: [0, 1, 0], to: [2, 0, 0], phase: Started")
+                         + row("ToHost", "UpdateAnswer { id: 14")])
+        robot = x10link.Robot(port)
+        robot._next = 11
+        found = robot.board_list()
+        self.assertEqual([(b["address"], b["state"]) for b in found], [(0x20, "Present"), (0x31, "Lost")])
+        self.assertEqual(robot.assign(UID, 0x40)["status"], "Done")
+        robot._next = 14
+        self.assertEqual(robot.start_update(UID)["boards"], 1)
+        self.assertEqual(robot.records[-1]["phase"], "Started")
+        self.assertEqual(bytes(port.written), x10link.hello() + row("ToDevice", "Boards")
+                         + row("ToDevice", "Assign") + row("ToDevice", "Update { id: 14"))
+
+    def test_an_older_motherboard_refuses(self):
+        # A version-1 motherboard does not decode the request: `Refused { id: 0 }`.
+        refused = x10link.frame(b"\x09\x00")
+        robot = x10link.Robot(FakePort([refused]))
+        with self.assertRaises(RuntimeError):
+            robot.board_list()
 
     def test_no_answer_is_a_timeout(self):
         robot = x10link.Robot(FakePort([]), timeout_reads=3)

@@ -1,21 +1,33 @@
 """The X10 motherboard's USB link from Python (docs/usb-link.md): its frames (postcard, a
 CRC-16, COBS, a zero byte) and a small `Robot` over pyserial that lists the boards, reads the
-counters and calls an operation, as `x10_cli::monitor::Robot` does in Rust.
+counters, calls an operation, gives a board an address and starts updates, as
+`x10_cli::monitor::Robot` does in Rust.
 
     from x10link import Robot
     robot = Robot.open("/dev/ttyACM0")       # says hello
     print(robot.boards())                     # [0, 9]
     robot.call(0, 0x12, 0x01)                 # io high A1.B on the motherboard's own ports
+    for b in robot.board_list():              # link version 2: plug and play's boards
+        print(hex(b["address"]), b["uid"].hex(), b["firmware"], b["state"])
+    robot.assign(bytes.fromhex("e6613852833f5c2a"), 0x40)   # -> {"status": "Done"}
+    robot.start_update(None)                  # every board out of date -> {"status": "Started", "boards": 1}
 
 Only the standard library for the frames; pyserial (`pip install pyserial`) for a port.
 The frames are checked against the doc's example table by test_x10link.py.
 """
 
-LINK_VERSION = 1
+LINK_VERSION = 2
 
 # ToHost variants, in order (docs/usb-link.md, "Messages, motherboard to laptop").
 TO_HOST = ["Hello", "Log", "Call", "Event", "Output", "Dropped", "Reply", "Diagnostics",
-           "Boards", "Refused"]
+           "Boards", "Refused", "BoardList", "Assigned", "UpdateAnswer", "Update"]
+BOARD_STATES = ["Present", "Lost", "Updating", "Collided"]
+ASSIGN_STATUS = ["Done", "UnknownUid", "Reserved", "Taken", "Collided", "NotConfirmed"]
+UPDATE_STATUS = ["Started", "NoImages", "UnknownUid", "NotPresent", "NoImage", "UpToDate", "Busy"]
+UPDATE_PHASES = ["Started", "Done", "Failed"]
+UPDATE_FAILURES = ["NoMethod", "Enter", "NoBootloader", "Refused", "Link", "NotBack",
+                   "RolledBack", "Rom"]
+ANSWERS = ("Reply", "Diagnostics", "Boards", "Refused", "BoardList", "Assigned", "UpdateAnswer")
 CALL_ERRORS = ["Nack", "Timeout", "ArbitrationLost", "Bus", "BadReply", "Status", "Invalid",
                "Busy", "Unsupported", "BadAddress", "Updating"]
 OUTPUT_VALUES = ["Level", "Duty", "FrequencyHz", "PulseWidthUs"]
@@ -113,6 +125,21 @@ def list_boards(id):
     return frame(b"\x04" + varint(id))
 
 
+def boards(id, first=0):
+    """`ToDevice::Boards` (version 2): plug and play's boards from index `first`."""
+    return frame(b"\x05" + varint(id) + bytes([first]))
+
+
+def assign(id, uid, address):
+    """`ToDevice::Assign` (version 2): the board with unique ID `uid` (8 bytes) to `address`."""
+    return frame(b"\x06" + varint(id) + bytes(uid) + bytes([address]))
+
+
+def update(id, uid=None):
+    """`ToDevice::Update` (version 2): the board `uid` (8 bytes), or every board (None)."""
+    return frame(b"\x07" + varint(id) + (b"\x00" if uid is None else b"\x01" + bytes(uid)))
+
+
 class _Reader:
     def __init__(self, data):
         self.data, self.i = data, 0
@@ -139,11 +166,17 @@ class _Reader:
         self.i += n
         return bytes(self.data[self.i - n:self.i])
 
+    def fixed(self, n):
+        return bytes(self.byte() for _ in range(n))
+
+    def error(self):
+        e = CALL_ERRORS[self.varint()]
+        return {"err": e, "status": self.byte()} if e == "Status" else {"err": e}
+
     def outcome(self):
         if self.varint() == 0:
             return {"ok": self.bytes()}
-        e = CALL_ERRORS[self.varint()]
-        return {"err": e, "status": self.byte()} if e == "Status" else {"err": e}
+        return self.error()
 
 
 def decode(message):
@@ -181,6 +214,29 @@ def decode(message):
         m["addresses"] = list(r.bytes())
     elif kind == "Refused":
         m["id"] = r.varint()
+    elif kind == "BoardList":
+        m.update(id=r.varint(), total=r.byte(), first=r.byte())
+        m["boards"] = [{"address": r.byte(), "uid": r.fixed(8), "kind": r.byte(),
+                        "firmware": tuple(r.fixed(3)), "state": BOARD_STATES[r.varint()]}
+                       for _ in range(r.varint())]
+    elif kind == "Assigned":
+        m["id"] = r.varint()
+        m["status"] = ASSIGN_STATUS[r.varint()]
+        if m["status"] == "NotConfirmed":
+            m["error"] = r.error()
+    elif kind == "UpdateAnswer":
+        m["id"] = r.varint()
+        m["status"] = UPDATE_STATUS[r.varint()]
+        if m["status"] == "Started":
+            m["boards"] = r.byte()
+        elif m["status"] == "Busy":
+            m["board"] = r.byte()
+    elif kind == "Update":
+        m.update(db=r.byte(), version_from=tuple(r.fixed(3)), version_to=tuple(r.fixed(3)))
+        m["phase"] = UPDATE_PHASES[r.varint()]
+        if m["phase"] == "Failed":
+            m["failure"] = UPDATE_FAILURES[r.varint()]
+        m["at_us"] = r.varint()
     if r.i != len(message):
         raise ValueError("bytes left over")
     return m
@@ -213,7 +269,7 @@ class Robot:
                     m = decode(unframe(data))
                 except (ValueError, IndexError):
                     continue
-                if m.get("id") == id and m["kind"] in ("Reply", "Diagnostics", "Boards", "Refused"):
+                if m["kind"] in ANSWERS and m.get("id") in (id, 0):
                     return m
                 self.records.append(m)
         raise TimeoutError("no answer from the robot")
@@ -232,3 +288,30 @@ class Robot:
         if "err" in m["outcome"]:
             raise RuntimeError(m["outcome"])
         return m["outcome"]["ok"]
+
+    def board_list(self):
+        """Every board plug and play knows (link version 2), page by page; raises RuntimeError
+        when the motherboard refuses (an older link version)."""
+        found = []
+        while True:
+            m = self._ask(lambda id: boards(id, len(found)))
+            if m["kind"] != "BoardList":
+                raise RuntimeError("refused: the motherboard's link version is older than 2")
+            found += m["boards"]
+            if not m["boards"] or len(found) >= m["total"]:
+                return found
+
+    def assign(self, uid, address):
+        """Gives the board `uid` (8 bytes) the address; returns the `Assigned` message's dict."""
+        m = self._ask(lambda id: assign(id, uid, address))
+        if m["kind"] != "Assigned":
+            raise RuntimeError("refused: the motherboard's link version is older than 2")
+        return m
+
+    def start_update(self, uid=None):
+        """Starts the update of the board `uid` (8 bytes), or of every board (None); returns
+        the `UpdateAnswer` message's dict. `Update` records follow in `records`."""
+        m = self._ask(lambda id: update(id, uid))
+        if m["kind"] != "UpdateAnswer":
+            raise RuntimeError("refused: the motherboard's link version is older than 2")
+        return m

@@ -55,6 +55,14 @@ enum Command {
     /// Watch a real robot over its motherboard's USB link: every call and output change live,
     /// then the summary and the timeline page the simulator makes (docs/usb-link.md).
     Monitor(x10_cli::monitor::MonitorArgs),
+    /// List the boards the motherboard knows over its USB link: address, unique ID, kind,
+    /// firmware version and state (present, lost, updating).
+    Boards(x10_cli::link_requests::BoardsArgs),
+    /// Give the board with a unique ID an address, over the motherboard's USB link.
+    Assign(x10_cli::link_requests::AssignArgs),
+    /// Update one board (or --all out of date) now with the images the motherboard carries,
+    /// over its USB link, and follow the update.
+    Update(x10_cli::link_requests::UpdateArgs),
 }
 
 const UF2_HELP: &str = "\
@@ -454,5 +462,8 @@ fn main() -> ExitCode {
         Command::Soak(args) => x10_cli::soak::soak_main(&args),
         Command::Uf2(args) => uf2_main(args),
         Command::Monitor(args) => x10_cli::monitor::monitor_main(&args),
+        Command::Boards(args) => x10_cli::link_requests::boards_main(&args),
+        Command::Assign(args) => x10_cli::link_requests::assign_main(&args),
+        Command::Update(args) => x10_cli::link_requests::update_main(&args),
     }
 }
