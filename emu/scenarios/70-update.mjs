@@ -138,7 +138,16 @@ function updateOnce(ctx, imgs, hz, detail) {
       busy[k] = (busy[k] ?? 0) + 1;
     }
   });
+  // The bootloader's target SDA hold time (IC_SDA_HOLD), read when the first chunk goes by.
+  let bootHold = null;
+  rig.hooks.push(() => {
+    if (bootHold === null && w.of(CHUNK_OP).length > 0) {
+      bootHold = rig.chips.find((c) => c.name === 'db').i2c0.readUint32(0x7c) & 0xffff;
+    }
+  });
   rig.run(30000e6, () => settled(rig, w));
+  ctx.check('boot-pico\'s target holds SDA 300 ns after SCL falls (IC_SDA_TX_HOLD 38 at 125 MHz), whatever the bus clock',
+    bootHold === 38, `${bootHold}`);
   const log = mbLog();
   ctx.check('mb-pico carries db-pico 2.0.0 (its log: kind 3, 2.0.0, the slot\'s bytes)',
     log.includes(`carries board kind 3 firmware 2.0.0, ${v2.length} B`), log.split('\n').filter((l) => /carries/.test(l)).join('; '));

@@ -242,6 +242,21 @@ pub fn sda_tx_hold(clk_hz: u32, bus_hz: u32) -> u16 {
     u16::try_from(n).unwrap_or(u16::MAX)
 }
 
+/// `IC_SDA_TX_HOLD` for the bootloader's target (`boot-pico`), which is flashed once and
+/// then serves daughterboard images built for any bus clock (`X10_BUS_HZ`: 100 kHz, 400 kHz or
+/// 1 MHz), so it cannot take the clock's own value: 300 ns ([`sda_tx_hold`] below 1 MHz). That
+/// meets all three modes for `clk_hz` from 100 to 200 MHz (the Pico's `clk_peri` is 125 MHz):
+/// at least t_HD;DAT (300 / 300 / 120 ns, UM10204 Table 10 note 3), with the output's fall
+/// time (at most 120 ns in Fast-mode Plus) within the shortest data valid time t_VD;DAT
+/// (3.45 / 0.9 / 0.45 µs, Table 10), and within the shortest SCL low time less two clocks
+/// (the RP2040 datasheet's bound, `IC_SDA_HOLD`). Without it the bootloader's target kept
+/// the reset value, the block's slave minimum of seven clocks (56 ns), less than Standard
+/// and Fast mode's 300 ns (host-tested; the emulator does not model the hold time).
+#[must_use]
+pub fn bootloader_sda_tx_hold(clk_hz: u32) -> u16 {
+    sda_tx_hold(clk_hz, 100_000)
+}
+
 /// The shortest `IC_SDA_TX_HOLD` the block takes in slave mode (datasheet, `IC_SDA_HOLD`).
 pub const SLAVE_MIN_HOLD: u32 = 7;
 
@@ -891,6 +906,25 @@ mod tests {
                 assert!(
                     n + 2 <= u64::from(clk) * low_ns / 1_000_000_000,
                     "{mhz} {bus}"
+                );
+            }
+        }
+        // The bootloader's one value serves every bus clock: 38 clocks at 125 MHz.
+        assert_eq!(bootloader_sda_tx_hold(125_000_000), 38);
+        for mhz in 100..=200u32 {
+            let clk = mhz * 1_000_000;
+            let n = u64::from(bootloader_sda_tx_hold(clk));
+            let ns = n * 1_000_000_000 / u64::from(clk);
+            for (t_ns, valid_ns, low_ns) in [
+                (300u64, 3_450u64, 4_700u64),
+                (300, 900, 1_300),
+                (120, 450, 500),
+            ] {
+                assert!(ns >= t_ns, "{mhz} MHz: {n} clocks = {ns} ns");
+                assert!(ns + 120 <= valid_ns, "{mhz} MHz: {ns} ns");
+                assert!(
+                    n + 2 <= u64::from(clk) * low_ns / 1_000_000_000,
+                    "{mhz} MHz"
                 );
             }
         }

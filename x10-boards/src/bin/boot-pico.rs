@@ -129,12 +129,27 @@ fn update_mode(
     let mut cfg = i2c_slave::Config::default();
     cfg.addr = u16::from(address.get());
     let bus = I2cSlave::new(i2c, scl, sda, x10_boards::pico::Irqs, cfg);
+    set_sda_hold(x10_boards::pico_rules::bootloader_sda_tx_hold(
+        embassy_rp::clocks::clk_peri_freq(),
+    ));
     EXECUTOR.init(Executor::new()).run(|spawner| {
         // One task, spawned once: its pool (size 1) cannot be exhausted.
         if let Ok(task) = serve(session, bus) {
             spawner.spawn(task);
         }
     })
+}
+
+/// Sets the target's SDA hold time (`IC_SDA_HOLD.IC_SDA_TX_HOLD`, [`x10_boards::pico_rules::
+/// bootloader_sda_tx_hold`]): `I2cSlave::new` resets the block, which leaves it at the slave
+/// minimum. The register takes writes only while the block is disabled; the block is enabled
+/// again at once, before the executor starts (db-pico's target does the same after each
+/// reset of its block).
+fn set_sda_hold(hold: u16) {
+    let r = embassy_rp::pac::I2C0;
+    r.ic_enable().write(|w| w.set_enable(false));
+    r.ic_sda_hold().modify(|w| w.set_ic_sda_tx_hold(hold));
+    r.ic_enable().write(|w| w.set_enable(true));
 }
 
 /// The update session on the bus: each write handed to the session, each read answered with
