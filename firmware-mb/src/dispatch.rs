@@ -9,7 +9,7 @@ use embassy_futures::select::{select, select3, Either, Either3};
 use heapless::Vec;
 use x10_devices::LinkError;
 use x10_hal::bus::{BusError, Incoming, MultiMaster};
-use x10_hal::retry::Backoff;
+use x10_hal::retry::{Backoff, RetryPolicy};
 use x10_hal::time::Instant;
 use x10_microcode::sweep::GENERAL_CALL;
 use x10_microcode::{pec, Address, Op, Request, Status, MAX_FRAME_LEN, REPLY_HEADER_LEN};
@@ -227,6 +227,7 @@ impl MbCore {
     /// knows there is reported gone (counted in `boards_lost`, logged).
     fn board_gone(&self, board: Address) {
         if self.with(|t| {
+            t.silent |= silent_bit(board.get());
             let lost = t.directory.lost(board);
             if lost {
                 bump(&mut t.diag.boards_lost);
@@ -235,6 +236,28 @@ impl MbCore {
         }) {
             warn!("board {} stopped answering", board.get());
         }
+    }
+
+    /// The retry policy of a transaction to `addr`: `MbConfig::retry`, or a single attempt
+    /// while `addr` is silent (its last request or preparation was NACKed at every attempt:
+    /// an absent board). Without this every call to an absent board would hold the bus queue
+    /// through all its attempts and their backoff (2.4 ms with the default), delaying every
+    /// other board's requests behind it (measured on the emulated Pico: the update's chunks
+    /// waited 8.75 ms instead of 4.07 ms behind Figure 4.4's calls to its absent board 9).
+    fn retry_for(&self, addr: u8) -> RetryPolicy {
+        if self.with(|t| t.silent & silent_bit(addr) != 0) {
+            RetryPolicy {
+                attempts: 1,
+                ..self.config.retry
+            }
+        } else {
+            self.config.retry
+        }
+    }
+
+    /// `addr` acknowledged a transaction or wrote to us: it is not silent (any more).
+    fn heard_from(&self, addr: u8) {
+        self.with(|t| t.silent &= !silent_bit(addr));
     }
 
     /// After [`MultiMaster::addressed`] returned: receives and serves that transaction, never
@@ -253,6 +276,9 @@ impl MbCore {
             Ok(Incoming::Write(n)) if n > 0 => rx.first().copied(),
             _ => None,
         };
+        if let Some(s) = source {
+            self.heard_from(s);
+        }
         self.serve_listener(bus, incoming, rx).await;
         source
     }
@@ -307,7 +333,7 @@ impl MbCore {
             ^ nth.rotate_left(16)
             ^ (u32::from(meta.db.get()) << 8)
             ^ u32::from(meta.seq);
-        let mut backoff = Backoff::new(self.config.retry, seed);
+        let mut backoff = Backoff::new(self.retry_for(meta.db.get()), seed);
         let mut read = [0u8; MAX_FRAME_LEN];
         if meta.kind != JobKind::Request {
             self.dispatch_raw(bus, job, &mut backoff, &mut read, rx)
@@ -426,20 +452,21 @@ impl MbCore {
         read_len: Option<usize>,
         read: &'r mut [u8],
     ) -> Result<Option<&'r [u8]>, BusError> {
-        match read_len {
+        let r = match read_len {
             Some(n) => match read.get_mut(..n) {
-                Some(buf) if frame.is_empty() => {
-                    bus.read(addr, buf).await?;
-                    Ok(Some(buf))
-                }
-                Some(buf) => {
-                    bus.write_read(addr, frame, buf).await?;
-                    Ok(Some(buf))
-                }
+                Some(buf) if frame.is_empty() => bus.read(addr, buf).await.map(|()| Some(&*buf)),
+                Some(buf) => bus
+                    .write_read(addr, frame, buf)
+                    .await
+                    .map(|()| Some(&*buf)),
                 None => Err(BusError::Overrun),
             },
             None => bus.write(addr, frame).await.map(|()| None),
+        };
+        if r.is_ok() {
+            self.heard_from(addr);
         }
+        r
     }
 
     /// After a failed attempt with error `e`: listens for the backoff delay (after a lost
@@ -614,7 +641,7 @@ impl MbCore {
         frame.truncate(n);
         let reads = op != Op::Heartbeat;
         let job = Job::own(db, seq, reads.then(|| op.reply_capacity()), frame);
-        let mut backoff = Backoff::new(self.config.retry, seed ^ u32::from(seq));
+        let mut backoff = Backoff::new(self.retry_for(db.get()), seed ^ u32::from(seq));
         let mut read = [0u8; MAX_FRAME_LEN];
         loop {
             let (tx, pec) = self.frame_to_send(&job);
@@ -654,6 +681,9 @@ impl MbCore {
                     if now() >= deadline
                         || !self.after_failure(bus, e, &mut backoff, db.get(), rx).await
                     {
+                        if e == BusError::Nack {
+                            self.with(|t| t.silent |= silent_bit(db.get()));
+                        }
                         return Err(link_error(e));
                     }
                 }
@@ -675,4 +705,9 @@ fn reply_read_len(op: Option<&Op<'_>>, capacity: usize, pec: bool) -> usize {
     } else {
         frame + x10_microcode::pec::check_len(frame)
     }
+}
+
+/// The bit of 7-bit address `addr` in `Table::silent`.
+const fn silent_bit(addr: u8) -> u128 {
+    1u128 << (addr & 0x7f)
 }

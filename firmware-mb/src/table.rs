@@ -49,6 +49,10 @@ pub(crate) struct Table {
     /// A request to update now, for the updater's next look: one board (its ID) or every
     /// board (`None`).
     pub(crate) update_now: Option<Option<x10_microcode::Uid>>,
+    /// Addresses whose last request (or preparation) ended NACKed after every attempt, one
+    /// bit per 7-bit address: the next transaction to one is tried once, not retried
+    /// (`Dispatcher::retry_for`), until it is acknowledged or the board writes to us.
+    pub(crate) silent: u128,
 }
 
 /// Callers whose wakers are kept while they wait for a slot; more wake all and register
@@ -71,6 +75,7 @@ impl Table {
             carried: &[],
             update_policy: crate::update::UpdatePolicy::Auto,
             update_now: None,
+            silent: 0,
         }
     }
 
