@@ -226,8 +226,8 @@ impl MbCore {
     /// A request to `board` went unanswered (NACK after every retry): a board the directory
     /// knows there is reported gone (counted in `boards_lost`, logged).
     fn board_gone(&self, board: Address) {
+        self.went_silent(board.get());
         if self.with(|t| {
-            t.silent |= silent_bit(board.get());
             let lost = t.directory.lost(board);
             if lost {
                 bump(&mut t.diag.boards_lost);
@@ -244,8 +244,10 @@ impl MbCore {
     /// through all its attempts and their backoff (2.4 ms with the default), delaying every
     /// other board's requests behind it (measured on the emulated Pico: the update's chunks
     /// waited 8.75 ms instead of 4.07 ms behind Figure 4.4's calls to its absent board 9).
+    #[inline(never)]
     fn retry_for(&self, addr: u8) -> RetryPolicy {
-        if self.with(|t| t.silent & silent_bit(addr) != 0) {
+        let (word, bit) = silent_bit(addr);
+        if self.with(|t| t.silent.get(word).is_some_and(|w| w & bit != 0)) {
             RetryPolicy {
                 attempts: 1,
                 ..self.config.retry
@@ -256,8 +258,25 @@ impl MbCore {
     }
 
     /// `addr` acknowledged a transaction or wrote to us: it is not silent (any more).
+    #[inline(never)]
     fn heard_from(&self, addr: u8) {
-        self.with(|t| t.silent &= !silent_bit(addr));
+        let (word, bit) = silent_bit(addr);
+        self.with(|t| {
+            if let Some(w) = t.silent.get_mut(word) {
+                *w &= !bit;
+            }
+        });
+    }
+
+    /// `addr` was NACKed at every attempt: silent from now on ([`MbCore::retry_for`]).
+    #[inline(never)]
+    fn went_silent(&self, addr: u8) {
+        let (word, bit) = silent_bit(addr);
+        self.with(|t| {
+            if let Some(w) = t.silent.get_mut(word) {
+                *w |= bit;
+            }
+        });
     }
 
     /// After [`MultiMaster::addressed`] returned: receives and serves that transaction, never
@@ -455,14 +474,12 @@ impl MbCore {
         let r = match read_len {
             Some(n) => match read.get_mut(..n) {
                 Some(buf) if frame.is_empty() => bus.read(addr, buf).await.map(|()| Some(&*buf)),
-                Some(buf) => bus
-                    .write_read(addr, frame, buf)
-                    .await
-                    .map(|()| Some(&*buf)),
+                Some(buf) => bus.write_read(addr, frame, buf).await.map(|()| Some(&*buf)),
                 None => Err(BusError::Overrun),
             },
             None => bus.write(addr, frame).await.map(|()| None),
         };
+        // Acknowledged: the board is there (not silent, [`MbCore::retry_for`]).
         if r.is_ok() {
             self.heard_from(addr);
         }
@@ -682,7 +699,7 @@ impl MbCore {
                         || !self.after_failure(bus, e, &mut backoff, db.get(), rx).await
                     {
                         if e == BusError::Nack {
-                            self.with(|t| t.silent |= silent_bit(db.get()));
+                            self.went_silent(db.get());
                         }
                         return Err(link_error(e));
                     }
@@ -707,7 +724,7 @@ fn reply_read_len(op: Option<&Op<'_>>, capacity: usize, pec: bool) -> usize {
     }
 }
 
-/// The bit of 7-bit address `addr` in `Table::silent`.
-const fn silent_bit(addr: u8) -> u128 {
-    1u128 << (addr & 0x7f)
+/// Where 7-bit address `addr` is in `Table::silent`: its word and the bit in it.
+const fn silent_bit(addr: u8) -> (usize, u32) {
+    (((addr & 0x7f) >> 5) as usize, 1 << (addr & 31))
 }

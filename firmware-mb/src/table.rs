@@ -50,9 +50,9 @@ pub(crate) struct Table {
     /// board (`None`).
     pub(crate) update_now: Option<Option<x10_microcode::Uid>>,
     /// Addresses whose last request (or preparation) ended NACKed after every attempt, one
-    /// bit per 7-bit address: the next transaction to one is tried once, not retried
+    /// bit per 7-bit address (bit `a % 32` of word `a / 32`): the next transaction to one is tried once, not retried
     /// (`Dispatcher::retry_for`), until it is acknowledged or the board writes to us.
-    pub(crate) silent: u128,
+    pub(crate) silent: [u32; 4],
 }
 
 /// Callers whose wakers are kept while they wait for a slot; more wake all and register
@@ -75,7 +75,7 @@ impl Table {
             carried: &[],
             update_policy: crate::update::UpdatePolicy::Auto,
             update_now: None,
-            silent: 0,
+            silent: [0; 4],
         }
     }
 

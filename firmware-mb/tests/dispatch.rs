@@ -337,7 +337,14 @@ fn an_absent_board_is_tried_once_per_call_until_it_answers_again() {
     let w = world();
     let ping = || w.mb.call(addr(0x30), Op::Ping);
     let first = w.sim(async { (ping().await, ping().await, ping().await) });
-    assert_eq!(first, (Err(LinkError::Nack), Err(LinkError::Nack), Err(LinkError::Nack)));
+    assert_eq!(
+        first,
+        (
+            Err(LinkError::Nack),
+            Err(LinkError::Nack),
+            Err(LinkError::Nack)
+        )
+    );
     assert_eq!(to(&w.bus, 0x30).len(), 5 + 1 + 1);
     w.bus.attach(
         0x30,
