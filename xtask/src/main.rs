@@ -1316,6 +1316,22 @@ mod tests {
             );
         }
 
+        /// The cfg `x10_carry_rom` (the updater's method through ST's ROM bootloader linked)
+        /// comes with a C011 image, and only with one.
+        #[test]
+        fn only_a_carried_c011_image_links_the_rom_method() {
+            let carried = |value| parse_carry(value).unwrap();
+            assert!(!carries_rom(&carried("")));
+            assert!(!carries_rom(&carried("pico@2.0.0=/t/p.bin")));
+            assert!(!carries_rom(&carried(
+                "pico@2.0.0=/t/p.bin;g431@2.0.0=/t/g.bin"
+            )));
+            assert!(carries_rom(&carried("c011@2.0.0=/t/c.bin")));
+            assert!(carries_rom(&carried(
+                "pico@2.0.0=/t/p.bin;c011@2.0.0=/t/c.bin"
+            )));
+        }
+
         #[test]
         fn carried_rs_names_each_image_with_its_crc() {
             assert_eq!(
