@@ -84,7 +84,7 @@ fn parse_carry(value: &str) -> Result<Vec<Carried>, String> {
 
 /// True when one of `images` is a C011's (kind 5): the only board kind updated through ST's
 /// ROM bootloader. The image then names `run_updates::<WithRom>` (cfg `x10_carry_rom`);
-/// otherwise `run_updates::<NoRom>`, which links none of that method (11.4 KiB on the
+/// otherwise `run_updates::<NoRom>`, which links none of that method (11.2 KiB on the
 /// Pico) and refuses a C011 board (`UpdateError::NoMethod`).
 fn carries_rom(images: &[Carried]) -> bool {
     images.iter().any(|c| c.kind == 5)

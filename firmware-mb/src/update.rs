@@ -527,7 +527,7 @@ async fn after_commit<L: UpdateLink>(link: &L, cfg: &UpdateConfig, db: Address) 
 /// How boards updated through ST's ROM bootloader (the C011's) are handled: [`WithRom`]
 /// updates them, [`NoRom`] refuses them ([`UpdateError::NoMethod`], nothing sent) and links
 /// none of that method's code (`x10-stmboot`'s client, the flash timings, the rescue at 0x64:
-/// 11.4 KiB of flash and 600 B of RAM on the Pico). A motherboard image names [`WithRom`]
+/// 11.2 KiB of flash and 600 B of RAM on the Pico). A motherboard image names [`WithRom`]
 /// only when it carries a C011 image (`mb_image!`, the cfg `x10_carry_rom` of
 /// `x10-boards/carry.rs`). A type, not a flag: the future of a branch an `async fn` never
 /// takes is still compiled into it.

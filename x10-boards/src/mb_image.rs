@@ -37,7 +37,7 @@ macro_rules! mb_image {
 
         /// How the updater treats a board updated through ST's ROM bootloader (a C011's):
         /// updated when the image carries a C011 image (the cfg `x10_carry_rom` of
-        /// x10-boards/carry.rs), else refused, and that method not linked (11.4 KiB on the
+        /// x10-boards/carry.rs), else refused, and that method not linked (11.2 KiB on the
         /// Pico).
         #[cfg(all(x10_carry, x10_carry_rom))]
         type CarriedRom = $crate::start::WithRom;
