@@ -19,8 +19,10 @@
 //
 // with the CRC-32 computed here (`crc`'s CRC-32/ISO-HDLC, `x10_microcode::image_crc32`). With
 // images it sets the cfg `x10_carry` (the image spawns the updater only then: without it the
-// updater is not linked) and links `carried.x`, which puts the section `.x10_carried` after
-// `.rodata` in FLASH, so that `cargo xtask size` reports the carried bytes on their own line.
+// updater is not linked), with a `c011` image also `x10_carry_rom` (the updater's method
+// through ST's ROM bootloader, the C011's, is linked only then: [`carries_rom`]), and links
+// `carried.x`, which puts the section `.x10_carried` after `.rodata` in FLASH, so that
+// `cargo xtask size` reports the carried bytes on their own line.
 // Without `X10_CARRY` (or with it empty) `CARRIED` is empty and nothing else changes.
 //
 // A robot crate made by `cargo x10 new` does not build through xtask: its build script also
@@ -80,6 +82,14 @@ fn parse_carry(value: &str) -> Result<Vec<Carried>, String> {
     Ok(out)
 }
 
+/// True when one of `images` is a C011's (kind 5): the only board kind updated through ST's
+/// ROM bootloader. The image then names `run_updates::<WithRom>` (cfg `x10_carry_rom`);
+/// otherwise `run_updates::<NoRom>`, which links none of that method (11.2 KiB on the
+/// Pico) and refuses a C011 board (`UpdateError::NoMethod`).
+fn carries_rom(images: &[Carried]) -> bool {
+    images.iter().any(|c| c.kind == 5)
+}
+
 /// The Rust source of `carried.rs` for `images`, each with its length and CRC-32.
 fn carried_source(images: &[(Carried, usize, u32)]) -> String {
     let mut s =
@@ -111,7 +121,8 @@ const CARRIED_X: &str = "SECTIONS {
 ";
 
 /// Writes `$OUT_DIR/carried.rs` (and with images `carried.x`, the cfg `x10_carry` and the link
-/// argument) from `X10_CARRY`; a malformed value or an unreadable file fails the build.
+/// argument; with a C011 image the cfg `x10_carry_rom`) from `X10_CARRY`; a malformed value or
+/// an unreadable file fails the build.
 fn carried_images() {
     println!("cargo:rerun-if-env-changed=X10_CARRY");
     carried_images_of(&std::env::var("X10_CARRY").unwrap_or_default());
@@ -121,6 +132,7 @@ fn carried_images() {
 /// from the X10 checkout: `carry_checkout.rs`).
 fn carried_images_of(value: &str) {
     println!("cargo::rustc-check-cfg=cfg(x10_carry)");
+    println!("cargo::rustc-check-cfg=cfg(x10_carry_rom)");
     let Some(out) = std::env::var_os("OUT_DIR").map(std::path::PathBuf::from) else {
         return;
     };
@@ -130,6 +142,9 @@ fn carried_images_of(value: &str) {
         Ok(_) => Vec::new(),
         Err(e) => panic!("{e}"),
     };
+    if carries_rom(&carried) {
+        println!("cargo:rustc-cfg=x10_carry_rom");
+    }
     let mut images = Vec::new();
     for mut c in carried {
         // `include_bytes!` in `$OUT_DIR/carried.rs` needs an absolute path (a relative one is

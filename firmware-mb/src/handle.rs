@@ -62,7 +62,7 @@ impl X10 {
         op: Op<'a>,
     ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
         // The core's future itself, not one wrapped in another state machine (issue 27).
-        self.core.call_with(db, op, None)
+        crate::mb_core::call_with(self.core, db, op, None)
     }
 
     /// [`X10::call`] with an explicit timeout in µs.
@@ -75,7 +75,7 @@ impl X10 {
         op: Op<'a>,
         timeout_us: u64,
     ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
-        self.core.call_with(db, op, Some(timeout_us))
+        crate::mb_core::call_with(self.core, db, op, Some(timeout_us))
     }
 
     /// Waits for the next pin-change or analog-threshold event from `pin` on board `db`
@@ -336,7 +336,7 @@ impl defmt::Format for X10 {
 
 impl Link for X10 {
     fn call(&self, db: Address, op: Op<'_>) -> impl Future<Output = Result<Payload, LinkError>> {
-        self.core.call_with(db, op, None)
+        crate::mb_core::call_with(self.core, db, op, None)
     }
 
     async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {
@@ -346,7 +346,7 @@ impl Link for X10 {
 
 impl Link for MbCore {
     fn call(&self, db: Address, op: Op<'_>) -> impl Future<Output = Result<Payload, LinkError>> {
-        self.call_with(db, op, None)
+        crate::mb_core::call_with(self, db, op, None)
     }
 
     async fn wait_event(&self, db: Address, pin: PinRef) -> Result<PinEvent, LinkError> {

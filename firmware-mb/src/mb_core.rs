@@ -236,7 +236,7 @@ impl MbCore {
     ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
         // Not an `async fn` of its own: the future is `call_with`'s, one state machine less
         // to copy the operation and the result through (issue 27).
-        self.call_with(db, op, None)
+        call_with(self, db, op, None)
     }
 
     /// Sends `op` to board `db` (0: the internal daughterboard, without the bus) and waits at
@@ -277,41 +277,10 @@ impl MbCore {
         op: Op<'a>,
         timeout_us: u64,
     ) -> impl Future<Output = Result<Payload, LinkError>> + 'a {
-        self.call_with(db, op, Some(timeout_us))
+        call_with(self, db, op, Some(timeout_us))
     }
 
-    /// [`MbCore::call_with_timeout`], `None`: the default timeout ([`MbCore::timeout_us`]),
-    /// worked out only for a call that can wait. A call to the internal daughterboard that
-    /// the direct path runs ([`InternalBoard`]) is checked as any call, yields once, and is
-    /// executed by the calling task; the others go through the pending table and a queue.
-    pub(crate) async fn call_with(
-        &self,
-        db: Address,
-        op: Op<'_>,
-        timeout_us: Option<u64>,
-    ) -> Result<Payload, LinkError> {
-        // Every caller's future embeds this one, and LLVM would inline its 2 KiB poll into
-        // each caller's poll: the robot tasks' (x10-devices' `PortLink::call`) and the USB
-        // link's request server made two copies (issue 26). Polled through one function
-        // instead, it is in the image once.
-        // The direct path (a port call to the internal board, no observer) before it: the
-        // outlined poll's two extra polls cost a SELF call about 60 instructions on the M0
-        // (issue 27's target: 600 for an output).
-        if self.observer.is_none() {
-            if let Some(board) = self.direct_board(db, &op) {
-                self.check(db, &op)?;
-                // Other tasks run first: a loop of such calls cannot starve them.
-                embassy_futures::yield_now().await;
-                let mut value = Payload::new();
-                if let Some(status) = board.execute(&op, &mut value) {
-                    return self.direct_outcome(&op, status, value);
-                }
-            }
-        }
-        poll_outlined(core::pin::pin!(self.call_body(db, op, timeout_us))).await
-    }
-
-    /// [`MbCore::call_with`]'s work.
+    /// [`call_with`]'s work.
     async fn call_body(
         &self,
         db: Address,
@@ -684,8 +653,51 @@ impl MbCore {
     }
 }
 
+/// Every call of the motherboard ([`MbCore::call_with_timeout`], `None`: the default
+/// timeout, [`MbCore::timeout_us`], worked out only for a call that can wait). A call to the
+/// internal daughterboard that the direct path runs ([`InternalBoard`]) is checked as any
+/// call, yields once, and is executed by the calling task; the others go through the pending
+/// table and a queue.
+///
+/// A free `pub async fn`, not a method, so that its state machine's poll, and the one copy of
+/// [`MbCore::call_body`]'s behind [`poll_once`], are compiled in this crate whatever the image
+/// links: rustc compiles the future of a non-generic `pub async fn` (a free function, not a
+/// method) in its own crate, and at opt-level "z" the crates above reuse this crate's copy of
+/// a generic instance (`poll_once::<call_body's future>`) instead of making their own. As a
+/// method, it was compiled only in the crates that poll it: x10-boards (the USB link's request
+/// server) and x10-robots' library (x10-devices' `PortLink::call`), which does not use
+/// x10-boards, each made its own 2.8 KiB copy of `poll_once`, and fat LTO kept both (issue 25:
+/// until then the updater's `run_updates`, a non-generic `pub async fn` of this crate that
+/// calls, had kept it here by chance; docs/boards.md, "The motherboard carries the images").
+pub async fn call_with(
+    mb: &MbCore,
+    db: Address,
+    op: Op<'_>,
+    timeout_us: Option<u64>,
+) -> Result<Payload, LinkError> {
+    // Every caller's future embeds this one, and LLVM would inline its 2 KiB poll into
+    // each caller's poll: the robot tasks' (x10-devices' `PortLink::call`) and the USB
+    // link's request server made two copies (issue 26). Polled through one function
+    // instead, it is in the image once.
+    // The direct path (a port call to the internal board, no observer) before it: the
+    // outlined poll's two extra polls cost a SELF call about 60 instructions on the M0
+    // (issue 27's target: 600 for an output).
+    if mb.observer.is_none() {
+        if let Some(board) = mb.direct_board(db, &op) {
+            mb.check(db, &op)?;
+            // Other tasks run first: a loop of such calls cannot starve them.
+            embassy_futures::yield_now().await;
+            let mut value = Payload::new();
+            if let Some(status) = board.execute(&op, &mut value) {
+                return mb.direct_outcome(&op, status, value);
+            }
+        }
+    }
+    poll_outlined(core::pin::pin!(mb.call_body(db, op, timeout_us))).await
+}
+
 /// Waits for `fut`, polling it through [`poll_once`]: one copy of its state machine's poll
-/// in the image however many callers' futures embed it (see `MbCore::call_with`).
+/// in the image however many callers' futures embed it (see [`call_with`]).
 async fn poll_outlined<F: Future>(mut fut: core::pin::Pin<&mut F>) -> F::Output {
     core::future::poll_fn(|cx| poll_once(fut.as_mut(), cx)).await
 }

@@ -338,6 +338,8 @@ pub struct UpdateStats {
     pub chunk_retries: u32,
     /// Transfers started again from `begin` (the board lost its session: a reset).
     pub restarts: u16,
+    /// Boards not tried, the updater having no method for their kind ([`update_pass`]).
+    pub refused: u16,
 }
 
 /// What the motherboard does with one board, and why ([`decide`]).
@@ -522,15 +524,108 @@ async fn after_commit<L: UpdateLink>(link: &L, cfg: &UpdateConfig, db: Address) 
     .await
 }
 
+/// How boards updated through ST's ROM bootloader (the C011's) are handled: [`WithRom`]
+/// updates them, [`NoRom`] refuses them ([`UpdateError::NoMethod`], nothing sent) and links
+/// none of that method's code (`x10-stmboot`'s client, the flash timings, the rescue at 0x64:
+/// 11.2 KiB of flash and 600 B of RAM on the Pico). A motherboard image names [`WithRom`]
+/// only when it carries a C011 image (`mb_image!`, the cfg `x10_carry_rom` of
+/// `x10-boards/carry.rs`). A type, not a flag: the future of a branch an `async fn` never
+/// takes is still compiled into it.
+#[allow(async_fn_in_trait)]
+pub trait RomMethod {
+    /// True when the method through ST's ROM bootloader is linked.
+    const LINKED: bool;
+
+    /// The method this updater has for a board of `kind`: [`Method::for_kind`], but
+    /// [`Method::None`] for [`Method::StRom`] when that method is not linked.
+    fn method_for(kind: BoardKind) -> Method {
+        match Method::for_kind(kind) {
+            Method::StRom if !Self::LINKED => Method::None,
+            m => m,
+        }
+    }
+
+    /// Updates the board at `db` (or the one found at 0x64, `None`) through the ROM.
+    async fn update<L: UpdateLink>(
+        link: &L,
+        cfg: &UpdateConfig,
+        db: Option<Address>,
+        image: &DbImage,
+    ) -> Result<(), UpdateError>;
+    /// [`rescue_rom`].
+    async fn rescue<L: UpdateLink>(
+        link: &L,
+        cfg: &UpdateConfig,
+        images: &[DbImage],
+        stats: &mut UpdateStats,
+    ) -> Option<Result<(), UpdateError>>;
+}
+
+/// The ROM method linked: a C011 is updated through ST's ROM bootloader.
+pub enum WithRom {}
+
+/// No ROM method: a motherboard image that carries no C011 image.
+pub enum NoRom {}
+
+impl RomMethod for WithRom {
+    const LINKED: bool = true;
+
+    async fn update<L: UpdateLink>(
+        link: &L,
+        cfg: &UpdateConfig,
+        db: Option<Address>,
+        image: &DbImage,
+    ) -> Result<(), UpdateError> {
+        update_rom(link, cfg, db, image).await
+    }
+
+    async fn rescue<L: UpdateLink>(
+        link: &L,
+        cfg: &UpdateConfig,
+        images: &[DbImage],
+        stats: &mut UpdateStats,
+    ) -> Option<Result<(), UpdateError>> {
+        rescue_rom(link, cfg, images, stats).await
+    }
+}
+
+impl RomMethod for NoRom {
+    const LINKED: bool = false;
+
+    /// Not reached from [`update_board`] ([`RomMethod::method_for`] says [`Method::None`]
+    /// first): the same refusal.
+    async fn update<L: UpdateLink>(
+        _: &L,
+        _: &UpdateConfig,
+        _: Option<Address>,
+        _: &DbImage,
+    ) -> Result<(), UpdateError> {
+        Err(UpdateError::NoMethod)
+    }
+
+    /// Nobody is looked for at 0x64: without the method no C011 image is carried either, and
+    /// [`rescue_rom`] would find none to finish it with.
+    async fn rescue<L: UpdateLink>(
+        _: &L,
+        _: &UpdateConfig,
+        _: &[DbImage],
+        _: &mut UpdateStats,
+    ) -> Option<Result<(), UpdateError>> {
+        None
+    }
+}
+
 /// Updates the board at `db` to `image`: `enter_update`; waits until its bootloader answers
 /// `status`; `begin`, every chunk, `commit` (from `begin` again, once more, when the board
 /// lost its session: it was reset); waits until the board answers `identify` with the new
 /// version, then `confirm_firmware`. The board is marked as updating from the first request
-/// to the end.
+/// to the end. A C011 is updated through ST's ROM bootloader instead ([`Method::StRom`]),
+/// when `R` links that method ([`RomMethod`]).
 ///
 /// # Errors
-/// [`UpdateError`].
-pub async fn update_board<L: UpdateLink>(
+/// [`UpdateError`]; [`UpdateError::NoMethod`] at once, nothing sent, when `R` has no method
+/// for `kind` ([`RomMethod::method_for`]).
+pub async fn update_board<R: RomMethod, L: UpdateLink>(
     link: &L,
     cfg: &UpdateConfig,
     db: Address,
@@ -538,13 +633,13 @@ pub async fn update_board<L: UpdateLink>(
     image: &DbImage,
     stats: &mut UpdateStats,
 ) -> Result<(), UpdateError> {
-    let method = Method::for_kind(kind);
+    let method = R::method_for(kind);
     if method == Method::None {
         return Err(UpdateError::NoMethod);
     }
     link.set_updating(Some(db));
     let r = if method == Method::StRom {
-        update_rom(link, cfg, Some(db), image).await
+        R::update(link, cfg, Some(db), image).await
     } else {
         update_marked(link, cfg, db, image, stats).await
     };
@@ -783,7 +878,7 @@ pub struct UpdateState {
 }
 
 impl UpdateState {
-    /// Tries so far for the board `uid`.
+    /// Tries so far for the board `uid` (a refused board's are all used up).
     pub fn tries(&self, uid: Uid) -> u8 {
         self.tried
             .iter()
@@ -795,6 +890,16 @@ impl UpdateState {
     /// ([`crate::X10::start_update`]) tries again a board that failed too often.
     pub fn forget(&mut self) {
         self.tried.clear();
+    }
+
+    /// `uid` is not tried (no method for its kind): its tries are used up (`tries`).
+    fn refuse(&mut self, uid: Uid, tries: u8) {
+        match self.tried.iter_mut().find(|(u, _)| *u == uid) {
+            Some(e) => e.1 = tries,
+            None => {
+                let _ = self.tried.push((uid, tries));
+            }
+        }
     }
 
     fn count(&mut self, uid: Uid) {
@@ -810,7 +915,10 @@ impl UpdateState {
 /// One look at the boards: each present board of `boards` that [`plan`] says to update, and
 /// that has had fewer than [`UpdateConfig::tries`] tries, is updated ([`update_board`]), one
 /// after the other; `on_result` hears every end (the log line). Returns how many were tried.
-pub async fn update_pass<L: UpdateLink>(
+/// A board for which `R` has no method ([`RomMethod::method_for`]: a C011 with [`NoRom`]) is
+/// not tried: `on_result` hears [`UpdateError::NoMethod`] and one line is logged, once (its
+/// tries are used up: [`UpdateStats::refused`]), and nothing is sent to it.
+pub async fn update_pass<R: RomMethod, L: UpdateLink>(
     link: &L,
     cfg: &UpdateConfig,
     images: &[DbImage],
@@ -824,7 +932,7 @@ pub async fn update_pass<L: UpdateLink>(
     // through the ROM failed): it cannot be called at its address until it is whole.
     if !state.rom_checked && state.rom_rescues < cfg.tries {
         state.rom_checked = true;
-        if let Some(r) = rescue_rom(link, cfg, images, &mut state.stats).await {
+        if let Some(r) = R::rescue(link, cfg, images, &mut state.stats).await {
             state.rom_rescues += 1;
             n += 1;
             if r.is_err() {
@@ -843,6 +951,17 @@ pub async fn update_pass<L: UpdateLink>(
         if state.tries(b.uid) >= cfg.tries {
             continue;
         }
+        if R::method_for(b.kind) == Method::None {
+            state.refuse(b.uid, cfg.tries);
+            state.stats.refused = state.stats.refused.saturating_add(1);
+            warn!(
+                "update: board {} (kind {}): no update method in this image",
+                b.address.get(),
+                b.kind.0
+            );
+            on_result(b, image, &Err(UpdateError::NoMethod));
+            continue;
+        }
         state.count(b.uid);
         n += 1;
         info!(
@@ -856,7 +975,7 @@ pub async fn update_pass<L: UpdateLink>(
             image.version[2]
         );
         link.report(b.address, b.firmware, image.version, None);
-        let r = update_board(link, cfg, b.address, b.kind, image, &mut state.stats).await;
+        let r = update_board::<R, L>(link, cfg, b.address, b.kind, image, &mut state.stats).await;
         link.report(b.address, b.firmware, image.version, Some(&r));
         match r {
             Ok(()) => info!("update: board {} done", b.address.get()),
@@ -953,7 +1072,10 @@ pub fn start_decision(
 /// leaves `images` and `policy` with the motherboard, so that a request to update now
 /// ([`crate::X10::start_update`]: one board whatever the policy, or every board with `Never`
 /// overridden) is answered at once and run at its next look, its tries counted afresh.
-pub async fn run_updates(
+/// `R`: [`WithRom`] when `images` may hold one updated through ST's ROM bootloader (a
+/// C011's); an image that carries none names `run_updates::<NoRom>`, and that method is not
+/// linked (a C011 board is then refused, `UpdateError::NoMethod`).
+pub async fn run_updates<R: RomMethod>(
     x10: crate::X10,
     cfg: UpdateConfig,
     images: &'static [DbImage],
@@ -987,7 +1109,7 @@ pub async fn run_updates(
                 }
             }
         };
-        update_pass(&x10, &cfg, images, policy, boards, &mut state, |_, _, _| {}).await;
+        update_pass::<R, _>(&x10, &cfg, images, policy, boards, &mut state, |_, _, _| {}).await;
         UpdateLink::pause(&x10, UPDATE_POLL_US).await;
     }
 }

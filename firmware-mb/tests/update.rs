@@ -16,8 +16,8 @@ use std::cell::{Cell, RefCell};
 
 use embassy_boot::BlockingFirmwareState;
 use firmware_mb::update::{
-    plan, update_board, update_pass, DbImage, UpdateConfig, UpdateError, UpdateLink, UpdatePolicy,
-    UpdateState, UpdateStats,
+    plan, update_board, update_pass, DbImage, NoRom, UpdateConfig, UpdateError, UpdateLink,
+    UpdatePolicy, UpdateState, UpdateStats,
 };
 use firmware_mb::KnownBoard;
 use x10_boot::model::{Flash, Part, ACTIVE};
@@ -321,7 +321,7 @@ const NEW: Version = [0, 2, 0];
 fn update(bus: &Bus, img: &DbImage) -> (Result<(), UpdateError>, UpdateStats) {
     let mut stats = UpdateStats::default();
     let cfg = UpdateConfig::DEFAULT;
-    let r = run(update_board(
+    let r = run(update_board::<NoRom, _>(
         bus,
         &cfg,
         bus.board.addr,
@@ -454,7 +454,7 @@ fn a_reset_before_the_confirm_rolls_back_and_the_next_try_finishes() {
     let mut state = UpdateState::default();
     let mut ends = Vec::new();
     for _ in 0..2 {
-        run(update_pass(
+        run(update_pass::<NoRom, _>(
             &bus,
             &UpdateConfig::DEFAULT,
             &[new],
@@ -483,7 +483,7 @@ fn an_image_that_never_comes_back_is_rolled_back_and_tries_are_bounded() {
     let mut state = UpdateState::default();
     let mut ends = Vec::new();
     for _ in 0..4 {
-        run(update_pass(
+        run(update_pass::<NoRom, _>(
             &bus,
             &cfg,
             &[bad],
@@ -594,7 +594,7 @@ fn time_of_a_32_kib_update() {
             let bus = Bus::new(Board::new(0x2a, image(20_000, OLD, true, 1)), hz);
             let mut stats = UpdateStats::default();
             let t0 = bus.now.get();
-            let r = run(update_board(
+            let r = run(update_board::<NoRom, _>(
                 &bus,
                 &cfg,
                 bus.board.addr,

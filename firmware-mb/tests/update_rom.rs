@@ -7,14 +7,15 @@
 //!
 //! Checked against the model's ground truth (its flash, what it boots): an update end to end,
 //! a power cut at every 97th step of it recovered through 0x64 (the board found there at
-//! start-up), a refused chip ID reported and not tried for ever (the old image runs again).
+//! start-up), a refused chip ID reported and not tried for ever (the old image runs again),
+//! and an updater without the ROM method (`NoRom`) refusing a C011 once, sending it nothing.
 
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
 use firmware_mb::update::{
-    rescue_rom, update_board, update_pass, DbImage, UpdateConfig, UpdateError, UpdateLink,
-    UpdatePolicy, UpdateState, UpdateStats,
+    rescue_rom, update_board, update_pass, DbImage, Method, NoRom, RomMethod, UpdateConfig,
+    UpdateError, UpdateLink, UpdatePolicy, UpdateState, UpdateStats, WithRom,
 };
 use firmware_mb::KnownBoard;
 use x10_devices::LinkError;
@@ -165,7 +166,7 @@ fn a_c011_is_updated_through_its_rom_bootloader() {
     model.bus_hz = 400_000;
     let link = RomLink::new(model);
     let mut stats = UpdateStats::default();
-    let r = run(update_board(
+    let r = run(update_board::<WithRom, _>(
         &link,
         &cfg(),
         Address::new(DB).unwrap(),
@@ -205,7 +206,7 @@ fn a_power_cut_at_any_step_is_recovered_through_0x64() {
         let link = RomLink::new(RomModel::c011(old));
         let mut stats = UpdateStats::default();
         let db = Address::new(DB).unwrap();
-        run(update_board(
+        run(update_board::<WithRom, _>(
             &link,
             &cfg(),
             db,
@@ -223,7 +224,7 @@ fn a_power_cut_at_any_step_is_recovered_through_0x64() {
         link.model.borrow_mut().cut_at(cut);
         let mut stats = UpdateStats::default();
         let db = Address::new(DB).unwrap();
-        let r = run(update_board(
+        let r = run(update_board::<WithRom, _>(
             &link,
             &cfg(),
             db,
@@ -247,7 +248,7 @@ fn a_power_cut_at_any_step_is_recovered_through_0x64() {
             Boot::Rom => {
                 // The motherboard starts: its first pass looks at 0x64 first.
                 let mut state = UpdateState::default();
-                let n = run(update_pass(
+                let n = run(update_pass::<WithRom, _>(
                     &link,
                     &cfg(),
                     core::slice::from_ref(&new),
@@ -285,7 +286,7 @@ fn a_refused_chip_id_is_reported_not_retried_for_ever() {
     let mut results = Vec::new();
     let boards = [board(BoardKind::C011, OLD)];
     for _ in 0..5 {
-        run(update_pass(
+        run(update_pass::<WithRom, _>(
             &link,
             &cfg(),
             core::slice::from_ref(&new),
@@ -318,4 +319,95 @@ fn a_refused_chip_id_is_reported_not_retried_for_ever() {
         )),
         None
     );
+}
+
+/// `NoRom` (a motherboard image that carries no C011 image): the C011 has no method
+/// (`method_for`), and an updater given a C011 image all the same refuses the board with
+/// `NoMethod` once in five passes (its tries used up, counted as refused, neither done nor
+/// failed), tries none, and sends nothing: no call, no raw transfer (the model's clock, which
+/// every request advances, stays at 0), nothing erased; a board at 0x64 is not looked for.
+#[test]
+fn without_the_rom_method_a_c011_is_refused_once_and_sent_nothing() {
+    assert_eq!(NoRom::method_for(BoardKind::C011), Method::None);
+    assert_eq!(WithRom::method_for(BoardKind::C011), Method::StRom);
+    for kind in [BoardKind::SIMULATED, BoardKind::PICO, BoardKind::G431] {
+        assert_eq!(NoRom::method_for(kind), Method::X10Boot);
+        assert_eq!(WithRom::method_for(kind), Method::X10Boot);
+    }
+    let old = image(4_000, OLD, 1);
+    let new = db_image(image(5_000, NEW, 2));
+    let link = RomLink::new(RomModel::c011(old));
+    let mut state = UpdateState::default();
+    let mut results = Vec::new();
+    let boards = [board(BoardKind::C011, OLD)];
+    for _ in 0..5 {
+        let n = run(update_pass::<NoRom, _>(
+            &link,
+            &cfg(),
+            core::slice::from_ref(&new),
+            UpdatePolicy::Auto,
+            &boards,
+            &mut state,
+            |b, i, r| results.push((b.uid, i.version, *r)),
+        ));
+        assert_eq!(n, 0);
+    }
+    assert_eq!(results, [(boards[0].uid, NEW, Err(UpdateError::NoMethod))]);
+    assert_eq!(
+        state.stats,
+        UpdateStats {
+            refused: 1,
+            ..UpdateStats::default()
+        }
+    );
+    assert_eq!(state.tries(boards[0].uid), cfg().tries);
+    // update_board alone: the same refusal, before the board is marked as updating.
+    let mut stats = UpdateStats::default();
+    let r = run(update_board::<NoRom, _>(
+        &link,
+        &cfg(),
+        Address::new(DB).unwrap(),
+        BoardKind::C011,
+        &new,
+        &mut stats,
+    ));
+    assert_eq!(r, Err(UpdateError::NoMethod));
+    assert_eq!(stats, UpdateStats::default());
+    assert_eq!(link.updating.get(), None);
+    assert_eq!(link.raw.get(), (0, 0, 0));
+    let m = link.model.borrow();
+    assert_eq!(m.now_ns(), 0);
+    assert_eq!(m.stats().transactions, 0);
+    assert_eq!(m.stats().erases, 0);
+    assert_eq!(m.boot(), Boot::Flash);
+    drop(m);
+    assert_eq!(link.version(), OLD);
+
+    // A C011 left in its ROM bootloader (at 0x64) is not looked for: WithRom finishes it.
+    let cut = RomLink::new(RomModel::c011(old));
+    cut.model.borrow_mut().enter_rom();
+    let images = core::slice::from_ref(&new);
+    let mut state = UpdateState::default();
+    let n = run(update_pass::<NoRom, _>(
+        &cut,
+        &cfg(),
+        images,
+        UpdatePolicy::Auto,
+        &[],
+        &mut state,
+        |_, _, _| {},
+    ));
+    assert_eq!((n, cut.raw.get().0), (0, 0));
+    let mut state = UpdateState::default();
+    let n = run(update_pass::<WithRom, _>(
+        &cut,
+        &cfg(),
+        images,
+        UpdatePolicy::Auto,
+        &[],
+        &mut state,
+        |_, _, _| {},
+    ));
+    assert_eq!((n, state.stats.done), (1, 1));
+    assert!(cut.model.borrow().holds(new.bytes));
 }

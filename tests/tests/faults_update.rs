@@ -7,7 +7,7 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 use embedded_storage::nor_flash::ReadNorFlash;
-use firmware_mb::update::{UpdateConfig, UpdatePolicy};
+use firmware_mb::update::{NoRom, UpdateConfig, UpdatePolicy};
 use x10_devices::LinkError;
 use x10_microcode::{Address, BoardKind, Level, Op, Pin, Port};
 use x10_sim::board::uid_of_name;
@@ -78,7 +78,7 @@ fn run(seed: u64) {
             Box::pin(async move {
                 let x10 = ctx.handle();
                 ctx.clock.sleep_ns(500 * MS).await;
-                let state = update_until(
+                let state = update_until::<NoRom>(
                     &x10,
                     &UpdateConfig::DEFAULT,
                     images,

@@ -7,7 +7,10 @@
 //! `$OUT_DIR/carried.rs` with `CARRIED`, and with images sets the cfg `x10_carry`; then
 //! `main` also spawns the updater ([`run_updates`](crate::start::run_updates)), which brings
 //! every board of a carried kind to the carried version as the image's policy says (docs/boards.md,
-//! "The motherboard carries the images"). Without images the updater is not compiled in.
+//! "The motherboard carries the images"). Without images the updater is not compiled in;
+//! without a C011 image its method through ST's ROM bootloader is not (the build script sets
+//! the cfg `x10_carry_rom` only with one: `run_updates::<NoRom>` otherwise, which refuses a
+//! C011 board).
 //!
 //! The logger: with x10-boards' `usb-log` feature its own (RTT and the USB link), else the
 //! calling crate's `defmt-rtt` (a dependency it must have then).
@@ -32,13 +35,22 @@ macro_rules! mb_image {
         // `CARRIED`: the daughterboard images of `X10_CARRY` (x10-boards/carry.rs).
         include!(concat!(env!("OUT_DIR"), "/carried.rs"));
 
+        /// How the updater treats a board updated through ST's ROM bootloader (a C011's):
+        /// updated when the image carries a C011 image (the cfg `x10_carry_rom` of
+        /// x10-boards/carry.rs), else refused, and that method not linked (11.2 KiB on the
+        /// Pico).
+        #[cfg(all(x10_carry, x10_carry_rom))]
+        type CarriedRom = $crate::start::WithRom;
+        #[cfg(all(x10_carry, not(x10_carry_rom)))]
+        type CarriedRom = $crate::start::NoRom;
+
         /// The updater: brings the boards of the carried kinds to the carried versions.
         #[cfg(x10_carry)]
         #[embassy_executor::task]
         async fn updater(x10: ::x10::X10, policy: $crate::start::UpdatePolicy) -> ! {
             // The gap between chunks scaled to this image's bus clock (at most half of
             // the bus for the update).
-            $crate::start::run_updates(
+            $crate::start::run_updates::<CarriedRom>(
                 x10,
                 $crate::start::UpdateConfig::for_bus_hz($crate::BUS_HZ),
                 CARRIED,

@@ -16,8 +16,10 @@ use x10_microcode::Address;
 
 /// Firmware over the bus (issue 25): what a motherboard image that carries daughterboard
 /// images names (`x10-boards/carry.rs` generates its `CARRIED`; docs/boards.md "Updating the
-/// boards"). An image that carries none does not name [`run_updates`], and does not link it.
-pub use firmware_mb::update::{run_updates, DbImage, UpdateConfig, UpdatePolicy};
+/// boards"). An image that carries none does not name [`run_updates`], and does not link it;
+/// one that carries no C011 image names `run_updates::<NoRom>`, and does not link the method
+/// through ST's ROM bootloader ([`WithRom`]: `mb_image!`, the cfg `x10_carry_rom`).
+pub use firmware_mb::update::{run_updates, DbImage, NoRom, UpdateConfig, UpdatePolicy, WithRom};
 pub use firmware_mb::{MbConfig, X10};
 
 /// How many boards the motherboard images know by their unique ID at once (plug and play's

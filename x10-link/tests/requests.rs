@@ -7,7 +7,7 @@
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
-use firmware_mb::update::{run_updates, UpdateConfig, UpdatePolicy};
+use firmware_mb::update::{run_updates, NoRom, UpdateConfig, UpdatePolicy};
 use firmware_mb::BoardQuery;
 use x10_link::recorder::{serve, Identity, Recorder};
 use x10_link::{Feed, FrameReader, Hello, ToDevice, ToHost, WireOp, MAX_FRAME};
@@ -286,7 +286,7 @@ fn the_laptop_starts_an_update_that_the_policy_forbids_and_sees_it_through() {
                 Box::pin(async move {
                     // The image's updater, with a policy that updates nothing by itself.
                     let cfg = UpdateConfig::for_bus_hz(400_000);
-                    run_updates(ctx.handle(), cfg, images, UpdatePolicy::Never).await;
+                    run_updates::<NoRom>(ctx.handle(), cfg, images, UpdatePolicy::Never).await;
                 })
             }),
         )

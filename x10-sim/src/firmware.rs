@@ -249,11 +249,12 @@ pub fn carried(
     }]))
 }
 
-/// The motherboard's updater as its image runs it (`firmware_mb::update::run_updates`), but
-/// for a test: an `update_pass` over the boards the directory knows, every 100 ms, until
+/// The motherboard's updater as its image runs it (`firmware_mb::update::run_updates::<R>`),
+/// but for a test: an `update_pass` over the boards the directory knows, every 100 ms, until
 /// `done` says so of the boards or after `passes` passes; `on_result` hears every update's end.
-/// Returns what the updater remembers (its counters).
-pub async fn update_until(
+/// `R` as the image's: `WithRom` updates a C011 through ST's ROM bootloader, `NoRom` refuses
+/// it. Returns what the updater remembers (its counters).
+pub async fn update_until<R: firmware_mb::update::RomMethod>(
     x10: &firmware_mb::X10,
     cfg: &firmware_mb::update::UpdateConfig,
     images: &[firmware_mb::update::DbImage],
@@ -275,7 +276,7 @@ pub async fn update_until(
         if done(boards) {
             break;
         }
-        firmware_mb::update::update_pass(
+        firmware_mb::update::update_pass::<R, _>(
             x10,
             cfg,
             images,

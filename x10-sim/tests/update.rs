@@ -8,7 +8,7 @@
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
-use firmware_mb::update::{UpdateConfig, UpdatePolicy};
+use firmware_mb::update::{NoRom, UpdateConfig, UpdatePolicy};
 use x10_devices::LinkError;
 use x10_microcode::{Address, BoardKind, Level, Op, Pin, Port};
 use x10_sim::board::uid_of_name;
@@ -97,7 +97,7 @@ fn updates(setup: impl FnOnce(Sim) -> Sim) -> (u16, u32) {
                 // The gap between chunks scaled to the bus clock (400 kHz), the flash work
                 // waited out.
                 let cfg = UpdateConfig::for_bus_hz(400_000);
-                let state = update_until(
+                let state = update_until::<NoRom>(
                     &x10,
                     &cfg,
                     images,

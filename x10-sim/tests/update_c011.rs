@@ -10,7 +10,9 @@
 use std::cell::{Cell, RefCell};
 use std::rc::Rc;
 
-use firmware_mb::update::{DbImage, UpdateConfig, UpdateError, UpdatePolicy};
+use firmware_mb::update::{
+    DbImage, NoRom, RomMethod, UpdateConfig, UpdateError, UpdatePolicy, WithRom,
+};
 use x10_microcode::{Address, BoardKind, Identity, Level, Op, Pin, Port};
 use x10_sim::firmware::{fake_image, update_until, SimRom};
 use x10_sim::sim::{task, Sim, SimConfig};
@@ -36,11 +38,14 @@ struct Outcome {
     window: (u64, u64),
     done: u16,
     failed: u16,
+    refused: u16,
 }
 
 /// db22 is a C011 running `OLD`, db30 the robot's board; the motherboard carries a C011 image
-/// of `NEW` and runs update passes (at most `passes`) until db22 reports `NEW`.
-fn run(
+/// of `NEW` and runs update passes (at most `passes`) until db22 reports `NEW`, its updater
+/// with `R`'s way for a C011 (`WithRom`: through its ROM bootloader, as an image that carries
+/// a C011 image links; `NoRom`: refused).
+fn run<R: RomMethod + 'static>(
     rom: &SimRom,
     image: &'static [u8],
     setup: impl FnOnce(Sim) -> Sim,
@@ -74,6 +79,7 @@ fn run(
         window: (0, 0),
         done: 0,
         failed: 0,
+        refused: 0,
     }));
     let finished = Rc::new(Cell::new(false));
     let (o1, f1) = (out.clone(), finished.clone());
@@ -84,7 +90,7 @@ fn run(
                 let x10 = ctx.handle();
                 ctx.clock.sleep_ns(1_000 * MS).await;
                 o1.borrow_mut().window.0 = ctx.clock.now_ns();
-                let state = update_until(
+                let state = update_until::<R>(
                     &x10,
                     &UpdateConfig::for_bus_hz(400_000),
                     images,
@@ -109,6 +115,7 @@ fn run(
                 o.version_after = version;
                 o.done = state.stats.done;
                 o.failed = state.stats.failed;
+                o.refused = state.stats.refused;
                 f1.set(true);
             })
         }),
@@ -160,7 +167,7 @@ fn new_image() -> &'static [u8] {
 fn a_c011_is_updated_through_its_rom_while_the_robot_drives_another_board() {
     let rom = SimRom::new(OLD);
     let image = new_image();
-    let o = run(&rom, image, |s| s, 20);
+    let o = run::<WithRom>(&rom, image, |s| s, 20);
     assert_eq!(o.results, [Ok(())]);
     assert_eq!((o.done, o.failed), (1, 0));
     // Ground truth: the flash holds the new image and nothing else, the chip runs it, and it
@@ -191,7 +198,7 @@ fn a_c011_is_updated_through_its_rom_while_the_robot_drives_another_board() {
 fn a_power_cut_mid_update_is_finished_through_0x64() {
     let rom = SimRom::new(OLD);
     let image = new_image();
-    let o = run(&rom, image, |s| s.reset_at("db22", 3_000, 50), 40);
+    let o = run::<WithRom>(&rom, image, |s| s.reset_at("db22", 3_000, 50), 40);
     assert_eq!(o.results.len(), 1, "{:?}", o.results);
     assert!(o.results[0].is_err());
     // The failed try, then the rescue through 0x64.
@@ -209,7 +216,7 @@ fn a_refused_chip_id_is_reported_and_tried_no_more() {
     let rom = SimRom::new(OLD);
     rom.0.borrow_mut().pid = 0x466;
     let image = new_image();
-    let o = run(&rom, image, |s| s, 10);
+    let o = run::<WithRom>(&rom, image, |s| s, 10);
     let wrong = Err(UpdateError::Rom(x10_stmboot::Error::WrongChip {
         pid: 0x466,
     }));
@@ -217,6 +224,27 @@ fn a_refused_chip_id_is_reported_and_tried_no_more() {
     assert_eq!((o.done, o.failed), (0, 2));
     assert_eq!(rom.stats().erases, 0);
     assert_eq!(rom.boot(), Boot::Flash);
+    assert_eq!(o.version_after, Some(OLD));
+    assert!(o.calls_ok, "a robot call failed");
+}
+
+/// An updater without the ROM method (`NoRom`, what an image that carries no C011 image links)
+/// given a C011 image all the same: the C011 is refused with `NoMethod`, once in ten passes,
+/// and nothing reaches it (no ROM transaction, nothing erased); it keeps running `OLD`.
+#[test]
+fn without_the_rom_method_a_c011_is_refused_once_and_left_alone() {
+    let rom = SimRom::new(OLD);
+    let image = new_image();
+    let o = run::<NoRom>(&rom, image, |s| s, 10);
+    assert_eq!(o.results, [Err(UpdateError::NoMethod)]);
+    assert_eq!((o.done, o.failed, o.refused), (0, 0, 1));
+    let stats = rom.stats();
+    assert_eq!(
+        (stats.transactions, stats.erases, stats.programs),
+        (0, 0, 0)
+    );
+    assert_eq!(rom.boot(), Boot::Flash);
+    assert_eq!(rom.version(), OLD);
     assert_eq!(o.version_after, Some(OLD));
     assert!(o.calls_ok, "a robot call failed");
 }

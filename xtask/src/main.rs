@@ -310,6 +310,20 @@ fn carries(image: &Image) -> Result<Vec<&'static Carry>, Error> {
     }
 }
 
+/// `image`'s budget when it carries `carried`: its row's, and [`ROM_METHOD_FLASH`] and
+/// [`ROM_METHOD_RAM`] more with a `c011` image (the updater then links the C011's method).
+fn budget(image: &Image, carried: &[&Carry]) -> Budget {
+    let b = image.budget;
+    if carried.iter().any(|c| c.kind == "c011") {
+        Budget {
+            flash: b.flash + ROM_METHOD_FLASH,
+            ram: b.ram + ROM_METHOD_RAM,
+        }
+    } else {
+        b
+    }
+}
+
 /// The section the carried images are linked into (`x10-boards/carry.rs`).
 const CARRIED_SECTION: &str = ".x10_carried";
 
@@ -341,15 +355,24 @@ const CARRIED_SECTION: &str = ".x10_carried";
 /// and its task). The carried bytes themselves are outside the budget (their own row).
 const MB_PICO_FLASH: u64 = 101_376 + UPDATER_FLASH;
 /// What the updater costs mb-pico (issue 25): the image built with `X10_CARRY` against the same
-/// source without (on main at f7640f6 with this branch: 117 096 B and 98 684 B of flash, `.x10_carried` left
-/// out): the task, `run_updates`, `update_pass`, `update_board` and their own copy of the
-/// request path (`X10::call` through `UpdateLink`), the log lines (7 752 B before h21-updater's
-/// merge), and the C011's method through ST's ROM bootloader (`x10-stmboot`'s client, the
-/// flash timings, the lost-commit handling; about 11.7 KiB), linked whatever kinds the image carries.
-const UPDATER_FLASH: u64 = 18_412;
+/// source without (branch h27-romcarry on main 650218e: 107 864 B and 99 752 B of flash,
+/// `.x10_carried` left out): the task, `run_updates`, `update_pass`, `update_board` and their
+/// own copy of the request path (`X10::call` through `UpdateLink`), the log lines. Not the C011's
+/// method through ST's ROM bootloader: `run_updates::<NoRom>` links it only when a C011 image is
+/// carried (`x10_carry_rom`), which takes 11 232 B and 600 B more (119 096 B, 20 396 B); it was
+/// 18 412 B and 2 360 B on main f7640f6 while that method was linked whatever the image carried.
+const UPDATER_FLASH: u64 = 8_112;
 /// The updater's static RAM on mb-pico: its task's future, measured as [`UPDATER_FLASH`]
-/// (20 276 B against 17 916 B).
-const UPDATER_RAM: u64 = 2_360;
+/// (19 796 B against 18 012 B).
+const UPDATER_RAM: u64 = 1_784;
+/// What the updater's method through ST's ROM bootloader adds to mb-pico when it carries a
+/// `c011` image (`X10_CARRY_KINDS`; the cfg `x10_carry_rom`, `run_updates::<WithRom>`): the
+/// image carrying db-pico and a db-c011 image against the one carrying db-pico only (branch
+/// h27-romcarry on main 650218e: 119 096 B / 20 396 B against 107 864 B / 19 796 B). Its budget grows by it
+/// then ([`budget`]).
+const ROM_METHOD_FLASH: u64 = 11_232;
+/// See [`ROM_METHOD_FLASH`].
+const ROM_METHOD_RAM: u64 = 600;
 /// See [`MB_PICO_FLASH`].
 const MB_G431_FLASH: u64 = 97_792;
 /// The motherboard images' static RAM budget (the Pico has 264 KiB, the G431 32 KiB): see
@@ -910,7 +933,7 @@ fn kib(bytes: u64) -> String {
 /// One row of the size table: flash and static RAM (`None` when the image did not link), and
 /// the verdicts.
 fn row(image: &Image, flash: u64, ram: Option<u64>) -> (bool, String, String) {
-    let b = image.budget;
+    let b = budget(image, &carries(image).unwrap_or_default());
     let within = flash <= b.flash && ram.is_none_or(|r| r <= b.ram) && fits_chip(image, flash);
     let budget = format!(
         "{} / {}: {}",
@@ -1316,6 +1339,22 @@ mod tests {
             );
         }
 
+        /// The cfg `x10_carry_rom` (the updater's method through ST's ROM bootloader linked)
+        /// comes with a C011 image, and only with one.
+        #[test]
+        fn only_a_carried_c011_image_links_the_rom_method() {
+            let carried = |value| parse_carry(value).unwrap();
+            assert!(!carries_rom(&carried("")));
+            assert!(!carries_rom(&carried("pico@2.0.0=/t/p.bin")));
+            assert!(!carries_rom(&carried(
+                "pico@2.0.0=/t/p.bin;g431@2.0.0=/t/g.bin"
+            )));
+            assert!(carries_rom(&carried("c011@2.0.0=/t/c.bin")));
+            assert!(carries_rom(&carried(
+                "pico@2.0.0=/t/p.bin;c011@2.0.0=/t/c.bin"
+            )));
+        }
+
         #[test]
         fn carried_rs_names_each_image_with_its_crc() {
             assert_eq!(
@@ -1569,9 +1608,25 @@ mod tests {
         // The motherboards no larger than their budgets; mb-pico's raised by the updater's
         // code and RAM only (issue 25).
         assert_eq!(image("mb-pico").unwrap().budget.flash, MB_PICO_FLASH);
-        assert_eq!(MB_PICO_FLASH, 101_376 + 18_412);
-        assert_eq!(image("mb-pico").unwrap().budget.ram, 18 * 1024 + 2_360);
+        assert_eq!(MB_PICO_FLASH, 101_376 + 8_112);
+        assert_eq!(image("mb-pico").unwrap().budget.ram, 18 * 1024 + 1_784);
         assert_eq!(image("mb-g431").unwrap().budget.ram, 18 * 1024);
+        // With a c011 image, the ROM method's cost on top (issue 25); not for the others.
+        let mb = image("mb-pico").unwrap();
+        for (kinds, extra) in [
+            ("", (0, 0)),
+            ("pico", (0, 0)),
+            ("pico,g431", (0, 0)),
+            ("c011", (11_232, 600)),
+            ("pico,g431,c011", (11_232, 600)),
+        ] {
+            let b = budget(mb, &carry_kinds(kinds).unwrap());
+            assert_eq!(
+                (b.flash, b.ram),
+                (MB_PICO_FLASH + extra.0, 18 * 1024 + 1_784 + extra.1),
+                "{kinds}"
+            );
+        }
         assert_eq!(image("mb-g431").unwrap().budget.flash, MB_G431_FLASH);
         // Every daughterboard image within the goal, with 1 KiB of its RAM for the stack.
         for i in IMAGES.iter().filter(|i| i.daughterboard) {
